@@ -1,0 +1,1 @@
+//! Small neural-network helpers built from primitives.

@@ -1,0 +1,233 @@
+//! Elementwise binary ops with numpy-style broadcasting (shapes aligned on the right,
+//! dimensions equal or 1). The cotangent of a broadcast operand is summed over the
+//! dimensions it was repeated along.
+
+use crate::op::{BackwardCtx, Op};
+use crate::{Float, Tensor, Var};
+
+/// Which arithmetic a [`Binary`] op applies.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BinaryKind {
+    /// `a + b`.
+    Add,
+    /// `a - b`.
+    Sub,
+    /// `a * b`.
+    Mul,
+    /// `a / b`.
+    Div,
+}
+
+/// An elementwise binary op (see [`BinaryKind`]).
+pub struct Binary(pub BinaryKind);
+
+/// Maps flat indices of the broadcast output to flat indices of one operand.
+struct Broadcast {
+    /// Output shape.
+    out: Vec<usize>,
+    /// Operand stride per output dimension (0 where the operand is repeated).
+    strides: Vec<usize>,
+    /// Operand element count.
+    len: usize,
+    same: bool,
+}
+
+impl Broadcast {
+    fn new(out: &[usize], operand: &[usize]) -> Self {
+        let rank = out.len();
+        let mut strides = vec![0; rank];
+        let mut stride = 1;
+        for k in 0..operand.len() {
+            let d = operand[operand.len() - 1 - k];
+            let od = rank - 1 - k;
+            strides[od] = if d == 1 { 0 } else { stride };
+            stride *= d;
+        }
+        Broadcast {
+            out: out.to_vec(),
+            strides,
+            len: operand.iter().product(),
+            same: out == operand,
+        }
+    }
+
+    fn index(&self, mut flat: usize) -> usize {
+        if self.same {
+            return flat;
+        }
+        if self.len == 1 {
+            return 0;
+        }
+        let mut idx = 0;
+        for (d, &n) in self.out.iter().enumerate().rev() {
+            idx += (flat % n) * self.strides[d];
+            flat /= n;
+        }
+        idx
+    }
+}
+
+/// The broadcast shape of `a` and `b`, or a panic naming both.
+fn broadcast_shape(a: &[usize], b: &[usize]) -> Vec<usize> {
+    let rank = a.len().max(b.len());
+    (0..rank)
+        .map(|k| {
+            let da = if k < rank - a.len() {
+                1
+            } else {
+                a[k - (rank - a.len())]
+            };
+            let db = if k < rank - b.len() {
+                1
+            } else {
+                b[k - (rank - b.len())]
+            };
+            assert!(
+                da == db || da == 1 || db == 1,
+                "broadcast: shapes {a:?} and {b:?} are incompatible"
+            );
+            da.max(db)
+        })
+        .collect()
+}
+
+impl<T: Float> Op<T> for Binary {
+    type Saved = ();
+
+    fn name(&self) -> String {
+        format!("{:?}", self.0).to_lowercase()
+    }
+
+    fn forward(&self, x: &[&Tensor<T>]) -> (Vec<Tensor<T>>, ()) {
+        let (a, b) = (x[0], x[1]);
+        let shape = broadcast_shape(a.shape(), b.shape());
+        let (ba, bb) = (
+            Broadcast::new(&shape, a.shape()),
+            Broadcast::new(&shape, b.shape()),
+        );
+        let n: usize = shape.iter().product();
+        let (ad, bd) = (a.data(), b.data());
+        let f = |x: T, y: T| match self.0 {
+            BinaryKind::Add => x + y,
+            BinaryKind::Sub => x - y,
+            BinaryKind::Mul => x * y,
+            BinaryKind::Div => x / y,
+        };
+        let data = if ba.same && bb.same {
+            ad.iter().zip(bd).map(|(&x, &y)| f(x, y)).collect()
+        } else {
+            (0..n)
+                .map(|i| f(ad[ba.index(i)], bd[bb.index(i)]))
+                .collect()
+        };
+        (vec![Tensor::from_vec(data, &shape)], ())
+    }
+
+    fn backward(&self, c: &BackwardCtx<'_, T, ()>) -> Vec<Option<Tensor<T>>> {
+        let (a, b, g) = (c.inputs[0], c.inputs[1], &c.grad_outputs[0]);
+        let shape = g.shape();
+        let (ba, bb) = (
+            Broadcast::new(shape, a.shape()),
+            Broadcast::new(shape, b.shape()),
+        );
+        let (ad, bd) = (a.data(), b.data());
+        let mut da = c.needs_grad[0].then(|| Tensor::zeros(a.shape()));
+        let mut db = c.needs_grad[1].then(|| Tensor::zeros(b.shape()));
+        for (i, &gi) in g.data().iter().enumerate() {
+            let (ia, ib) = (ba.index(i), bb.index(i));
+            let (x, y) = (ad[ia], bd[ib]);
+            let (ga, gb) = match self.0 {
+                BinaryKind::Add => (gi, gi),
+                BinaryKind::Sub => (gi, -gi),
+                BinaryKind::Mul => (gi * y, gi * x),
+                BinaryKind::Div => (gi / y, -gi * x / (y * y)),
+            };
+            if let Some(da) = da.as_mut() {
+                da.data_mut()[ia] += ga;
+            }
+            if let Some(db) = db.as_mut() {
+                db.data_mut()[ib] += gb;
+            }
+        }
+        vec![da, db]
+    }
+}
+
+impl<'t, T: Float> Var<'t, T> {
+    fn binary(self, kind: BinaryKind, rhs: Var<'t, T>) -> Var<'t, T> {
+        self.tape().apply1(Binary(kind), &[self, rhs])
+    }
+    /// `self + rhs` with broadcasting (also available as `+`).
+    pub fn add(self, rhs: Var<'t, T>) -> Var<'t, T> {
+        self.binary(BinaryKind::Add, rhs)
+    }
+    /// `self - rhs` with broadcasting (also `-`).
+    pub fn sub(self, rhs: Var<'t, T>) -> Var<'t, T> {
+        self.binary(BinaryKind::Sub, rhs)
+    }
+    /// `self * rhs` elementwise with broadcasting (also `*`).
+    pub fn mul(self, rhs: Var<'t, T>) -> Var<'t, T> {
+        self.binary(BinaryKind::Mul, rhs)
+    }
+    /// `self / rhs` elementwise with broadcasting (also `/`).
+    pub fn div(self, rhs: Var<'t, T>) -> Var<'t, T> {
+        self.binary(BinaryKind::Div, rhs)
+    }
+}
+
+macro_rules! impl_std_op {
+    ($tr:ident, $method:ident) => {
+        impl<'t, T: Float> std::ops::$tr for Var<'t, T> {
+            type Output = Var<'t, T>;
+            fn $method(self, rhs: Var<'t, T>) -> Var<'t, T> {
+                Var::$method(self, rhs)
+            }
+        }
+    };
+}
+impl_std_op!(Add, add);
+impl_std_op!(Sub, sub);
+impl_std_op!(Mul, mul);
+impl_std_op!(Div, div);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::check::{GradcheckConfig, gradcheck, tests_support::random_tensor};
+
+    #[test]
+    fn every_binary_op_passes_gradcheck_under_broadcasting() {
+        let cfg = GradcheckConfig::default();
+        let shapes: [(&[usize], &[usize]); 5] = [
+            (&[3, 4], &[3, 4]),
+            (&[3, 4], &[4]),
+            (&[3, 4], &[3, 1]),
+            (&[3, 4], &[]),
+            (&[1, 4], &[3, 1]),
+        ];
+        for kind in [
+            BinaryKind::Add,
+            BinaryKind::Sub,
+            BinaryKind::Mul,
+            BinaryKind::Div,
+        ] {
+            for (k, (sa, sb)) in shapes.iter().enumerate() {
+                let a = random_tensor(sa, -1.0, 1.0, k as u64);
+                // Keep divisors away from zero.
+                let b = random_tensor(sb, 0.5, 1.5, 10 + k as u64);
+                let report = gradcheck(|_, v| v[0].binary(kind, v[1]), &[a, b], &cfg);
+                assert!(report.passed(), "{kind:?} {sa:?} {sb:?}: {report}");
+            }
+        }
+    }
+
+    #[test]
+    fn row_broadcast_values() {
+        let t = crate::Tape::<f64>::new();
+        let a = t.constant(Tensor::from_vec(vec![1.0, 2.0, 3.0, 4.0], &[2, 2]));
+        let b = t.constant(Tensor::from_vec(vec![10.0, 20.0], &[2]));
+        assert_eq!((a + b).value().data(), &[11.0, 22.0, 13.0, 24.0]);
+        let col = t.constant(Tensor::from_vec(vec![10.0, 20.0], &[2, 1]));
+        assert_eq!((a * col).value().data(), &[10.0, 20.0, 60.0, 80.0]);
+    }
+}

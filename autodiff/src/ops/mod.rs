@@ -1,0 +1,10 @@
+//! Primitive ops. Each file holds one family, forward and backward side by side, with
+//! its finite-difference tests inline.
+
+pub mod binary;
+pub mod matmul;
+pub mod reduce;
+pub mod shape;
+pub mod unary;
+
+pub use shape::concat;

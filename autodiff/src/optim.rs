@@ -1,0 +1,1 @@
+//! Optimisers working on tensors outside the tape.

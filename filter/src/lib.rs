@@ -1,0 +1,1 @@
+//! maaf-filter (see DESIGN.md).

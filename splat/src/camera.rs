@@ -1,0 +1,296 @@
+//! Pinhole camera in OpenCV axes and its JSON file format.
+
+use std::path::Path;
+
+use glam::{DMat3, DMat4, DVec3, DVec4};
+use serde::{Deserialize, Serialize};
+
+/// Errors raised while reading or validating a camera; each names the file and field.
+#[derive(Debug, thiserror::Error)]
+pub enum CameraError {
+    /// The file could not be read.
+    #[error("{path}: cannot read camera file: {source}")]
+    Io {
+        /// File that failed.
+        path: String,
+        /// Underlying error.
+        source: std::io::Error,
+    },
+    /// The JSON is malformed or a field is missing or of the wrong type.
+    #[error("{path}: invalid camera JSON: {message}")]
+    Json {
+        /// File that failed.
+        path: String,
+        /// serde_json's description, which names the field.
+        message: String,
+    },
+    /// A field has a value the camera cannot use.
+    #[error("{path}: field `{field}`: {message}")]
+    Invalid {
+        /// File (or `<memory>`) that failed.
+        path: String,
+        /// Offending field.
+        field: &'static str,
+        /// What is wrong with it.
+        message: String,
+    },
+}
+
+/// A pinhole camera: OpenCV axes (x right, y down, z forward), world-to-camera
+/// rigid transform, intrinsics in pixels, pixel centres at `(x + 0.5, y + 0.5)`.
+///
+/// A world point `p` maps to camera space `c = R p + t` and to the pixel
+/// `(fx c.x / c.z + cx, fy c.y / c.z + cy)`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Camera {
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// Focal length along x, pixels.
+    pub fx: f64,
+    /// Focal length along y, pixels.
+    pub fy: f64,
+    /// Principal point x, pixels (image centre is `width / 2`).
+    pub cx: f64,
+    /// Principal point y, pixels.
+    pub cy: f64,
+    /// Row-major 4x4 world-to-camera matrix (rotation + translation, last row 0 0 0 1).
+    pub world_to_camera: [[f64; 4]; 4],
+}
+
+impl Camera {
+    /// Builds a camera from a world-to-camera matrix and intrinsics, validating it.
+    pub fn new(
+        width: u32,
+        height: u32,
+        fx: f64,
+        fy: f64,
+        cx: f64,
+        cy: f64,
+        world_to_camera: [[f64; 4]; 4],
+    ) -> Result<Self, CameraError> {
+        let cam = Camera {
+            width,
+            height,
+            fx,
+            fy,
+            cx,
+            cy,
+            world_to_camera,
+        };
+        cam.validate("<memory>")?;
+        Ok(cam)
+    }
+
+    /// Builds a camera from a camera-to-world pose (OpenCV axes) and intrinsics.
+    pub fn from_camera_to_world(
+        width: u32,
+        height: u32,
+        fx: f64,
+        fy: f64,
+        cx: f64,
+        cy: f64,
+        camera_to_world: DMat4,
+    ) -> Result<Self, CameraError> {
+        if camera_to_world.determinant().abs() < 1e-12 || !camera_to_world.is_finite() {
+            return Err(CameraError::Invalid {
+                path: "<memory>".into(),
+                field: "camera_to_world",
+                message: "matrix is singular or not finite".into(),
+            });
+        }
+        let w2c = camera_to_world.inverse();
+        Self::new(width, height, fx, fy, cx, cy, mat4_to_rows(w2c))
+    }
+
+    /// Reads the JSON camera format
+    /// `{"width","height","fx","fy","cx","cy","world_to_camera":[[4]x4]}`.
+    pub fn from_json_file(path: &Path) -> Result<Self, CameraError> {
+        let shown = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|source| CameraError::Io {
+            path: shown.clone(),
+            source,
+        })?;
+        Self::from_json_str(&text, &shown)
+    }
+
+    /// Parses the JSON camera format; `origin` names the source in errors.
+    pub fn from_json_str(text: &str, origin: &str) -> Result<Self, CameraError> {
+        let cam: Camera = serde_json::from_str(text).map_err(|e| CameraError::Json {
+            path: origin.into(),
+            message: e.to_string(),
+        })?;
+        cam.validate(origin)?;
+        Ok(cam)
+    }
+
+    /// Serialises to the JSON camera format.
+    pub fn to_json_string(&self) -> String {
+        // Serialising plain numbers and arrays cannot fail.
+        serde_json::to_string_pretty(self).unwrap_or_default()
+    }
+
+    fn validate(&self, origin: &str) -> Result<(), CameraError> {
+        let bad = |field: &'static str, message: String| CameraError::Invalid {
+            path: origin.into(),
+            field,
+            message,
+        };
+        if self.width == 0 || self.height == 0 {
+            return Err(bad(
+                "width/height",
+                format!("{}x{} is empty", self.width, self.height),
+            ));
+        }
+        for (field, v) in [("fx", self.fx), ("fy", self.fy)] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(bad(field, format!("{v} must be finite and positive")));
+            }
+        }
+        for (field, v) in [("cx", self.cx), ("cy", self.cy)] {
+            if !v.is_finite() {
+                return Err(bad(field, format!("{v} is not finite")));
+            }
+        }
+        let m = self.world_to_camera_mat();
+        if !m.is_finite() {
+            return Err(bad("world_to_camera", "contains a non-finite value".into()));
+        }
+        if m.determinant().abs() < 1e-12 {
+            return Err(bad("world_to_camera", "matrix is singular".into()));
+        }
+        Ok(())
+    }
+
+    /// The world-to-camera matrix as a glam matrix.
+    pub fn world_to_camera_mat(&self) -> DMat4 {
+        let r = &self.world_to_camera;
+        DMat4::from_cols(
+            DVec4::new(r[0][0], r[1][0], r[2][0], r[3][0]),
+            DVec4::new(r[0][1], r[1][1], r[2][1], r[3][1]),
+            DVec4::new(r[0][2], r[1][2], r[2][2], r[3][2]),
+            DVec4::new(r[0][3], r[1][3], r[2][3], r[3][3]),
+        )
+    }
+
+    /// Rotation part `R` of the world-to-camera transform.
+    pub fn rotation(&self) -> DMat3 {
+        DMat3::from_mat4(self.world_to_camera_mat())
+    }
+
+    /// Translation part `t` of the world-to-camera transform.
+    pub fn translation(&self) -> DVec3 {
+        let r = &self.world_to_camera;
+        DVec3::new(r[0][3], r[1][3], r[2][3])
+    }
+
+    /// Camera centre in world coordinates, `-R^T t`.
+    pub fn center(&self) -> DVec3 {
+        self.world_to_camera_mat()
+            .inverse()
+            .transform_point3(DVec3::ZERO)
+    }
+
+    /// World point to camera space, `R p + t`.
+    pub fn to_camera(&self, p: DVec3) -> DVec3 {
+        self.world_to_camera_mat().transform_point3(p)
+    }
+
+    /// Projects a world point to pixel coordinates and camera depth z, or `None` when
+    /// the point is not in front of the camera (z <= 0).
+    pub fn project(&self, p: DVec3) -> Option<(f64, f64, f64)> {
+        let c = self.to_camera(p);
+        (c.z > 0.0).then(|| {
+            (
+                self.fx * c.x / c.z + self.cx,
+                self.fy * c.y / c.z + self.cy,
+                c.z,
+            )
+        })
+    }
+
+    /// `tan(fov_x / 2)` measured from the principal point to the image border,
+    /// `width / (2 fx)` (3DGS convention).
+    pub fn tan_half_fov_x(&self) -> f64 {
+        self.width as f64 / (2.0 * self.fx)
+    }
+
+    /// `tan(fov_y / 2)`, `height / (2 fy)`.
+    pub fn tan_half_fov_y(&self) -> f64 {
+        self.height as f64 / (2.0 * self.fy)
+    }
+
+    /// The same camera rendering at scale `s`: width, height, fx, fy, cx, cy are all
+    /// multiplied by `s` (width and height rounded to the nearest pixel).
+    pub fn scaled(&self, s: f64) -> Camera {
+        Camera {
+            width: ((self.width as f64 * s).round() as u32).max(1),
+            height: ((self.height as f64 * s).round() as u32).max(1),
+            fx: self.fx * s,
+            fy: self.fy * s,
+            cx: self.cx * s,
+            cy: self.cy * s,
+            world_to_camera: self.world_to_camera,
+        }
+    }
+}
+
+fn mat4_to_rows(m: DMat4) -> [[f64; 4]; 4] {
+    let mut rows = [[0.0; 4]; 4];
+    for (i, row) in rows.iter_mut().enumerate() {
+        for (j, v) in row.iter_mut().enumerate() {
+            *v = m.col(j)[i];
+        }
+    }
+    rows
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn identity_cam() -> Camera {
+        let mut w2c = [[0.0; 4]; 4];
+        for (i, row) in w2c.iter_mut().enumerate() {
+            row[i] = 1.0;
+        }
+        w2c[2][3] = 4.0;
+        Camera::new(100, 80, 50.0, 50.0, 50.0, 40.0, w2c).expect("valid camera")
+    }
+
+    #[test]
+    fn principal_axis_projects_to_principal_point() {
+        let cam = identity_cam();
+        let (u, v, z) = cam.project(DVec3::ZERO).expect("in front");
+        assert_eq!((u, v, z), (50.0, 40.0, 4.0));
+        assert!((cam.center() - DVec3::new(0.0, 0.0, -4.0)).length() < 1e-12);
+    }
+
+    #[test]
+    fn scaled_multiplies_intrinsics() {
+        let cam = identity_cam().scaled(0.5);
+        assert_eq!((cam.width, cam.height), (50, 40));
+        assert_eq!((cam.fx, cam.cx, cam.cy), (25.0, 25.0, 20.0));
+    }
+
+    #[test]
+    fn json_round_trip_and_errors_name_the_field() {
+        let cam = identity_cam();
+        let back = Camera::from_json_str(&cam.to_json_string(), "cam.json").expect("parses");
+        assert_eq!(cam, back);
+        let missing = r#"{"width":4,"height":4,"fx":1,"fy":1,"cx":2,"world_to_camera":[[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]}"#;
+        let err = Camera::from_json_str(missing, "cam.json")
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("cam.json") && err.contains("cy"), "{err}");
+        let singular = r#"{"width":4,"height":4,"fx":1,"fy":1,"cx":2,"cy":2,"world_to_camera":[[0,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]}"#;
+        let err = Camera::from_json_str(singular, "cam.json")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("world_to_camera") && err.contains("singular"),
+            "{err}"
+        );
+    }
+}

@@ -1,0 +1,11 @@
+//! maaf: alias-free 4D Gaussian splatting of dynamic scenes on the CPU.
+//!
+//! This facade re-exports the member crates (DESIGN.md section 1):
+//! [`autodiff`] (reverse-mode tape and gradient checks), [`splat`] (differentiable
+//! Gaussian rasterization), [`filter`] (Mip-Splatting and motion-aware smoothing
+//! filters) and [`train`] (data, 4D representations, training and evaluation).
+
+pub use maaf_autodiff as autodiff;
+pub use maaf_filter as filter;
+pub use maaf_splat as splat;
+pub use maaf_train as train;

@@ -1,0 +1,1 @@
+//! maaf-train (see DESIGN.md).
