@@ -23,10 +23,12 @@ pub mod nn;
 pub mod op;
 pub mod ops;
 pub mod optim;
+mod per_gaussian;
 mod tape;
 mod tensor;
 
 pub use float::Float;
 pub use op::{BackwardCtx, Op};
+pub use per_gaussian::PerGaussian;
 pub use tape::{Grads, Tape, TapeError, Var};
 pub use tensor::Tensor;
