@@ -1,1 +1,5 @@
 //! maaf-train (see DESIGN.md).
+
+pub mod loss;
+pub mod data;
+pub mod models;
