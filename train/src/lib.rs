@@ -1,3 +1,4 @@
 //! maaf-train (see DESIGN.md).
 
 pub mod loss;
+pub mod models;
