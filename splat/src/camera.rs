@@ -247,6 +247,7 @@ fn mat4_to_rows(m: DMat4) -> [[f64; 4]; 4] {
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
 

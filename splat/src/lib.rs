@@ -2,8 +2,33 @@
 //!
 //! Conventions (DESIGN.md section 3): cameras use OpenCV axes (x right, y down,
 //! z forward), a world-to-camera 4x4 matrix and pinhole intrinsics in pixels with
-//! pixel centres at `(x + 0.5, y + 0.5)`.
+//! pixel centres at `(x + 0.5, y + 0.5)`. Gaussians are `means [N,3]`, activated
+//! `scales [N,3]`, `quats [N,4]` (w,x,y,z, normalised inside), activated
+//! `opacity [N]` and `sh [N,K,3]`.
+//!
+//! The pipeline ([`render`]) is four ops, each with a hand-written backward next to
+//! its forward and generic over f32/f64: [`project::QuatScaleToCov`],
+//! [`project::ProjectEwa`] (frustum clamp, 2D filter), [`sh::ShColor`] and
+//! [`rasterize::Rasterize`] (16x16 tiles, per-tile depth sort, deterministic parallel
+//! backward). [`apply_3d_filter`] folds the Mip-Splatting 3D filter into scales and
+//! opacity. [`reference`] holds slow independent versions used as test oracles.
+
+// Index loops are the clearest way to write the small matrix algebra here.
+#![allow(clippy::needless_range_loop)]
 
 pub mod camera;
+pub mod filter3d;
+pub mod gaussians;
+mod math;
+pub mod project;
+pub mod rasterize;
+pub mod reference;
+pub mod render;
+pub mod sh;
 
 pub use camera::{Camera, CameraError};
+pub use filter3d::apply_3d_filter;
+pub use gaussians::{Gaussians, render_gaussians};
+pub use project::Filter2d;
+pub use rasterize::AlphaCutoff;
+pub use render::{Frame, GaussianVars, RenderOutput, RenderSettings, render, render_tensors};

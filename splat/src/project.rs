@@ -1,0 +1,548 @@
+//! Covariance from quaternion and scale, and the EWA projection to screen space with
+//! the frustum clamp and the 2D filter (DESIGN.md section 3).
+
+use maaf_autodiff::{BackwardCtx, Float, Op, Tensor, Var};
+
+use crate::Camera;
+use crate::math::{M3, mul3, mul3tv, mul3v, rotmat, rotmat_vjp, sym_from6, transpose3};
+
+/// Covariance `Sigma = R S S^T R^T` from an unnormalised quaternion `q = (w,x,y,z)`
+/// (normalised inside, `R` as in gsplat `_quat_to_rotmat`) and activated scales
+/// `S = diag(s)`. Inputs `quats [N,4]`, `scales [N,3]`; output the upper triangle
+/// `[N,6] = (xx, xy, xz, yy, yz, zz)`.
+///
+/// Backward: with `G` the symmetric cotangent of `Sigma` (off-diagonal packed entries
+/// count for both halves), `dM = 2 G M` for `M = R S`, `dR_ij = dM_ij s_j`,
+/// `ds_j = sum_i dM_ij R_ij`, then through `R(q)` and the normalisation
+/// `dq = (dq_hat - q_hat (q_hat . dq_hat)) / |q|`.
+pub struct QuatScaleToCov;
+
+fn normalise<T: Float>(q: &[T]) -> ([T; 4], T) {
+    let n = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
+    ([q[0] / n, q[1] / n, q[2] / n, q[3] / n], n)
+}
+
+impl<T: Float> Op<T> for QuatScaleToCov {
+    type Saved = ();
+
+    fn name(&self) -> String {
+        "quat_scale_to_cov".into()
+    }
+
+    fn forward(&self, inputs: &[&Tensor<T>]) -> (Vec<Tensor<T>>, ()) {
+        let (q, s) = (inputs[0], inputs[1]);
+        let n = q.rows();
+        assert_eq!(q.shape(), &[n, 4], "quat_scale_to_cov: quats must be [N,4]");
+        assert_eq!(
+            s.shape(),
+            &[n, 3],
+            "quat_scale_to_cov: scales must be [N,3]"
+        );
+        let mut out = vec![T::zero(); 6 * n];
+        for i in 0..n {
+            let (qh, _) = normalise(&q.data()[4 * i..4 * i + 4]);
+            let r = rotmat(qh);
+            let sc = &s.data()[3 * i..3 * i + 3];
+            // Sigma_ab = sum_k R_ak s_k^2 R_bk
+            let o = &mut out[6 * i..6 * i + 6];
+            let mut k = 0;
+            for a in 0..3 {
+                for b in a..3 {
+                    o[k] = (0..3).map(|j| r[a][j] * sc[j] * sc[j] * r[b][j]).sum();
+                    k += 1;
+                }
+            }
+        }
+        (vec![Tensor::from_vec(out, &[n, 6])], ())
+    }
+
+    fn backward(&self, ctx: &BackwardCtx<'_, T, ()>) -> Vec<Option<Tensor<T>>> {
+        let (q, s) = (ctx.inputs[0], ctx.inputs[1]);
+        let g6 = &ctx.grad_outputs[0];
+        let n = q.rows();
+        let half = T::of(0.5);
+        let two = T::of(2.0);
+        let mut dq = vec![T::zero(); 4 * n];
+        let mut ds = vec![T::zero(); 3 * n];
+        for i in 0..n {
+            let (qh, qn) = normalise(&q.data()[4 * i..4 * i + 4]);
+            let r = rotmat(qh);
+            let sc = &s.data()[3 * i..3 * i + 3];
+            let g = &g6.data()[6 * i..6 * i + 6];
+            // Symmetric cotangent: packed off-diagonals are split over both halves.
+            let gs: M3<T> = [
+                [g[0], half * g[1], half * g[2]],
+                [half * g[1], g[3], half * g[4]],
+                [half * g[2], half * g[4], g[5]],
+            ];
+            let mut m = [[T::zero(); 3]; 3];
+            for a in 0..3 {
+                for j in 0..3 {
+                    m[a][j] = r[a][j] * sc[j];
+                }
+            }
+            let gm = mul3(&gs, &m);
+            let mut gr = [[T::zero(); 3]; 3];
+            for a in 0..3 {
+                for j in 0..3 {
+                    let dm = two * gm[a][j];
+                    gr[a][j] = dm * sc[j];
+                    ds[3 * i + j] += dm * r[a][j];
+                }
+            }
+            let dqh = rotmat_vjp(qh, &gr);
+            let dot = (0..4).map(|k| qh[k] * dqh[k]).sum::<T>();
+            for k in 0..4 {
+                dq[4 * i + k] = (dqh[k] - qh[k] * dot) / qn;
+            }
+        }
+        vec![
+            Some(Tensor::from_vec(dq, &[n, 4])),
+            Some(Tensor::from_vec(ds, &[n, 3])),
+        ]
+    }
+}
+
+/// Covariance on the tape, see [`QuatScaleToCov`]: `quats [N,4]`, `scales [N,3]` ->
+/// `[N,6]` upper triangle.
+pub fn quat_scale_to_cov<'t, T: Float>(quats: Var<'t, T>, scales: Var<'t, T>) -> Var<'t, T> {
+    quats.tape().apply1(QuatScaleToCov, &[quats, scales])
+}
+
+/// The screen-space low-pass ("2D filter") added to every projected covariance.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Filter2d {
+    /// 3DGS dilation: `cov2d + 0.3 I` (px^2), opacity unchanged (Inria
+    /// `computeCov2D`; gsplat `rasterize_mode="classic"`).
+    Classic,
+    /// Mip-Splatting 2D Mip filter: `cov2d + 0.1 I` and opacity times
+    /// `sqrt(det cov2d / det(cov2d + 0.1 I))` (Mip-Splatting `computeCov2D`,
+    /// `kernel_size = 0.1`; gsplat "antialiased" with `eps2d = 0.1`).
+    #[default]
+    Mip,
+}
+
+impl Filter2d {
+    /// Variance added to the 2D covariance diagonal, in px^2 (0.3 classic, 0.1 Mip).
+    pub fn variance(self) -> f64 {
+        match self {
+            Filter2d::Classic => 0.3,
+            Filter2d::Mip => 0.1,
+        }
+    }
+
+    /// Whether opacity is multiplied by `sqrt(det / det_dilated)`.
+    pub fn compensates(self) -> bool {
+        matches!(self, Filter2d::Mip)
+    }
+}
+
+/// Default near plane: Gaussians with camera depth `z <= 0.2` are culled (Inria
+/// `in_frustum`, also the depth test of Mip-Splatting's 3D filter).
+pub const NEAR_PLANE: f64 = 0.2;
+
+/// Frustum-clamp margin: the Jacobian is evaluated at `x/z` clamped to
+/// `[-(cx/fx + 0.3 tan_x), (W-cx)/fx + 0.3 tan_x]` with `tan_x = W/(2 fx)` (gsplat
+/// `_persp_proj`), which is `+-1.3 tan(fov_x/2)` for a centred principal point
+/// (Inria `computeCov2D`).
+pub const FRUSTUM_MARGIN: f64 = 0.3;
+
+/// 3-sigma extent factor of the screen-space radius (Inria `preprocessCUDA`).
+pub const RADIUS_SIGMAS: f64 = 3.0;
+
+/// EWA projection of 3D Gaussians (Zwicker et al. 2002, as in 3DGS / gsplat):
+///
+/// ```text
+/// t      = R mu + t_cam                                   (camera space, OpenCV)
+/// means2d = (fx t.x/t.z + cx, fy t.y/t.z + cy)            (unclamped t)
+/// J      = [[fx/z, 0, -fx x'/z^2], [0, fy/z, -fy y'/z^2]]  x' = z clamp(x/z), y' likewise
+/// cov2d  = J R Sigma R^T J^T + k I                        k = Filter2d::variance()
+/// conic  = cov2d^{-1} packed as (A, B, C) = ([0][0], [0][1], [1][1])
+/// opac'  = o * sqrt(max(det(cov2d - k I), 0) / det cov2d)  (Mip), o (classic)
+/// depth  = t.z
+/// radius = ceil(3 sqrt(lambda_max)),  lambda_max = m + sqrt(max(0.1, m^2 - det)), m = tr/2
+/// ```
+///
+/// Inputs: `means [N,3]`, `cov3d [N,6]`, `opacity [N]`. Outputs: `means2d [N,2]`,
+/// `conics [N,3]`, `opacity [N]`, `depths [N]`, `radii [N]` (integers stored as `T`,
+/// not differentiable; 0 = culled). A Gaussian is culled (all outputs 0) when
+/// `t.z <= near` or when no pixel centre lies within `radius` of its mean on both axes.
+/// Non-finite inputs are not culled: they propagate to the outputs so validate mode
+/// names this op.
+pub struct ProjectEwa<T: Float> {
+    rot: M3<T>,
+    trans: [T; 3],
+    fx: T,
+    fy: T,
+    cx: T,
+    cy: T,
+    lim_x: (T, T),
+    lim_y: (T, T),
+    width: u32,
+    height: u32,
+    near: T,
+    kernel: T,
+    compensate: bool,
+}
+
+impl<T: Float> ProjectEwa<T> {
+    /// The projection for `camera` with a 2D filter and a near plane.
+    pub fn new(camera: &Camera, filter: Filter2d, near: f64) -> Self {
+        let r = camera.rotation();
+        let t = camera.translation();
+        let rot = [
+            [T::of(r.x_axis.x), T::of(r.y_axis.x), T::of(r.z_axis.x)],
+            [T::of(r.x_axis.y), T::of(r.y_axis.y), T::of(r.z_axis.y)],
+            [T::of(r.x_axis.z), T::of(r.y_axis.z), T::of(r.z_axis.z)],
+        ];
+        let (w, h) = (camera.width as f64, camera.height as f64);
+        let tx = camera.tan_half_fov_x();
+        let ty = camera.tan_half_fov_y();
+        ProjectEwa {
+            rot,
+            trans: [T::of(t.x), T::of(t.y), T::of(t.z)],
+            fx: T::of(camera.fx),
+            fy: T::of(camera.fy),
+            cx: T::of(camera.cx),
+            cy: T::of(camera.cy),
+            lim_x: (
+                T::of(camera.cx / camera.fx + FRUSTUM_MARGIN * tx),
+                T::of((w - camera.cx) / camera.fx + FRUSTUM_MARGIN * tx),
+            ),
+            lim_y: (
+                T::of(camera.cy / camera.fy + FRUSTUM_MARGIN * ty),
+                T::of((h - camera.cy) / camera.fy + FRUSTUM_MARGIN * ty),
+            ),
+            width: camera.width,
+            height: camera.height,
+            near: T::of(near),
+            kernel: T::of(filter.variance()),
+            compensate: filter.compensates(),
+        }
+    }
+}
+
+/// Per-Gaussian values the forward keeps for the backward.
+#[derive(Clone, Copy)]
+pub struct ProjSaved<T> {
+    visible: bool,
+    t: [T; 3],
+    /// Clamped x/z and y/z and whether each was clamped.
+    u: (T, bool),
+    v: (T, bool),
+    /// Undilated 2D covariance (a, b, c).
+    cov: [T; 3],
+    comp: T,
+}
+
+/// Pixel-centre range `[lo, hi]` (inclusive indices) of centres within `r` of `m`,
+/// clamped to `[0, size)`; `None` when empty. Pixel `i` has its centre at `i + 0.5`.
+pub(crate) fn pixel_range(m: f64, r: f64, size: u32) -> Option<(u32, u32)> {
+    let lo = (m - r - 0.5).ceil().max(0.0);
+    let hi = (m + r - 0.5).floor().min(size as f64 - 1.0);
+    (lo <= hi).then_some((lo as u32, hi as u32))
+}
+
+impl<T: Float> ProjectEwa<T> {
+    fn jacobian(&self, t: [T; 3], xc: T, yc: T) -> [[T; 3]; 2] {
+        let z = t[2];
+        let z2 = z * z;
+        [
+            [self.fx / z, T::zero(), -self.fx * xc / z2],
+            [T::zero(), self.fy / z, -self.fy * yc / z2],
+        ]
+    }
+}
+
+fn clamp_flag<T: Float>(x: T, lo: T, hi: T) -> (T, bool) {
+    if x < -lo {
+        (-lo, true)
+    } else if x > hi {
+        (hi, true)
+    } else {
+        (x, false)
+    }
+}
+
+impl<T: Float> Op<T> for ProjectEwa<T> {
+    type Saved = Vec<ProjSaved<T>>;
+
+    fn name(&self) -> String {
+        "project_ewa".into()
+    }
+
+    fn forward(&self, inputs: &[&Tensor<T>]) -> (Vec<Tensor<T>>, Self::Saved) {
+        let (means, cov3d, opac) = (inputs[0], inputs[1], inputs[2]);
+        let n = means.rows();
+        assert_eq!(means.shape(), &[n, 3], "project_ewa: means must be [N,3]");
+        assert_eq!(cov3d.shape(), &[n, 6], "project_ewa: cov3d must be [N,6]");
+        assert_eq!(opac.shape(), &[n], "project_ewa: opacity must be [N]");
+        let zero = T::zero();
+        let mut m2 = vec![zero; 2 * n];
+        let mut con = vec![zero; 3 * n];
+        let mut op = vec![zero; n];
+        let mut dep = vec![zero; n];
+        let mut rad = vec![zero; n];
+        let mut saved = vec![
+            ProjSaved {
+                visible: false,
+                t: [zero; 3],
+                u: (zero, false),
+                v: (zero, false),
+                cov: [zero; 3],
+                comp: zero,
+            };
+            n
+        ];
+        let rt = transpose3(&self.rot);
+        for i in 0..n {
+            let mu = [
+                means.data()[3 * i],
+                means.data()[3 * i + 1],
+                means.data()[3 * i + 2],
+            ];
+            let tm = mul3v(&self.rot, mu);
+            let t = [
+                tm[0] + self.trans[0],
+                tm[1] + self.trans[1],
+                tm[2] + self.trans[2],
+            ];
+            if t[2] <= self.near {
+                continue; // culled: outputs stay 0 (NaN compares false and is kept)
+            }
+            let z = t[2];
+            let mx = self.fx * t[0] / z + self.cx;
+            let my = self.fy * t[1] / z + self.cy;
+            let u = clamp_flag(t[0] / z, self.lim_x.0, self.lim_x.1);
+            let v = clamp_flag(t[1] / z, self.lim_y.0, self.lim_y.1);
+            let j = self.jacobian(t, u.0 * z, v.0 * z);
+            let sig = sym_from6(&cov3d.data()[6 * i..6 * i + 6]);
+            let sc = mul3(&mul3(&self.rot, &sig), &rt);
+            // cov2d = J Sc J^T with J's zero entries skipped.
+            let js = |r: usize| mul3tv(&sc, j[r]);
+            let (j0s, j1s) = (js(0), js(1));
+            let dot = |a: [T; 3], b: [T; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+            let a = dot(j0s, j[0]);
+            let b = dot(j0s, j[1]);
+            let c = dot(j1s, j[1]);
+            let det0 = a * c - b * b;
+            let (ad, cd) = (a + self.kernel, c + self.kernel);
+            let det = ad * cd - b * b;
+            let nonfinite = !(det.is_finite() && mx.is_finite() && my.is_finite());
+            if !nonfinite && det <= zero {
+                continue;
+            }
+            let comp = if !self.compensate {
+                T::one()
+            } else if det0 > zero {
+                (det0 / det).sqrt()
+            } else if nonfinite {
+                det0
+            } else {
+                zero
+            };
+            let mid = T::of(0.5) * (ad + cd);
+            let lam = mid + (mid * mid - det).max(T::of(0.1)).sqrt();
+            let r = (T::of(RADIUS_SIGMAS) * lam.sqrt()).ceil();
+            if !nonfinite {
+                let (rf, mxf, myf) = (r.to_f64(), mx.to_f64(), my.to_f64());
+                if pixel_range(mxf, rf, self.width).is_none()
+                    || pixel_range(myf, rf, self.height).is_none()
+                {
+                    continue;
+                }
+            }
+            m2[2 * i] = mx;
+            m2[2 * i + 1] = my;
+            con[3 * i] = cd / det;
+            con[3 * i + 1] = -b / det;
+            con[3 * i + 2] = ad / det;
+            op[i] = opac.data()[i] * comp;
+            dep[i] = z;
+            rad[i] = if nonfinite { zero } else { r };
+            saved[i] = ProjSaved {
+                visible: !nonfinite,
+                t,
+                u,
+                v,
+                cov: [a, b, c],
+                comp,
+            };
+        }
+        (
+            vec![
+                Tensor::from_vec(m2, &[n, 2]),
+                Tensor::from_vec(con, &[n, 3]),
+                Tensor::from_vec(op, &[n]),
+                Tensor::from_vec(dep, &[n]),
+                Tensor::from_vec(rad, &[n]),
+            ],
+            saved,
+        )
+    }
+
+    fn backward(&self, ctx: &BackwardCtx<'_, T, Self::Saved>) -> Vec<Option<Tensor<T>>> {
+        let (cov3d, opac) = (ctx.inputs[1], ctx.inputs[2]);
+        let n = opac.len();
+        let conics = ctx.outputs[1];
+        let (g_m2, g_con, g_op, g_dep) = (
+            &ctx.grad_outputs[0],
+            &ctx.grad_outputs[1],
+            &ctx.grad_outputs[2],
+            &ctx.grad_outputs[3],
+        );
+        let zero = T::zero();
+        let half = T::of(0.5);
+        let two = T::of(2.0);
+        let mut d_mean = vec![zero; 3 * n];
+        let mut d_cov = vec![zero; 6 * n];
+        let mut d_op = vec![zero; n];
+        for (i, sv) in ctx.saved.iter().enumerate() {
+            if !sv.visible {
+                continue;
+            }
+            let [tx, ty, tz] = sv.t;
+            let [a, b, c] = sv.cov;
+            // opacity' = o * comp
+            let gop = g_op.data()[i];
+            d_op[i] = gop * sv.comp;
+            let g_comp = gop * opac.data()[i];
+            // conic = inverse of the dilated covariance (a+k, b; b, c+k)
+            let (ca, cb, cc) = (
+                conics.data()[3 * i],
+                conics.data()[3 * i + 1],
+                conics.data()[3 * i + 2],
+            );
+            let (ga, gb, gc) = (
+                g_con.data()[3 * i],
+                g_con.data()[3 * i + 1],
+                g_con.data()[3 * i + 2],
+            );
+            let mut da = -(ga * ca * ca + gb * ca * cb + gc * cb * cb);
+            let mut dc = -(ga * cb * cb + gb * cb * cc + gc * cc * cc);
+            let mut db = -(two * ga * ca * cb + gb * (ca * cc + cb * cb) + two * gc * cb * cc);
+            // comp = sqrt(det0 / det1): d comp = comp/2 (d det0/det0 - d det1/det1)
+            if self.compensate && sv.comp > zero {
+                let det0 = a * c - b * b;
+                let (ad, cd) = (a + self.kernel, c + self.kernel);
+                let det1 = ad * cd - b * b;
+                let h = g_comp * half * sv.comp;
+                da += h * (c / det0 - cd / det1);
+                dc += h * (a / det0 - ad / det1);
+                db += h * (-two * b / det0 + two * b / det1);
+            }
+            // cov2d = J Sc J^T
+            let j = self.jacobian(sv.t, sv.u.0 * tz, sv.v.0 * tz);
+            let sig = sym_from6(&cov3d.data()[6 * i..6 * i + 6]);
+            let rt = transpose3(&self.rot);
+            let sc = mul3(&mul3(&self.rot, &sig), &rt);
+            let g2 = [[da, half * db], [half * db, dc]];
+            // dL/dSc = J^T G2 J
+            let mut g_sc = [[zero; 3]; 3];
+            for p in 0..3 {
+                for q in 0..3 {
+                    let mut acc = zero;
+                    for r in 0..2 {
+                        for s in 0..2 {
+                            acc += j[r][p] * g2[r][s] * j[s][q];
+                        }
+                    }
+                    g_sc[p][q] = acc;
+                }
+            }
+            // dL/dJ = 2 G2 J Sc
+            let mut g_j = [[zero; 3]; 2];
+            for r in 0..2 {
+                let row = [
+                    g2[r][0] * j[0][0] + g2[r][1] * j[1][0],
+                    g2[r][0] * j[0][1] + g2[r][1] * j[1][1],
+                    g2[r][0] * j[0][2] + g2[r][1] * j[1][2],
+                ];
+                let rs = mul3tv(&sc, row);
+                for q in 0..3 {
+                    g_j[r][q] = two * rs[q];
+                }
+            }
+            // dL/dSigma = R^T G_sc R, packed (off-diagonals doubled).
+            let gs = mul3(&mul3(&rt, &g_sc), &self.rot);
+            let dcv = &mut d_cov[6 * i..6 * i + 6];
+            dcv[0] = gs[0][0];
+            dcv[1] = gs[0][1] + gs[1][0];
+            dcv[2] = gs[0][2] + gs[2][0];
+            dcv[3] = gs[1][1];
+            dcv[4] = gs[1][2] + gs[2][1];
+            dcv[5] = gs[2][2];
+            // J(t): J00 = fx/z, J02 = -fx x'/z^2, J11 = fy/z, J12 = -fy y'/z^2
+            let (xc, yc) = (sv.u.0 * tz, sv.v.0 * tz);
+            let z2 = tz * tz;
+            let z3 = z2 * tz;
+            let mut gt = [zero; 3];
+            gt[2] += -g_j[0][0] * self.fx / z2 - g_j[1][1] * self.fy / z2
+                + g_j[0][2] * two * self.fx * xc / z3
+                + g_j[1][2] * two * self.fy * yc / z3;
+            let g_xc = -g_j[0][2] * self.fx / z2;
+            let g_yc = -g_j[1][2] * self.fy / z2;
+            // x' = x when unclamped, z * lim when clamped (gradient goes to z).
+            if sv.u.1 {
+                gt[2] += g_xc * sv.u.0;
+            } else {
+                gt[0] += g_xc;
+            }
+            if sv.v.1 {
+                gt[2] += g_yc * sv.v.0;
+            } else {
+                gt[1] += g_yc;
+            }
+            // means2d = (fx x/z + cx, fy y/z + cy)
+            let (gmx, gmy) = (g_m2.data()[2 * i], g_m2.data()[2 * i + 1]);
+            gt[0] += gmx * self.fx / tz;
+            gt[1] += gmy * self.fy / tz;
+            gt[2] += -gmx * self.fx * tx / z2 - gmy * self.fy * ty / z2;
+            gt[2] += g_dep.data()[i];
+            let gm = mul3tv(&self.rot, gt);
+            d_mean[3 * i..3 * i + 3].copy_from_slice(&gm);
+        }
+        vec![
+            Some(Tensor::from_vec(d_mean, &[n, 3])),
+            Some(Tensor::from_vec(d_cov, &[n, 6])),
+            Some(Tensor::from_vec(d_op, &[n])),
+        ]
+    }
+}
+
+/// The outputs of [`project_ewa`] on the tape.
+pub struct Projected<'t, T: Float> {
+    /// Screen-space means `[N,2]` in pixels (differentiable; its gradient is the
+    /// densification statistic).
+    pub means2d: Var<'t, T>,
+    /// Inverse dilated 2D covariances `(A, B, C)`, `[N,3]`.
+    pub conics: Var<'t, T>,
+    /// Opacity after the 2D filter compensation, `[N]`.
+    pub opacity: Var<'t, T>,
+    /// Camera-space depth `z`, `[N]`.
+    pub depths: Var<'t, T>,
+    /// Screen-space radius in pixels (0 = culled), `[N]`, not differentiable.
+    pub radii: Var<'t, T>,
+}
+
+/// Projects Gaussians on the tape, see [`ProjectEwa`].
+pub fn project_ewa<'t, T: Float>(
+    means: Var<'t, T>,
+    cov3d: Var<'t, T>,
+    opacity: Var<'t, T>,
+    camera: &Camera,
+    filter: Filter2d,
+    near: f64,
+) -> Projected<'t, T> {
+    let out = means.tape().apply(
+        ProjectEwa::new(camera, filter, near),
+        &[means, cov3d, opacity],
+    );
+    Projected {
+        means2d: out[0],
+        conics: out[1],
+        opacity: out[2],
+        depths: out[3],
+        radii: out[4],
+    }
+}
