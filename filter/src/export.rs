@@ -1,0 +1,138 @@
+//! Analysis export: chosen Gaussians' observations `(t, f/d)` and curves nu(t), as
+//! JSON and CSV, to draw the paper's Fig. 3 (f/d over time for static vs moving
+//! primitives). Files are written atomically (temporary file, then rename).
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::config::FilterError;
+use crate::motion::MotionCurves;
+use crate::observations::ObservationTable;
+
+/// One Gaussian's data for the figure.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct GaussianTrace {
+    /// Gaussian index at export time.
+    pub index: usize,
+    /// Caller's label, e.g. "static" or "moving".
+    pub label: String,
+    /// `x_max` (Alg. 1 line 3), 0 if never observed.
+    pub x_max: f32,
+    /// Static Mip nu on canonical centres, if the caller has it.
+    pub static_nu: Option<f32>,
+    /// Observations `[t, f/d]`, sorted by time.
+    pub observations: Vec<[f32; 2]>,
+    /// Motion-aware curve `[bin time, nu]`, T points.
+    pub nu: Vec<[f32; 2]>,
+}
+
+/// A set of traces, serialisable as JSON (`{"gaussians": [...]}`) or long-format CSV.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct AnalysisExport {
+    /// The chosen Gaussians.
+    pub gaussians: Vec<GaussianTrace>,
+}
+
+impl AnalysisExport {
+    /// Collects the traces of `chosen` (index, label) from the observations and the
+    /// curves of the same refresh; `static_nu` optionally adds the Mip value.
+    pub fn collect(
+        table: &ObservationTable,
+        curves: &MotionCurves,
+        chosen: &[(usize, String)],
+        static_nu: Option<&[f32]>,
+    ) -> Result<Self, FilterError> {
+        use maaf_autodiff::PerGaussian;
+        let rows = curves.rows();
+        if table.rows() != rows {
+            return Err(FilterError::Shape(format!(
+                "export: {} observation rows vs {rows} curves",
+                table.rows()
+            )));
+        }
+        let mut gaussians = Vec::with_capacity(chosen.len());
+        for (index, label) in chosen {
+            let n = *index;
+            if n >= rows {
+                return Err(FilterError::Shape(format!(
+                    "export: Gaussian {n} out of range for {rows}"
+                )));
+            }
+            let mut observations: Vec<[f32; 2]> = table
+                .observations(n)
+                .into_iter()
+                .map(|(t, x)| [t, x])
+                .collect();
+            observations.sort_by(|a, b| a[0].total_cmp(&b[0]));
+            let nu = (0..curves.grid_t())
+                .map(|s| [curves.bin_time(s), curves.nu(n, s)])
+                .collect();
+            gaussians.push(GaussianTrace {
+                index: n,
+                label: label.clone(),
+                x_max: curves.x_max()[n],
+                static_nu: static_nu.and_then(|v| v.get(n).copied()),
+                observations,
+                nu,
+            });
+        }
+        Ok(AnalysisExport { gaussians })
+    }
+
+    /// Pretty JSON text.
+    pub fn to_json(&self) -> String {
+        // Plain numbers, strings and arrays: serialisation cannot fail.
+        serde_json::to_string_pretty(self).unwrap_or_default()
+    }
+
+    /// Long-format CSV: `gaussian,label,series,t,value` with series
+    /// `observation` (value f/d), `nu` (motion-aware nu at the bin time) and
+    /// `static_nu` (one row, t empty).
+    pub fn to_csv(&self) -> String {
+        let mut out = String::from("gaussian,label,series,t,value\n");
+        for g in &self.gaussians {
+            let label = g.label.replace([',', '\n', '"'], "_");
+            for [t, x] in &g.observations {
+                let _ = writeln!(out, "{},{label},observation,{t},{x}", g.index);
+            }
+            for [t, nu] in &g.nu {
+                let _ = writeln!(out, "{},{label},nu,{t},{nu}", g.index);
+            }
+            if let Some(v) = g.static_nu {
+                let _ = writeln!(out, "{},{label},static_nu,,{v}", g.index);
+            }
+        }
+        out
+    }
+
+    /// Writes [`Self::to_json`] atomically.
+    pub fn write_json(&self, path: &Path) -> Result<(), FilterError> {
+        write_atomic(path, self.to_json().as_bytes())
+    }
+
+    /// Writes [`Self::to_csv`] atomically.
+    pub fn write_csv(&self, path: &Path) -> Result<(), FilterError> {
+        write_atomic(path, self.to_csv().as_bytes())
+    }
+}
+
+/// Writes `bytes` to `path` through a temporary sibling file and a rename, so a
+/// reader never sees a half-written file.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), FilterError> {
+    let io = |source| FilterError::Io {
+        path: path.display().to_string(),
+        source,
+    };
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "export".into());
+    let tmp = path.with_file_name(format!(".{name}.tmp{}", std::process::id()));
+    std::fs::write(&tmp, bytes).map_err(io)?;
+    std::fs::rename(&tmp, path).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        io(e)
+    })
+}

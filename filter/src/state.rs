@@ -1,0 +1,93 @@
+//! The per-Gaussian filter state the trainer and renderer use: one variance per
+//! Gaussian at a time t, for the renderer's `apply_3d_filter` (DESIGN.md sec. 3-4).
+
+use maaf_autodiff::PerGaussian;
+use serde::{Deserialize, Serialize};
+
+use crate::config::FilterKind;
+use crate::motion::MotionCurves;
+
+/// Current 3D filter of every Gaussian. Resized with the Gaussians through
+/// [`PerGaussian`] (clone/split copy the row, prune drops it) and recomputed on
+/// the [`crate::RefreshSchedule`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum FilterState {
+    /// No 3D filter: variance 0.
+    None {
+        /// Number of Gaussians.
+        rows: usize,
+    },
+    /// Mip-Splatting's static filter: one nu per Gaussian (paper Eq. 2).
+    Mip3d {
+        /// Filter size s (variance `s / nu^2`).
+        s3d: f32,
+        /// Static nu per Gaussian.
+        nu: Vec<f32>,
+    },
+    /// The motion-aware filter: nu_k(t) per Gaussian (paper Alg. 1).
+    Motion {
+        /// Filter size s (variance `s / nu(t)^2`).
+        s3d: f32,
+        /// Curves nu_k(t).
+        curves: MotionCurves,
+    },
+}
+
+impl FilterState {
+    /// Which filter this is.
+    pub fn kind(&self) -> FilterKind {
+        match self {
+            FilterState::None { .. } => FilterKind::None,
+            FilterState::Mip3d { .. } => FilterKind::Mip3d,
+            FilterState::Motion { .. } => FilterKind::Motion,
+        }
+    }
+
+    /// The variance tensor `var[N]` (world units^2) that `apply_3d_filter` adds as
+    /// `Sigma' = Sigma + var I` at time `t`: `s3d / nu_k^2` (Mip3d, constant in t),
+    /// `s3d / nu_k(t)^2` with the nearest time bin (Motion; Alg. 1 line 11, no
+    /// interpolation, as in the paper), or 0 (None). Always finite and >= 0.
+    pub fn variance_at(&self, t: f32) -> Vec<f32> {
+        match self {
+            FilterState::None { rows } => vec![0.0; *rows],
+            FilterState::Mip3d { s3d, nu } => nu.iter().map(|&n| s3d / (n * n)).collect(),
+            FilterState::Motion { s3d, curves } => {
+                let s = curves.bin_of(t);
+                (0..curves.rows())
+                    .map(|n| {
+                        let nu = curves.nu(n, s);
+                        s3d / (nu * nu)
+                    })
+                    .collect()
+            }
+        }
+    }
+
+    /// Bytes of filter state per Gaussian (0, 4, or `T + 8`), for `eval.json`'s
+    /// `filter_bytes` (times the number of Gaussians).
+    pub fn bytes_per_gaussian(&self) -> usize {
+        match self {
+            FilterState::None { .. } => 0,
+            FilterState::Mip3d { .. } => std::mem::size_of::<f32>(),
+            FilterState::Motion { curves, .. } => curves.bytes_per_gaussian(),
+        }
+    }
+}
+
+impl PerGaussian for FilterState {
+    fn rows(&self) -> usize {
+        match self {
+            FilterState::None { rows } => *rows,
+            FilterState::Mip3d { nu, .. } => nu.len(),
+            FilterState::Motion { curves, .. } => curves.rows(),
+        }
+    }
+
+    fn select_rows(&mut self, index: &[usize]) {
+        match self {
+            FilterState::None { rows } => *rows = index.len(),
+            FilterState::Mip3d { nu, .. } => nu.select_rows(index),
+            FilterState::Motion { curves, .. } => curves.select_rows(index),
+        }
+    }
+}

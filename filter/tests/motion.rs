@@ -1,0 +1,417 @@
+//! The motion-aware filter against brute-force Algorithm 1, and its properties
+//! (issue 5 "Must show").
+
+use maaf_autodiff::PerGaussian;
+use maaf_filter::reference::algorithm1;
+use maaf_filter::{
+    FALLBACK, FilterConfig, FilterState, Frame, Kernels, MotionCurves, ObservationTable, static_nu,
+};
+use maaf_splat::Camera;
+use rand::{RngExt, SeedableRng};
+use rand_pcg::Pcg64;
+
+/// Random observation table: `times` per frame; per Gaussian one of several
+/// patterns (uniform noise, smooth trajectory + noise, constant, empty, sparse).
+fn random_table(times: Vec<f32>, rows: usize, rng: &mut Pcg64) -> ObservationTable {
+    let mut table = ObservationTable::new(times.clone(), rows);
+    for n in 0..rows {
+        let pattern = n % 6;
+        let base = rng.random_range(5.0f32..500.0);
+        let amp = rng.random_range(0.0f32..0.9);
+        let phase = rng.random_range(0.0f32..std::f32::consts::TAU);
+        let p_empty = [0.0f32, 0.3, 0.0, 0.8, 1.0, 0.1][pattern];
+        let row = table.row_mut(n);
+        for (f, x) in row.iter_mut().enumerate() {
+            if rng.random_range(0.0f32..1.0) < p_empty {
+                continue;
+            }
+            let t = times[f];
+            *x = match pattern {
+                0 | 3 => base * rng.random_range(0.2f32..1.0),
+                2 => base,
+                _ => {
+                    base * (1.0 - amp * (0.5 + 0.5 * (6.0 * t + phase).sin()))
+                        * rng.random_range(0.95f32..1.05)
+                }
+            };
+        }
+    }
+    table
+}
+
+/// D-NeRF-like (distinct times), multi-view-like (shared times) and irregular
+/// frame times with a gap.
+fn frame_times(kind: usize, rng: &mut Pcg64) -> Vec<f32> {
+    match kind {
+        0 => (0..60).map(|i| i as f32 / 59.0).collect(),
+        1 => (0..12)
+            .flat_map(|i| std::iter::repeat_n(i as f32 / 11.0, 5))
+            .collect(),
+        _ => (0..40)
+            .map(|_| {
+                let t = rng.random_range(0.0f32..1.0);
+                if (0.4..0.7).contains(&t) { t * 0.5 } else { t }
+            })
+            .collect(),
+    }
+}
+
+/// Algorithm 1 (oracle) inputs for Gaussian `n`: normalised times with empty slots
+/// flagged by t < 0 (Alg. 1 line 2) and x.
+fn oracle_inputs(table: &ObservationTable, n: usize, cfg: &FilterConfig) -> (Vec<f64>, Vec<f64>) {
+    table
+        .row(n)
+        .iter()
+        .zip(table.times())
+        .map(|(&x, &t)| {
+            if x > 0.0 {
+                (cfg.normalise_time(t) as f64, x as f64)
+            } else {
+                (-1.0, 0.0)
+            }
+        })
+        .unzip()
+}
+
+#[test]
+fn fast_refresh_equals_brute_force_algorithm1() {
+    let configs = [
+        FilterConfig::default(),
+        FilterConfig {
+            h_x: 0.1,
+            grid_x: 37,
+            grid_t: 23,
+            ..FilterConfig::default()
+        },
+        FilterConfig {
+            weibull_k: 3.5,
+            weibull_lambda: 0.5,
+            h_t: 0.2,
+            ..FilterConfig::default()
+        },
+        FilterConfig {
+            weibull_k: 1.0,
+            time_range: [-1.0, 3.0],
+            time_support: 2.5,
+            grid_x: 255,
+            grid_t: 40,
+            ..FilterConfig::default()
+        },
+    ];
+    let mut rng = Pcg64::seed_from_u64(5);
+    let (mut bins, mut ties, mut fallbacks) = (0usize, 0usize, 0usize);
+    for (ci, cfg) in configs.iter().enumerate() {
+        cfg.validate().expect("valid config");
+        let kern = Kernels::new(cfg);
+        for kind in 0..3 {
+            let mut times = frame_times(kind, &mut rng);
+            if ci == 3 {
+                // Exercise the time-range mapping.
+                times.iter_mut().for_each(|t| *t = *t * 4.0 - 1.0);
+            }
+            let table = random_table(times, 18, &mut rng);
+            let curves = MotionCurves::refresh(&table, cfg).expect("refresh");
+            for n in 0..table.rows() {
+                let (ts, xs) = oracle_inputs(&table, n, cfg);
+                let oracle = algorithm1(&ts, &xs, cfg, &kern);
+                assert_eq!(curves.x_max()[n] as f64, oracle.x_max, "x_max, cfg {ci}");
+                let want = oracle.codes(cfg.density_floor as f64);
+                let got = curves.codes(n);
+                for s in 0..cfg.grid_t {
+                    bins += 1;
+                    let (g, w) = (got[s], want[s]);
+                    if w == FALLBACK {
+                        fallbacks += 1;
+                    }
+                    if g == w {
+                        continue;
+                    }
+                    // Only a tie within float error may differ: neighbouring bins whose
+                    // f64 densities agree to 1e-5 relative. The f32 fast path sums up to J
+                    // terms (relative error <= J eps32 = 60 x 6e-8 = 4e-6) of kernels whose
+                    // f32 evaluation is good to ~1e-6 relative (k-fold amplification of
+                    // the argument's rounding), so 1e-5 bounds its error.
+                    assert!(
+                        g != FALLBACK && w != FALLBACK && g.abs_diff(w) <= 1,
+                        "cfg {ci} kind {kind} n {n} s {s}: fast {g} vs oracle {w}"
+                    );
+                    let (rg, rw) = (oracle.at(g as usize, s), oracle.at(w as usize, s));
+                    assert!(
+                        rg >= rw * (1.0 - 1e-5),
+                        "cfg {ci} kind {kind} n {n} s {s}: not a tie: {rg} vs {rw}"
+                    );
+                    ties += 1;
+                }
+            }
+        }
+    }
+    eprintln!("{bins} bins compared, {ties} float ties, {fallbacks} fallback bins");
+    assert!(fallbacks > 0 && fallbacks < bins / 2, "fallback exercised");
+    assert!(ties * 1000 < bins, "ties must be rare: {ties} of {bins}");
+}
+
+/// Camera at `(0, 0, -dist)` looking down +z (OpenCV), 200x200 px, focal `f`.
+fn cam(dist: f64, f: f64, x_offset: f64) -> Camera {
+    let mut w2c = [[0.0; 4]; 4];
+    for (i, row) in w2c.iter_mut().enumerate() {
+        row[i] = 1.0;
+    }
+    w2c[0][3] = x_offset;
+    w2c[2][3] = dist;
+    Camera::new(200, 200, f, f, 100.0, 100.0, w2c).expect("camera")
+}
+
+#[test]
+fn static_gaussian_at_constant_f_over_d_gives_constant_nu() {
+    let cfg = FilterConfig::default();
+    // Three cameras at different distances: each sees the static Gaussian at its own
+    // constant f/d, at every one of 50 times (multi-view video layout).
+    let cameras = [
+        cam(2.0, 100.0, 0.0),
+        cam(3.0, 100.0, 0.1),
+        cam(5.0, 150.0, -0.2),
+    ];
+    let frames: Vec<Frame> = (0..50)
+        .flat_map(|i| {
+            (0..3).map(move |c| Frame {
+                camera: c,
+                time: i as f32 / 49.0,
+            })
+        })
+        .collect();
+    let centres = vec![[0.0f32, 0.0, 0.0], [0.1, 0.2, 0.5]];
+    let mut table = ObservationTable::for_frames(&frames, centres.len());
+    table
+        .observe_all(&frames, &cameras, &cfg, |_| centres.clone())
+        .expect("observe");
+    let curves = MotionCurves::refresh(&table, &cfg).expect("refresh");
+    for n in 0..centres.len() {
+        let curve = curves.curve(n);
+        assert!(curve.iter().all(|&v| v == curve[0]), "{n}: {curve:?}");
+        assert!(
+            curves.codes(n).iter().all(|&c| c != FALLBACK),
+            "density > 0"
+        );
+    }
+    // A single camera: every observation sits at x_max, where the one-sided Weibull
+    // kernel is zero (Alg. 1 line 1, K_w(0) = 0 for k > 1): the density is zero and
+    // nu falls back to the static value x_max, constant.
+    let mut single = ObservationTable::new(vec![0.0, 0.25, 0.5, 0.75, 1.0], 1);
+    single.row_mut(0).fill(40.0);
+    let curves = MotionCurves::refresh(&single, &cfg).expect("refresh");
+    assert!(curves.curve(0).iter().all(|&v| v == 40.0));
+}
+
+#[test]
+fn gaussian_moving_toward_the_camera_gets_increasing_nu() {
+    let cfg = FilterConfig::default();
+    let cameras = [cam(0.0, 100.0, 0.0)];
+    let frames: Vec<Frame> = (0..150)
+        .map(|i| Frame {
+            camera: 0,
+            time: i as f32 / 149.0,
+        })
+        .collect();
+    // Depth from 10 down to 2 (x = f/z from 10 to 50).
+    let depth = |t: f32| 10.0 - 8.0 * t;
+    let mut table = ObservationTable::for_frames(&frames, 1);
+    table
+        .observe_all(&frames, &cameras, &cfg, |t| vec![[0.0, 0.0, depth(t)]])
+        .expect("observe");
+    let curves = MotionCurves::refresh(&table, &cfg).expect("refresh");
+    let curve = curves.curve(0);
+    for w in curve.windows(2) {
+        assert!(w[1] >= w[0], "non-decreasing: {curve:?}");
+    }
+    // From f/d + 0.3 x_max = 25 at t = 0 up to x_max = 50 at t = 1.
+    assert!(curve[99] >= 2.0 * curve[0], "{curve:?}");
+    // The curve tracks the motion: nu(t) >= f/d(t) (the Weibull kernel biases the
+    // mode upward, paper Sec. 4), and stays within 0.3 x_max + 2 grid steps of it.
+    let x_max = curves.x_max()[0];
+    for (s, &nu) in curve.iter().enumerate() {
+        let x = 100.0 / depth(s as f32 / 99.0);
+        assert!(nu >= x * 0.99, "s {s}: nu {nu} < f/d {x}");
+        assert!(nu <= x + 0.32 * x_max, "s {s}: nu {nu} far above f/d {x}");
+    }
+}
+
+#[test]
+fn nu_is_positive_and_finite_everywhere() {
+    let mut rng = Pcg64::seed_from_u64(7);
+    let cfg = FilterConfig::default();
+    for kind in 0..3 {
+        let times = frame_times(kind, &mut rng);
+        let table = random_table(times, 60, &mut rng);
+        let curves = MotionCurves::refresh(&table, &cfg).expect("refresh");
+        for n in 0..table.rows() {
+            for s in 0..cfg.grid_t {
+                let nu = curves.nu(n, s);
+                assert!(nu.is_finite() && nu > 0.0, "n {n} s {s}: {nu}");
+            }
+        }
+        let state = FilterState::Motion {
+            s3d: cfg.s3d,
+            curves,
+        };
+        for t in [-0.5f32, 0.0, 0.3, 1.0, 2.0] {
+            assert!(
+                state
+                    .variance_at(t)
+                    .iter()
+                    .all(|v| v.is_finite() && *v >= 0.0)
+            );
+        }
+    }
+}
+
+#[test]
+fn static_scene_static_nu_equals_motion_x_max() {
+    let cfg = FilterConfig::default();
+    let cameras = [
+        cam(3.0, 120.0, 0.0),
+        cam(4.0, 200.0, 0.5),
+        cam(2.5, 90.0, -0.3),
+    ];
+    // D-NeRF layout: one camera per time.
+    let frames: Vec<Frame> = (0..30)
+        .map(|i| Frame {
+            camera: i % 3,
+            time: i as f32 / 29.0,
+        })
+        .collect();
+    let mut rng = Pcg64::seed_from_u64(11);
+    // Some centres are off-screen for every camera (|x| up to 8 at depth ~3).
+    let centres: Vec<[f32; 3]> = (0..200)
+        .map(|_| {
+            [
+                rng.random_range(-8.0f32..8.0),
+                rng.random_range(-2.0f32..2.0),
+                rng.random_range(-1.0f32..3.0),
+            ]
+        })
+        .collect();
+    let mut table = ObservationTable::for_frames(&frames, centres.len());
+    table
+        .observe_all(&frames, &cameras, &cfg, |_| centres.clone())
+        .expect("observe");
+    let curves = MotionCurves::refresh(&table, &cfg).expect("refresh");
+    let nu = static_nu(&centres, &cameras, &cfg).expect("visible");
+    let mut unseen = 0;
+    for (n, &nu_n) in nu.iter().enumerate() {
+        if curves.x_max()[n] > 0.0 {
+            assert_eq!(nu_n, curves.x_max()[n], "Gaussian {n}");
+        } else {
+            unseen += 1;
+        }
+        // Fallbacks equal the static nu too (unseen: smallest nu seen).
+        assert_eq!(nu_n, curves.fallback()[n], "fallback {n}");
+    }
+    assert!(unseen > 0 && unseen < centres.len(), "both cases exercised");
+}
+
+#[test]
+fn incremental_recorder_equals_full_pass_when_fresh() {
+    let cfg = FilterConfig::default();
+    let cameras = [cam(3.0, 120.0, 0.0), cam(4.0, 200.0, 0.5)];
+    let frames: Vec<Frame> = (0..20)
+        .map(|i| Frame {
+            camera: i % 2,
+            time: i as f32 / 19.0,
+        })
+        .collect();
+    let deform = |t: f32| -> Vec<[f32; 3]> {
+        (0..50)
+            .map(|i| {
+                let a = i as f32 * 0.1;
+                [a.sin(), a.cos() * t, 2.0 * t - a * 0.1]
+            })
+            .collect()
+    };
+    let mut full = ObservationTable::for_frames(&frames, 50);
+    full.observe_all(&frames, &cameras, &cfg, deform)
+        .expect("observe");
+    let mut inc = ObservationTable::for_frames(&frames, 50);
+    for (f, fr) in frames.iter().enumerate().rev() {
+        inc.record_centres(f, &cameras[fr.camera], &deform(fr.time), &cfg)
+            .expect("record");
+    }
+    assert_eq!(full, inc);
+    // record_depths with the same visibility gives the same slots.
+    let mut dep = ObservationTable::for_frames(&frames, 50);
+    for (f, fr) in frames.iter().enumerate() {
+        let v = maaf_filter::Viewer::new(&cameras[fr.camera], &cfg);
+        let depths: Vec<f32> = deform(fr.time)
+            .iter()
+            .map(|&p| v.visible_depth(p).map_or(-1.0, |z| z as f32))
+            .collect();
+        dep.record_depths(f, v.focal as f32, &depths)
+            .expect("record");
+    }
+    for n in 0..50 {
+        for (a, b) in full.row(n).iter().zip(dep.row(n)) {
+            // focal/z in f64 then rounded vs f32 division: 1 ulp.
+            assert!((a - b).abs() <= 1e-6 * a.abs(), "{a} vs {b}");
+        }
+    }
+    assert!(
+        inc.record_centres(20, &cameras[0], &deform(0.0), &cfg)
+            .is_err()
+    );
+    assert!(
+        inc.record_centres(0, &cameras[0], &deform(0.0)[..3], &cfg)
+            .is_err()
+    );
+}
+
+#[test]
+fn per_gaussian_resize_keeps_survivors_values() {
+    let mut rng = Pcg64::seed_from_u64(3);
+    let cfg = FilterConfig::default();
+    let table = random_table(frame_times(0, &mut rng), 12, &mut rng);
+    let curves = MotionCurves::refresh(&table, &cfg).expect("refresh");
+    // keep 0, clone 2, split 5 (twice, original dropped), prune the rest.
+    let index = [0, 2, 2, 5, 5];
+    let mut t2 = table.clone();
+    t2.select_rows(&index);
+    let mut c2 = curves.clone();
+    c2.select_rows(&index);
+    assert_eq!((t2.rows(), c2.rows()), (5, 5));
+    for (new, &old) in index.iter().enumerate() {
+        assert_eq!(t2.row(new), table.row(old));
+        assert_eq!(c2.curve(new), curves.curve(old));
+        assert_eq!(c2.x_max()[new], curves.x_max()[old]);
+    }
+    let mut state = FilterState::Motion {
+        s3d: 0.2,
+        curves: curves.clone(),
+    };
+    let before = state.variance_at(0.4);
+    state.select_rows(&index);
+    let after = state.variance_at(0.4);
+    for (new, &old) in index.iter().enumerate() {
+        assert_eq!(after[new], before[old]);
+    }
+    let mut mip = FilterState::Mip3d {
+        s3d: 0.2,
+        nu: vec![1.0, 2.0, 3.0, 4.0, 5.0, 6.0],
+    };
+    mip.select_rows(&index);
+    assert_eq!(mip.variance_at(0.0)[3], 0.2 / 36.0);
+    let mut none = FilterState::None { rows: 6 };
+    none.select_rows(&index);
+    assert_eq!(none.variance_at(0.0), vec![0.0; 5]);
+}
+
+#[test]
+fn nothing_visible_is_an_error_not_a_zero_nu() {
+    let cfg = FilterConfig::default();
+    let table = ObservationTable::new(vec![0.0, 1.0], 3);
+    assert!(MotionCurves::refresh(&table, &cfg).is_err());
+    let empty = ObservationTable::new(vec![0.0, 1.0], 0);
+    assert_eq!(
+        MotionCurves::refresh(&empty, &cfg)
+            .expect("empty ok")
+            .rows(),
+        0
+    );
+}
