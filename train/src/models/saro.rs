@@ -1220,4 +1220,142 @@ mod tests {
         assert!((xyz.lr.at(0) - 3.2e-4).abs() < 1e-12);
         assert_eq!(slots.iter().filter(|s| s.per_gaussian).count(), 7);
     }
+
+    /// CPU time of this thread in seconds (Linux `/proc/thread-self/schedstat`, first
+    /// field in ns), so the cost report is meaningful on a shared, loaded machine.
+    fn thread_cpu_seconds() -> f64 {
+        std::fs::read_to_string("/proc/thread-self/schedstat")
+            .ok()
+            .and_then(|s| s.split_whitespace().next().map(str::to_string))
+            .and_then(|s| s.parse::<f64>().ok())
+            .map_or(f64::NAN, |ns| ns * 1e-9)
+    }
+
+    /// Cost of the default configuration at N = 20 000 (one view per step):
+    /// `cargo test -p maaf-train --release cost_report -- --ignored --nocapture`.
+    /// Prints thread CPU times (single-threaded code); never asserts a time (DESIGN.md
+    /// section 9).
+    #[test]
+    #[ignore]
+    fn cost_report() {
+        let clock = thread_cpu_seconds;
+        let n = 20_000;
+        let cloud = PointCloud::random_in_box(n, -1.3, 1.3, 1);
+        for (label, config) in [
+            ("default", SaroConfig::default()),
+            (
+                "no SH residual",
+                SaroConfig {
+                    sh_residual: false,
+                    ..SaroConfig::default()
+                },
+            ),
+            (
+                "reference widths (H 128, t 128)",
+                SaroConfig {
+                    hidden: 128,
+                    field: KPlaneConfig {
+                        time_res: 128,
+                        ..KPlaneConfig::default()
+                    },
+                    ..SaroConfig::default()
+                },
+            ),
+        ] {
+            let mut model = SaroModel::<f32>::from_point_cloud(&cloud, config, 1.0, 1);
+            // Non-zero planes so the timing includes every path.
+            for (p, plane) in model.field.planes.iter_mut().enumerate() {
+                *plane = random_tensor(plane.shape(), -0.1, 0.1, p as u64);
+            }
+            model.set_dynamic(true);
+            let field = model.field.num_scalars();
+            let mlps: usize = model.named_mlps().iter().map(|(_, m)| m.num_params()).sum();
+            let per_gaussian = (model.num_scalars() - field - mlps) / n;
+            println!(
+                "{label}: planes {field} scalars ({:.2} MB f32), MLPs {mlps} ({:.2} MB), \
+                 {per_gaussian} scalars per Gaussian ({:.2} MB at N = {n}); Adam triples all",
+                field as f64 * 4e-6,
+                mlps as f64 * 4e-6,
+                (per_gaussian * n) as f64 * 4e-6
+            );
+            let reps = 3;
+            let mut t = [0.0; 5];
+            for _ in 0..reps {
+                let tape = Tape::new();
+                let t0 = clock();
+                let planes: Vec<_> = model
+                    .field
+                    .planes
+                    .iter()
+                    .map(|p| tape.var(p.clone()))
+                    .collect();
+                let f = tape.apply1(
+                    PlaneSample::new(&model.field, model.detached().query),
+                    &planes,
+                );
+                let t1 = clock();
+                tape.backward(f.sum()).expect("finite");
+                let t2 = clock();
+                let tape = Tape::new();
+                let t3 = clock();
+                let bound = model.bind_saro(&tape);
+                let t4 = clock();
+                let g = bound.deform(0.4);
+                let mut loss = g.means.sum() + g.scales.sum() + g.quats.sum();
+                loss = loss + g.opacity.sum() + g.sh.sum();
+                loss = loss + bound.l_sr().expect("dynamic");
+                let t5 = clock();
+                tape.backward(loss).expect("finite");
+                let t6 = clock();
+                for (acc, d) in t
+                    .iter_mut()
+                    .zip([t1 - t0, t2 - t1, t4 - t3, t5 - t4, t6 - t5])
+                {
+                    *acc += d / reps as f64 * 1e3;
+                }
+            }
+            println!(
+                "  CPU ms per step: field lookup fwd {:.0} / bwd {:.0} (included below); \
+                 bind {:.0}, deform(t) {:.0}, backward {:.0}, total {:.0}",
+                t[0],
+                t[1],
+                t[2],
+                t[3],
+                t[4],
+                t[2] + t[3] + t[4]
+            );
+        }
+    }
+
+    /// Where the MLP time goes: one [20000,41]x[41,64] GEMM vs the row-broadcast
+    /// bias add and the ReLU on its output (forward + backward each).
+    #[test]
+    #[ignore]
+    fn cost_breakdown_dense_layer() {
+        let clock = thread_cpu_seconds;
+        let x = random_tensor::<f32>(&[20_000, 41], -1.0, 1.0, 1);
+        let w = random_tensor::<f32>(&[41, 64], -1.0, 1.0, 2);
+        let b = random_tensor::<f32>(&[64], -1.0, 1.0, 3);
+        let tape = Tape::new();
+        let (x, w, b) = (tape.var(x), tape.var(w), tape.var(b));
+        let t0 = clock();
+        let y = x.matmul(w);
+        let t1 = clock();
+        let z = y + b;
+        let t2 = clock();
+        let r = z.relu();
+        let t3 = clock();
+        let s = r.sum();
+        let t4 = clock();
+        tape.backward(s).expect("finite");
+        let t5 = clock();
+        println!(
+            "matmul {:.1} ms, bias add {:.1} ms, relu {:.1} ms, sum {:.1} ms, backward of all {:.1} ms",
+            (t1 - t0) * 1e3,
+            (t2 - t1) * 1e3,
+            (t3 - t2) * 1e3,
+            (t4 - t3) * 1e3,
+            (t5 - t4) * 1e3
+        );
+    }
 }
