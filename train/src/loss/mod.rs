@@ -1,5 +1,165 @@
-//! The training objective (DESIGN.md section 6): differentiable image losses.
+//! The training objective (DESIGN.md section 6): a list of named, weighted [`Term`]s.
+//!
+//! `total = sum_k w_k * term_k(ctx)`, and every term's unweighted value is returned by
+//! name for logging. The default 3DGS / SaRO-GS photometric loss is
+//! `(1 - 0.2) L1 + 0.2 (1 - SSIM)` ([`Objective::photometric`]); SaRO-GS adds
+//! `8e-6 L_SR` ([`Objective::saro`], SaRO-GS `helper_train.py::getloss`,
+//! domain-notes 2.4). A new term is one `impl Term` plus [`Objective::with`]; the
+//! training step only calls [`Objective::evaluate`], so it never changes.
+//!
+//! ```
+//! use maaf_autodiff::{Tape, Tensor};
+//! use maaf_train::loss::{Objective, TermCtx};
+//! let tape = Tape::<f64>::new();
+//! let gt = Tensor::full(&[16, 16, 3], 0.5);
+//! let render = tape.param("render", Tensor::full(&[16, 16, 3], 0.25));
+//! let out = Objective::photometric(0.2).evaluate(&TermCtx::new(render, &gt));
+//! assert!((out.get("l1").unwrap() - 0.25).abs() < 1e-12);
+//! let grads = tape.backward(out.total).unwrap();
+//! assert!(grads.param("render").is_some());
+//! ```
 
 pub mod ssim;
+mod terms;
+
+use maaf_autodiff::{Float, Var};
 
 pub use ssim::{Ssim, SsimOutput, ssim, ssim_map};
+pub use terms::{DSsim, L_SR, L1, Provided, Term, TermCtx};
+
+/// SaRO-GS / 3DGS weight of D-SSIM in the photometric loss (`lambda_dssim`).
+pub const LAMBDA_DSSIM: f64 = 0.2;
+/// SaRO-GS weight of the scale-residual regulariser (`lambda_dscale_reg`).
+pub const LAMBDA_SR: f64 = 8e-6;
+
+/// A weighted sum of named terms (module docs).
+pub struct Objective<T: Float> {
+    terms: Vec<Box<dyn Term<T>>>,
+}
+
+impl<T: Float> Default for Objective<T> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// The value of one term in one step, for logging.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TermValue {
+    /// [`Term::name`].
+    pub name: String,
+    /// [`Term::weight`].
+    pub weight: f64,
+    /// Unweighted value `term(ctx)`.
+    pub value: f64,
+}
+
+/// What [`Objective::evaluate`] returns: the total on the tape (call
+/// `tape.backward(total)`) and each term's value in insertion order.
+pub struct Evaluated<'t, T: Float> {
+    /// `sum_k w_k term_k`, rank 0.
+    pub total: Var<'t, T>,
+    /// One entry per term, in the order the terms were added.
+    pub terms: Vec<TermValue>,
+}
+
+impl<T: Float> Evaluated<'_, T> {
+    /// The unweighted value of the term called `name`.
+    pub fn get(&self, name: &str) -> Option<f64> {
+        self.terms.iter().find(|t| t.name == name).map(|t| t.value)
+    }
+
+    /// The value of the total as f64.
+    pub fn total_value(&self) -> f64 {
+        Float::to_f64(self.total.value().item())
+    }
+}
+
+impl<T: Float> Objective<T> {
+    /// An objective with no term (its total is 0).
+    pub fn new() -> Self {
+        Objective { terms: Vec::new() }
+    }
+
+    /// `(1 - lambda) L1 + lambda D-SSIM`, the 3DGS photometric loss (`lambda = 0.2`,
+    /// [`LAMBDA_DSSIM`]), as the two terms `l1` and `dssim`.
+    pub fn photometric(lambda: f64) -> Self {
+        Self::new()
+            .with(L1 {
+                weight: 1.0 - lambda,
+            })
+            .with(DSsim { weight: lambda })
+    }
+
+    /// SaRO-GS's objective: [`Objective::photometric`]`(0.2)` plus
+    /// `8e-6 L_SR` read from the context under [`L_SR`] (0 when the model does not
+    /// provide it, i.e. in the static stage).
+    pub fn saro() -> Self {
+        Self::photometric(LAMBDA_DSSIM).with(Provided::new(L_SR, LAMBDA_SR))
+    }
+
+    /// Adds a term; panics if its name is already used (log columns must be unique).
+    pub fn with(mut self, term: impl Term<T> + 'static) -> Self {
+        self.push(Box::new(term));
+        self
+    }
+
+    /// Adds a boxed term; panics if its name is already used.
+    pub fn push(&mut self, term: Box<dyn Term<T>>) {
+        assert!(
+            self.terms.iter().all(|t| t.name() != term.name()),
+            "Objective: a term named `{}` is already present",
+            term.name()
+        );
+        self.terms.push(term);
+    }
+
+    /// Term names in order (the loss columns of `log.csv`).
+    pub fn names(&self) -> Vec<String> {
+        self.terms.iter().map(|t| t.name().to_string()).collect()
+    }
+
+    /// The terms.
+    pub fn terms(&self) -> &[Box<dyn Term<T>>] {
+        &self.terms
+    }
+
+    /// Evaluates every term on `ctx` and sums `w_k term_k` on the tape. Every term is
+    /// evaluated and logged, including zero-weight ones (which add nothing to the total).
+    /// Panics, naming the term, if a term's value has more than one element.
+    pub fn evaluate<'t>(&self, ctx: &TermCtx<'t, T>) -> Evaluated<'t, T> {
+        let mut total: Option<Var<'t, T>> = None;
+        let mut terms = Vec::with_capacity(self.terms.len());
+        for term in &self.terms {
+            let v = term.value(ctx);
+            let n = v.value().len();
+            assert_eq!(
+                n,
+                1,
+                "Objective: term `{}` returned {n} values, expected one",
+                term.name()
+            );
+            let v = if v.shape().is_empty() {
+                v
+            } else {
+                v.reshape(&[])
+            };
+            terms.push(TermValue {
+                name: term.name().to_string(),
+                weight: term.weight(),
+                value: Float::to_f64(v.value().item()),
+            });
+            if term.weight() != 0.0 {
+                let weighted = v.scale(term.weight());
+                total = Some(match total {
+                    Some(acc) => acc + weighted,
+                    None => weighted,
+                });
+            }
+        }
+        Evaluated {
+            total: total.unwrap_or_else(|| ctx.zero()),
+            terms,
+        }
+    }
+}

@@ -1,0 +1,146 @@
+//! The objective: named weighted terms, their values, their gradients.
+
+use maaf_autodiff::check::{GradcheckConfig, gradcheck, tests_support::random_tensor};
+use maaf_autodiff::{Tape, Tensor, Var};
+use maaf_train::loss::{L_SR, LAMBDA_SR, Objective, Term, TermCtx, ssim};
+
+fn image(seed: u64) -> Tensor<f64> {
+    random_tensor(&[12, 10, 3], 0.0, 1.0, seed)
+}
+
+/// A training step reduced to what the objective sees: it takes any objective, so
+/// adding a term is a change to the objective value only.
+fn step<'t>(obj: &Objective<f64>, render: Var<'t, f64>, gt: &Tensor<f64>) -> (f64, Vec<String>) {
+    let out = obj.evaluate(&TermCtx::new(render, gt));
+    let names = out.terms.iter().map(|t| t.name.clone()).collect();
+    (out.total_value(), names)
+}
+
+#[test]
+fn photometric_total_is_the_weighted_sum_of_l1_and_dssim() {
+    let (x, y) = (image(1), image(2));
+    let tape = Tape::new();
+    let render = tape.var(x.clone());
+    let out = Objective::photometric(0.2).evaluate(&TermCtx::new(render, &y));
+    let l1 = x
+        .data()
+        .iter()
+        .zip(y.data())
+        .map(|(a, b)| (a - b).abs())
+        .sum::<f64>()
+        / x.len() as f64;
+    let s = ssim(render, tape.constant(y)).value().item();
+    assert_eq!(out.terms.len(), 2);
+    assert!((out.get("l1").expect("l1") - l1).abs() < 1e-14);
+    assert!((out.get("dssim").expect("dssim") - (1.0 - s)).abs() < 1e-14);
+    assert_eq!(out.terms[0].weight, 0.8);
+    assert_eq!(out.terms[1].weight, 0.2);
+    let expect = 0.8 * l1 + 0.2 * (1.0 - s);
+    assert!((out.total_value() - expect).abs() < 1e-14);
+}
+
+#[test]
+fn photometric_objective_passes_gradcheck() {
+    // |x - y| is not differentiable at 0; random images keep every |x - y| >~ 1e-3,
+    // far from the eps = 1e-6 step. Gradients are O(1/N), N = 360, so atol 2e-9 (see
+    // the SSIM gradcheck for the roundoff estimate).
+    let gt = image(4);
+    let cfg = GradcheckConfig::default().with_tol(2e-9, 1e-5);
+    let obj = Objective::photometric(0.2);
+    let r = gradcheck(
+        |_, v| obj.evaluate(&TermCtx::new(v[0], &gt)).total,
+        &[image(3)],
+        &cfg,
+    );
+    assert!(r.passed(), "{r}");
+}
+
+#[test]
+fn provided_regulariser_is_zero_when_absent_and_weighted_when_present() {
+    let (x, y) = (image(5), image(6));
+    let obj = Objective::<f64>::saro();
+    assert_eq!(obj.names(), ["l1", "dssim", L_SR]);
+
+    // Static stage: the model provides no L_SR.
+    let tape = Tape::new();
+    let render = tape.var(x.clone());
+    let base = obj.evaluate(&TermCtx::new(render, &y));
+    assert_eq!(base.get(L_SR), Some(0.0));
+
+    // Dynamic stage: L_SR = ||d||_2 of a residual, provided by the model.
+    let tape = Tape::new();
+    let render = tape.var(x);
+    let d = tape.param("dlog_s", Tensor::from_vec(vec![3.0, 4.0], &[2]));
+    let l_sr = d.square().sum().sqrt();
+    let out = obj.evaluate(&TermCtx::new(render, &y).with(L_SR, l_sr));
+    assert_eq!(out.get(L_SR), Some(5.0));
+    let diff = out.total_value() - base.total_value();
+    assert!((diff - LAMBDA_SR * 5.0).abs() < 1e-15, "{diff}");
+    let g = tape.backward(out.total).expect("finite");
+    // d(w ||d||)/dd = w d / ||d||.
+    let gd = g.param("dlog_s").expect("gradient reaches the regulariser");
+    assert!((gd.data()[0] - LAMBDA_SR * 0.6).abs() < 1e-18);
+    assert!((gd.data()[1] - LAMBDA_SR * 0.8).abs() < 1e-18);
+}
+
+/// Mean squared error, a user term written outside the crate.
+struct Mse;
+impl Term<f64> for Mse {
+    fn name(&self) -> &str {
+        "mse"
+    }
+    fn weight(&self) -> f64 {
+        0.5
+    }
+    fn value<'t>(&self, ctx: &TermCtx<'t, f64>) -> Var<'t, f64> {
+        (ctx.render - ctx.gt).square().mean()
+    }
+}
+
+#[test]
+fn adding_a_term_changes_only_the_objective() {
+    let (x, y) = (image(7), image(8));
+    let tape = Tape::new();
+    let render = tape.var(x.clone());
+    let (base, names) = step(&Objective::photometric(0.2), render, &y);
+    assert_eq!(names, ["l1", "dssim"]);
+    let (more, names) = step(&Objective::photometric(0.2).with(Mse), render, &y);
+    assert_eq!(names, ["l1", "dssim", "mse"]);
+    let mse = x
+        .data()
+        .iter()
+        .zip(y.data())
+        .map(|(a, b)| (a - b) * (a - b))
+        .sum::<f64>()
+        / x.len() as f64;
+    assert!((more - base - 0.5 * mse).abs() < 1e-14);
+}
+
+#[test]
+fn zero_weight_terms_are_logged_but_add_nothing() {
+    let (x, y) = (image(9), image(10));
+    let tape = Tape::new();
+    let render = tape.var(x);
+    let out = Objective::photometric(0.0).evaluate(&TermCtx::new(render, &y));
+    assert!(out.get("dssim").expect("logged") > 0.0);
+    assert!((out.total_value() - out.get("l1").expect("l1")).abs() < 1e-15);
+}
+
+#[test]
+#[should_panic(expected = "already present")]
+fn duplicate_term_names_are_refused() {
+    let _ = Objective::<f64>::photometric(0.2).with(maaf_train::loss::L1 { weight: 1.0 });
+}
+
+#[test]
+fn f32_objective_runs_and_backpropagates() {
+    let x: Tensor<f32> = random_tensor(&[16, 16, 3], 0.0, 1.0, 11);
+    let y: Tensor<f32> = random_tensor(&[16, 16, 3], 0.0, 1.0, 12);
+    let tape = Tape::new();
+    let render = tape.param("render", x);
+    let out = Objective::saro().evaluate(&TermCtx::new(render, &y).at_iteration(3));
+    let g = tape.backward(out.total).expect("finite");
+    let g = g.param("render").expect("gradient");
+    assert!(g.first_non_finite().is_none());
+    assert!(g.data().iter().any(|&v| v != 0.0));
+}
