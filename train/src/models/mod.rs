@@ -152,6 +152,23 @@ pub trait Representation<T: Float> {
 
     /// Number of stored scalars (parameters only, no optimiser state).
     fn num_scalars(&self) -> usize;
+
+    /// Deformed centres [N,3] at each of `times`, outside any training tape: what the
+    /// motion-aware filter refresh needs (DESIGN.md section 4: every training
+    /// (camera, time) sees the *deformed* centre). The default deforms everything on a
+    /// scratch tape per time; a representation should override it with a cheaper path.
+    fn centres_at_times(&self, times: &[f64]) -> Vec<Tensor<T>> {
+        times
+            .iter()
+            .map(|&t| {
+                let tape = Tape::new();
+                // The binding ends the borrow of the tape before the tape is dropped.
+                #[allow(clippy::let_and_return)]
+                let centres = self.bind(&tape).deform(t).means.value().clone();
+                centres
+            })
+            .collect()
+    }
 }
 
 /// A coloured point cloud used to initialise a representation.
