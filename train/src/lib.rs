@@ -1,4 +1,5 @@
 //! maaf-train (see DESIGN.md).
 
 pub mod loss;
+pub mod metrics;
 pub mod models;
