@@ -2,4 +2,5 @@
 
 pub mod loss;
 pub mod metrics;
+pub mod data;
 pub mod models;

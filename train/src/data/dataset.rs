@@ -1,0 +1,392 @@
+//! The `Dataset` API the trainer and evaluator use: views (composited image, camera,
+//! time) of each split at any integer-ratio scale of the source images, decoded once and
+//! cached per scale; the scene bounds for initialisation; the time range.
+//!
+//! A *scale* is relative to the source image size: `0.25` of 800x800 is 200x200. It must
+//! be `1 / k` for an integer `k` that divides both the width and height; the image is
+//! then box-downsampled by `k` (premultiplied, then composited, see
+//! [`super::downsample`]) and the camera is `Camera::scaled(1 / k)` (width, height, fx,
+//! fy, cx, cy all divided by `k`; with pixel centres at `x + 0.5`, source pixel centre
+//! `u` maps to `u / k` exactly). Scales above 1 (zoom-in beyond the source) have no
+//! ground truth and are refused.
+
+use std::collections::{BTreeMap, HashMap};
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+
+use maaf_splat::Camera;
+use rayon::prelude::*;
+
+use super::bounds::{Aabb, bounds_from_cameras};
+use super::dnerf::{Split, SplitMeta, read_split};
+use super::downsample::{box_downsample, composite_premultiplied, premultiply};
+use super::error::DataError;
+use super::flow::{downsample_flow, read_flow};
+use super::image::{Image, decode_rgba};
+
+/// White background, `[1, 1, 1]` (the default, as D-NeRF's `white_bkgd = True`).
+pub const WHITE: [f32; 3] = [1.0, 1.0, 1.0];
+/// Black background, `[0, 0, 0]` (Deformable-3DGS's default).
+pub const BLACK: [f32; 3] = [0.0, 0.0, 0.0];
+
+/// Options for [`Dataset::open`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct DatasetOptions {
+    /// Background colour images are composited on, after downsampling.
+    pub background: [f32; 3],
+}
+
+impl Default for DatasetOptions {
+    fn default() -> Self {
+        DatasetOptions { background: WHITE }
+    }
+}
+
+/// One view at one scale: the composited image, its camera and its time.
+#[derive(Clone, Debug)]
+pub struct View {
+    /// Split it belongs to.
+    pub split: Split,
+    /// Index in the split's json `frames`.
+    pub index: usize,
+    /// Composited RGB image `[H, W, 3]` in `[0, 1]` at this scale (shared with the cache).
+    pub image: Arc<Image>,
+    /// Camera at this scale (OpenCV axes, intrinsics divided by the factor).
+    pub camera: Camera,
+    /// Time stamp from the json.
+    pub time: f64,
+}
+
+/// Cache key: split, downsampling factor, view index.
+type CacheKey = (Split, u32, usize);
+
+/// A D-NeRF-format data set: parsed metadata of its splits plus a per-scale image cache.
+#[derive(Debug)]
+pub struct Dataset {
+    root: PathBuf,
+    background: [f32; 3],
+    splits: BTreeMap<Split, SplitMeta>,
+    bounds: Aabb,
+    cache: Mutex<HashMap<CacheKey, Arc<Image>>>,
+}
+
+/// The integer downsampling factor `k = 1 / scale` for a `width x height` source, or a
+/// message saying why the scale is refused (not positive, above 1, `1/scale` not an
+/// integer within `1e-6`, or `k` not dividing both sides).
+pub fn scale_factor(scale: f64, width: u32, height: u32) -> Result<u32, String> {
+    if !(scale.is_finite() && scale > 0.0) {
+        return Err("must be a positive number".into());
+    }
+    if scale > 1.0 + 1e-9 {
+        return Err(format!(
+            "zoom-in beyond the source images has no ground truth; the largest scale is 1 ({width}x{height})"
+        ));
+    }
+    let inv = 1.0 / scale;
+    let k = inv.round();
+    if (inv - k).abs() > 1e-6 * k {
+        return Err(format!(
+            "1/scale = {inv:.6} is not an integer downsampling factor"
+        ));
+    }
+    let k = k as u32;
+    if !width.is_multiple_of(k) || !height.is_multiple_of(k) {
+        return Err(format!(
+            "factor {k} does not divide the image size {width}x{height}"
+        ));
+    }
+    Ok(k)
+}
+
+impl Dataset {
+    /// Opens a data folder: reads `transforms_train.json` and `transforms_test.json`
+    /// (required), `transforms_val.json` and `transforms_video.json` (optional; skipped
+    /// when absent, checked when present) and every image header. No image is decoded.
+    pub fn open(root: &Path, options: DatasetOptions) -> Result<Self, DataError> {
+        if !root.is_dir() {
+            return Err(DataError::request(root, "data folder does not exist"));
+        }
+        let mut splits = BTreeMap::new();
+        for split in Split::ALL {
+            let required = matches!(split, Split::Train | Split::Test);
+            if !required && !root.join(split.json_name()).exists() {
+                continue;
+            }
+            splits.insert(split, read_split(root, split)?);
+        }
+        let train = &splits[&Split::Train];
+        let bounds = match train.scene_bounds {
+            Some(b) => b,
+            None => {
+                let cams: Vec<Camera> = train.frames.iter().map(|f| f.camera.clone()).collect();
+                bounds_from_cameras(&cams)
+                    .ok_or_else(|| DataError::field(&train.json, "frames", "is empty"))?
+            }
+        };
+        Ok(Dataset {
+            root: root.to_path_buf(),
+            background: options.background,
+            splits,
+            bounds,
+            cache: Mutex::new(HashMap::new()),
+        })
+    }
+
+    /// The data folder.
+    pub fn root(&self) -> &Path {
+        &self.root
+    }
+
+    /// The background colour images are composited on.
+    pub fn background(&self) -> [f32; 3] {
+        self.background
+    }
+
+    /// The splits present, in the order train, val, test, video.
+    pub fn splits(&self) -> impl Iterator<Item = &SplitMeta> {
+        self.splits.values()
+    }
+
+    /// Metadata of one split, or an error naming its json if it is absent.
+    pub fn split(&self, split: Split) -> Result<&SplitMeta, DataError> {
+        self.splits.get(&split).ok_or_else(|| {
+            DataError::request(
+                &self.root.join(split.json_name()),
+                "split not present in this data set",
+            )
+        })
+    }
+
+    /// Number of views of a split (0 when absent).
+    pub fn len(&self, split: Split) -> usize {
+        self.splits.get(&split).map_or(0, |m| m.frames.len())
+    }
+
+    /// Whether the data set has no training views (never true for an opened data set).
+    pub fn is_empty(&self) -> bool {
+        self.len(Split::Train) == 0
+    }
+
+    /// The integer factor for `scale` on `split`'s images, or an error naming its json.
+    pub fn factor(&self, split: Split, scale: f64) -> Result<u32, DataError> {
+        let meta = self.split(split)?;
+        scale_factor(scale, meta.width, meta.height).map_err(|message| DataError::Scale {
+            path: meta.json.display().to_string(),
+            scale,
+            message,
+        })
+    }
+
+    /// Image size `(width, height)` of `split` at `scale`.
+    pub fn size(&self, split: Split, scale: f64) -> Result<(u32, u32), DataError> {
+        let k = self.factor(split, scale)?;
+        let meta = self.split(split)?;
+        Ok((meta.width / k, meta.height / k))
+    }
+
+    /// Camera of view `index` at `scale` (`Camera::scaled(1 / k)`).
+    pub fn camera(&self, split: Split, index: usize, scale: f64) -> Result<Camera, DataError> {
+        let k = self.factor(split, scale)?;
+        let frame = self.frame(split, index)?;
+        Ok(frame.camera.scaled(1.0 / k as f64))
+    }
+
+    /// All cameras of a split at `scale`.
+    pub fn cameras(&self, split: Split, scale: f64) -> Result<Vec<Camera>, DataError> {
+        let k = self.factor(split, scale)?;
+        Ok(self
+            .split(split)?
+            .frames
+            .iter()
+            .map(|f| f.camera.scaled(1.0 / k as f64))
+            .collect())
+    }
+
+    /// Time stamps of a split, in json order (empty when absent).
+    pub fn times(&self, split: Split) -> Vec<f64> {
+        self.splits
+            .get(&split)
+            .map_or_else(Vec::new, |m| m.frames.iter().map(|f| f.time).collect())
+    }
+
+    /// `(min, max)` of the time stamps over all splits present.
+    pub fn time_range(&self) -> (f64, f64) {
+        self.splits
+            .values()
+            .flat_map(|m| m.frames.iter().map(|f| f.time))
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), t| {
+                (lo.min(t), hi.max(t))
+            })
+    }
+
+    /// Scene bounds for initialisation: the training json's `scene_bounds` when present,
+    /// else [`bounds_from_cameras`] of the training cameras.
+    pub fn scene_bounds(&self) -> Aabb {
+        self.bounds
+    }
+
+    /// One view at `scale`; decodes its image only if this (view, scale) is not cached.
+    pub fn view(&self, split: Split, index: usize, scale: f64) -> Result<View, DataError> {
+        let k = self.factor(split, scale)?;
+        self.load(split, &[index], &[k])?;
+        self.cached_view(split, index, k)
+    }
+
+    /// All views of a split at `scale` (decoded in parallel on first use, then cached).
+    pub fn views(&self, split: Split, scale: f64) -> Result<Vec<View>, DataError> {
+        let k = self.factor(split, scale)?;
+        let all: Vec<usize> = (0..self.len(split)).collect();
+        self.load(split, &all, &[k])?;
+        all.into_iter()
+            .map(|i| self.cached_view(split, i, k))
+            .collect()
+    }
+
+    /// Training views at `scale`.
+    pub fn train_views(&self, scale: f64) -> Result<Vec<View>, DataError> {
+        self.views(Split::Train, scale)
+    }
+
+    /// Test views at `scale`.
+    pub fn test_views(&self, scale: f64) -> Result<Vec<View>, DataError> {
+        self.views(Split::Test, scale)
+    }
+
+    /// Decodes every image of `split` once and fills the cache for all `scales` at once
+    /// (the multi-scale evaluation asks for several scales of the same test images).
+    pub fn preload(&self, split: Split, scales: &[f64]) -> Result<(), DataError> {
+        let ks = scales
+            .iter()
+            .map(|&s| self.factor(split, s))
+            .collect::<Result<Vec<u32>, _>>()?;
+        let all: Vec<usize> = (0..self.len(split)).collect();
+        self.load(split, &all, &ks)
+    }
+
+    /// Number of (view, scale) images currently cached.
+    pub fn cached_images(&self) -> usize {
+        self.cache.lock().map_or(0, |c| c.len())
+    }
+
+    /// Forward flow of `video` frame `index` at `scale` (`[H, W, 3]`: dx, dy in pixels of
+    /// that scale, valid), or `None` when the frame has no `flow_path` (the last frame).
+    pub fn flow(&self, index: usize, scale: f64) -> Result<Option<Image>, DataError> {
+        let k = self.factor(Split::Video, scale)?;
+        let frame = self.frame(Split::Video, index)?;
+        let Some(path) = &frame.flow else {
+            return Ok(None);
+        };
+        let full = read_flow(path)?;
+        let meta = self.split(Split::Video)?;
+        if (full.width, full.height) != (meta.width, meta.height) {
+            return Err(DataError::Image {
+                path: path.display().to_string(),
+                message: format!(
+                    "flow is {}x{} but the video images are {}x{}",
+                    full.width, full.height, meta.width, meta.height
+                ),
+            });
+        }
+        Ok(downsample_flow(&full, k))
+    }
+
+    fn frame(&self, split: Split, index: usize) -> Result<&super::dnerf::Frame, DataError> {
+        let meta = self.split(split)?;
+        meta.frames.get(index).ok_or_else(|| {
+            DataError::request(
+                &meta.json,
+                format!("view {index} out of range ({} views)", meta.frames.len()),
+            )
+        })
+    }
+
+    fn cached_view(&self, split: Split, index: usize, k: u32) -> Result<View, DataError> {
+        let frame = self.frame(split, index)?;
+        let image = self
+            .cache
+            .lock()
+            .ok()
+            .and_then(|c| c.get(&(split, k, index)).cloned())
+            .ok_or_else(|| DataError::request(&frame.file, "image cache lost an entry"))?;
+        Ok(View {
+            split,
+            index,
+            image,
+            camera: frame.camera.scaled(1.0 / k as f64),
+            time: frame.time,
+        })
+    }
+
+    /// Decodes the listed views once each and inserts every missing factor.
+    fn load(&self, split: Split, indices: &[usize], ks: &[u32]) -> Result<(), DataError> {
+        let meta = self.split(split)?;
+        let missing: Vec<(usize, Vec<u32>)> = {
+            let cache = self
+                .cache
+                .lock()
+                .map_err(|_| DataError::request(&meta.json, "image cache poisoned"))?;
+            indices
+                .iter()
+                .map(|&i| {
+                    let ks: Vec<u32> = ks
+                        .iter()
+                        .copied()
+                        .filter(|&k| !cache.contains_key(&(split, k, i)))
+                        .collect();
+                    (i, ks)
+                })
+                .filter(|(_, ks)| !ks.is_empty())
+                .collect()
+        };
+        let background = self.background;
+        let decoded: Vec<Vec<(CacheKey, Arc<Image>)>> =
+            missing
+                .par_iter()
+                .map(|(i, ks)| {
+                    let frame = self.frame(split, *i)?;
+                    let mut rgba = decode_rgba(&frame.file)?;
+                    if (rgba.width, rgba.height) != (meta.width, meta.height) {
+                        return Err(DataError::field(
+                            &meta.json,
+                            format!("frames[{i}].file_path"),
+                            format!(
+                                "{} decodes to {}x{} but the split is {}x{}",
+                                frame.file.display(),
+                                rgba.width,
+                                rgba.height,
+                                meta.width,
+                                meta.height
+                            ),
+                        ));
+                    }
+                    premultiply(&mut rgba.data);
+                    let (w, h) = (rgba.width as usize, rgba.height as usize);
+                    ks.iter()
+                        .map(|&k| {
+                            let small = box_downsample(&rgba.data, w, h, 4, k as usize)
+                                .ok_or_else(|| DataError::Scale {
+                                    path: meta.json.display().to_string(),
+                                    scale: 1.0 / k as f64,
+                                    message: format!("factor {k} does not divide {w}x{h}"),
+                                })?;
+                            let img = Image {
+                                width: rgba.width / k,
+                                height: rgba.height / k,
+                                channels: 3,
+                                data: composite_premultiplied(&small, background),
+                            };
+                            Ok(((split, k, *i), Arc::new(img)))
+                        })
+                        .collect()
+                })
+                .collect::<Result<_, DataError>>()?;
+        let mut cache = self
+            .cache
+            .lock()
+            .map_err(|_| DataError::request(&meta.json, "image cache poisoned"))?;
+        for (key, img) in decoded.into_iter().flatten() {
+            cache.entry(key).or_insert(img);
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,22 @@
+//! Data: the D-NeRF loader, multi-scale ground truth, the built-in synthetic dynamic
+//! scene generator and the data-set summary (DESIGN.md section 7).
+//!
+//! - [`dnerf`]: `transforms_{train,val,test}.json` parsing, OpenGL to OpenCV cameras.
+//! - [`downsample`]: integer box downsampling of premultiplied RGBA, then compositing.
+//! - [`dataset`]: [`Dataset`], views at any integer-ratio scale, cached per scale.
+//! - [`synthetic`]: the procedural alias-prone scene behind `maaf generate`.
+//! - [`inspect`]: the summary behind `maaf inspect`.
+
+pub mod bounds;
+pub mod dataset;
+pub mod dnerf;
+pub mod downsample;
+pub mod error;
+pub mod flow;
+pub mod image;
+
+pub use bounds::Aabb;
+pub use dataset::{BLACK, Dataset, DatasetOptions, View, WHITE};
+pub use dnerf::{Frame, Split, SplitMeta};
+pub use error::DataError;
+pub use image::Image;

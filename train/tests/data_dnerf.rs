@@ -1,0 +1,400 @@
+//! D-NeRF loader: the real mutant scene, multi-scale views and every bad-input error.
+
+use std::path::{Path, PathBuf};
+
+use glam::DVec3;
+use maaf_train::data::{DataError, Dataset, DatasetOptions, Split, WHITE};
+
+fn mutant() -> Option<PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/dnerf/mutant");
+    if dir.join("transforms_train.json").exists() {
+        Some(dir)
+    } else {
+        println!(
+            "SKIPPED: D-NeRF mutant scene not found at {} (tests that need it do nothing)",
+            dir.display()
+        );
+        None
+    }
+}
+
+#[test]
+fn mutant_loads_with_json_times_and_centred_cameras() {
+    let Some(dir) = mutant() else { return };
+    let data = Dataset::open(&dir, DatasetOptions::default()).expect("mutant opens");
+    assert_eq!(data.len(Split::Train), 150);
+    assert_eq!(data.len(Split::Val), 20);
+    assert_eq!(data.len(Split::Test), 20);
+    assert_eq!(data.len(Split::Video), 0);
+
+    // Times are the json's, not the frame index.
+    for split in [Split::Train, Split::Val, Split::Test] {
+        let text = std::fs::read_to_string(dir.join(split.json_name())).expect("json");
+        let v: serde_json::Value = serde_json::from_str(&text).expect("json parses");
+        let json_times: Vec<f64> = v["frames"]
+            .as_array()
+            .expect("frames")
+            .iter()
+            .map(|f| f["time"].as_f64().expect("time"))
+            .collect();
+        let times = data.times(split);
+        assert_eq!(times, json_times, "{split}");
+        assert!(times.iter().all(|t| (0.0..=1.0).contains(t)));
+    }
+    assert_eq!(data.time_range(), (0.0, 1.0));
+    // Test times are not evenly spaced by index: t[13] = 0.6778..., not 13/19.
+    let test_times = data.times(Split::Test);
+    assert!((test_times[13] - 13.0 / 19.0).abs() > 1e-3);
+
+    // Focal length 1111.1 px at 800, 277.8 px at 200.
+    let meta = data.split(Split::Train).expect("train");
+    assert_eq!((meta.width, meta.height), (800, 800));
+    assert!((meta.focal - 1111.11).abs() < 0.05, "focal {}", meta.focal);
+    let small = data.camera(Split::Train, 0, 0.25).expect("scale 1/4");
+    assert_eq!((small.width, small.height), (200, 200));
+    assert!((small.fx - 277.78).abs() < 0.01, "fx {}", small.fx);
+    assert_eq!((small.cx, small.cy), (100.0, 100.0));
+
+    // Every camera is ~4.03 from the origin and looks at it: the origin projects near the
+    // image centre (within 1% of the width).
+    for split in [Split::Train, Split::Val, Split::Test] {
+        for (i, cam) in data.cameras(split, 1.0).expect("cams").iter().enumerate() {
+            let d = cam.center().length();
+            assert!((d - 4.031).abs() < 0.01, "{split}[{i}] distance {d}");
+            let (u, v, z) = cam.project(DVec3::ZERO).expect("origin in front");
+            assert!(
+                (z - d).abs() < 0.05,
+                "{split}[{i}] depth {z} vs distance {d}"
+            );
+            assert!(
+                (u - 400.0).abs() < 8.0 && (v - 400.0).abs() < 8.0,
+                "{split}[{i}] origin projects to ({u:.1}, {v:.1})"
+            );
+        }
+    }
+
+    // Scene bounds from the cameras: a cube of half-size ~1.37 around the origin.
+    let b = data.scene_bounds();
+    assert!(b.center().length() < 0.1, "centre {:?}", b.center());
+    let half = 0.5 * b.size().x;
+    assert!((half - 1.37).abs() < 0.05, "half extent {half}");
+}
+
+#[test]
+fn mutant_views_are_decoded_once_per_scale() {
+    let Some(dir) = mutant() else { return };
+    let data = Dataset::open(&dir, DatasetOptions { background: WHITE }).expect("opens");
+    let full = data.view(Split::Test, 3, 1.0).expect("full res");
+    assert_eq!(
+        (full.image.width, full.image.height, full.image.channels),
+        (800, 800, 3)
+    );
+    assert_eq!(full.time, data.times(Split::Test)[3]);
+    assert_eq!(data.cached_images(), 1);
+    let again = data.view(Split::Test, 3, 1.0).expect("cached");
+    assert!(
+        std::sync::Arc::ptr_eq(&full.image, &again.image),
+        "second call must hit the cache"
+    );
+    let quarter = data.view(Split::Test, 3, 0.25).expect("1/4");
+    assert_eq!((quarter.image.width, quarter.image.height), (200, 200));
+    assert_eq!(data.cached_images(), 2);
+    // The quarter-scale image is the 4x4 block mean of the full one (compositing is
+    // linear, so averaging composited pixels gives the same result to rounding).
+    for &(x, y) in &[(100u32, 100u32), (57, 140), (0, 0)] {
+        for c in 0..3 {
+            let mut s = 0.0f64;
+            for dy in 0..4 {
+                for dx in 0..4 {
+                    s += full.image.pixel(4 * x + dx, 4 * y + dy)[c] as f64;
+                }
+            }
+            let q = quarter.image.pixel(x, y)[c] as f64;
+            assert!(
+                (q - s / 16.0).abs() < 1e-5,
+                "({x},{y},{c}): {q} vs {}",
+                s / 16.0
+            );
+        }
+    }
+    // Corners are background: white.
+    assert_eq!(quarter.image.pixel(0, 0), &[1.0, 1.0, 1.0]);
+    // Scale errors name the split json and say why.
+    let err = data
+        .view(Split::Test, 3, 1.0 / 3.0)
+        .expect_err("3 does not divide 800");
+    let msg = err.to_string();
+    assert!(
+        msg.contains("transforms_test.json") && msg.contains("does not divide"),
+        "{msg}"
+    );
+    let err = data
+        .view(Split::Test, 3, 2.0)
+        .expect_err("zoom-in beyond source");
+    assert!(err.to_string().contains("no ground truth"), "{err}");
+    let err = data.view(Split::Test, 3, 0.3).expect_err("not 1/k");
+    assert!(err.to_string().contains("not an integer"), "{err}");
+}
+
+// ---------- bad input on a tiny hand-made data set ----------
+
+struct TempDir(PathBuf);
+
+impl TempDir {
+    fn new(tag: &str) -> Self {
+        use std::sync::atomic::{AtomicUsize, Ordering};
+        static N: AtomicUsize = AtomicUsize::new(0);
+        let p = std::env::temp_dir().join(format!(
+            "maaf-data-{tag}-{}-{}",
+            std::process::id(),
+            N.fetch_add(1, Ordering::SeqCst)
+        ));
+        let _ = std::fs::remove_dir_all(&p);
+        std::fs::create_dir_all(&p).expect("temp dir");
+        TempDir(p)
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+fn write_png(path: &Path, w: u32, h: u32) {
+    std::fs::create_dir_all(path.parent().expect("parent")).expect("mkdir");
+    let img = image::RgbaImage::from_fn(w, h, |x, y| {
+        image::Rgba([(x * 40) as u8, (y * 40) as u8, 128, 255])
+    });
+    img.save(path).expect("png");
+}
+
+const GOOD_MATRIX: &str = "[[1,0,0,0],[0,1,0,0],[0,0,1,4],[0,0,0,1]]";
+
+/// A two-frame split json with the given frame bodies.
+fn split_json(frames: &[String]) -> String {
+    format!(
+        "{{\"camera_angle_x\": 0.69, \"frames\": [{}]}}",
+        frames.join(",")
+    )
+}
+
+fn frame(path: &str, time: &str, matrix: &str) -> String {
+    format!("{{\"file_path\": \"{path}\", \"time\": {time}, \"transform_matrix\": {matrix}}}")
+}
+
+/// A valid tiny data set: 2 train, 1 test, 4x4 PNGs.
+fn tiny(tag: &str) -> TempDir {
+    let t = TempDir::new(tag);
+    for p in ["train/r_000.png", "train/r_001.png", "test/r_000.png"] {
+        write_png(&t.0.join(p), 4, 4);
+    }
+    std::fs::write(
+        t.0.join("transforms_train.json"),
+        split_json(&[
+            frame("./train/r_000", "0.0", GOOD_MATRIX),
+            frame("./train/r_001", "0.7", GOOD_MATRIX),
+        ]),
+    )
+    .expect("write");
+    std::fs::write(
+        t.0.join("transforms_test.json"),
+        split_json(&[frame("./test/r_000", "0.5", GOOD_MATRIX)]),
+    )
+    .expect("write");
+    t
+}
+
+fn open_err(dir: &Path) -> String {
+    let err: DataError = Dataset::open(dir, DatasetOptions::default()).expect_err("must fail");
+    let msg = err.to_string();
+    assert!(!msg.contains('\n'), "error must be one line: {msg}");
+    msg
+}
+
+fn set_train(t: &TempDir, frames: &[String]) {
+    std::fs::write(t.0.join("transforms_train.json"), split_json(frames)).expect("write");
+}
+
+#[test]
+fn tiny_data_set_loads() {
+    let t = tiny("ok");
+    let data = Dataset::open(&t.0, DatasetOptions::default()).expect("valid");
+    assert_eq!(data.times(Split::Train), vec![0.0, 0.7]);
+    let v = data.view(Split::Train, 1, 0.5).expect("2x2");
+    assert_eq!((v.image.width, v.image.height), (2, 2));
+    // OpenGL camera at z = 4 looking down -z: in OpenCV axes the origin is in front.
+    let (u, vv, z) = v.camera.project(DVec3::ZERO).expect("in front");
+    assert_eq!((u, vv, z), (1.0, 1.0, 4.0));
+}
+
+#[test]
+fn missing_json_names_the_file() {
+    let t = tiny("nojson");
+    std::fs::remove_file(t.0.join("transforms_test.json")).expect("rm");
+    let msg = open_err(&t.0);
+    assert!(
+        msg.contains("transforms_test.json") && msg.contains("cannot read"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn missing_time_and_matrix_name_the_field() {
+    let t = tiny("missing");
+    set_train(
+        &t,
+        &[
+            frame("./train/r_000", "0.0", GOOD_MATRIX),
+            format!("{{\"file_path\": \"./train/r_001\", \"transform_matrix\": {GOOD_MATRIX}}}"),
+        ],
+    );
+    let msg = open_err(&t.0);
+    assert!(
+        msg.contains("transforms_train.json")
+            && msg.contains("frames[1].time")
+            && msg.contains("missing"),
+        "{msg}"
+    );
+    set_train(
+        &t,
+        &["{\"file_path\": \"./train/r_000\", \"time\": 0.0}".to_string()],
+    );
+    let msg = open_err(&t.0);
+    assert!(
+        msg.contains("transforms_train.json")
+            && msg.contains("frames[0].transform_matrix")
+            && msg.contains("missing"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn non_numeric_values_name_the_field() {
+    let t = tiny("nonnum");
+    set_train(&t, &[frame("./train/r_000", "\"zero\"", GOOD_MATRIX)]);
+    let msg = open_err(&t.0);
+    assert!(
+        msg.contains("frames[0].time") && msg.contains("expected a number"),
+        "{msg}"
+    );
+    set_train(
+        &t,
+        &[frame(
+            "./train/r_000",
+            "0.0",
+            "[[1,0,0,0],[0,1,\"x\",0],[0,0,1,4],[0,0,0,1]]",
+        )],
+    );
+    let msg = open_err(&t.0);
+    assert!(
+        msg.contains("transforms_train.json") && msg.contains("frames[0].transform_matrix[1][2]"),
+        "{msg}"
+    );
+    std::fs::write(
+        t.0.join("transforms_train.json"),
+        "{\"camera_angle_x\": \"wide\", \"frames\": []}",
+    )
+    .expect("w");
+    let msg = open_err(&t.0);
+    assert!(
+        msg.contains("camera_angle_x") && msg.contains("expected a number"),
+        "{msg}"
+    );
+    std::fs::write(
+        t.0.join("transforms_train.json"),
+        "{\"camera_angle_x\": 0.6, \"frames\": [",
+    )
+    .expect("w");
+    let msg = open_err(&t.0);
+    assert!(
+        msg.contains("transforms_train.json") && msg.contains("not valid JSON"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn undecodable_png_names_the_file() {
+    let t = tiny("badpng");
+    // A file with a PNG signature and garbage after it: the header cannot be read.
+    let mut bytes = vec![0x89, b'P', b'N', b'G', 0x0d, 0x0a, 0x1a, 0x0a];
+    bytes.extend_from_slice(b"this is not a png body");
+    std::fs::write(t.0.join("train/r_001.png"), &bytes).expect("w");
+    let msg = open_err(&t.0);
+    assert!(
+        msg.contains("r_001.png") && msg.contains("does not decode"),
+        "{msg}"
+    );
+
+    // A PNG whose header is fine but whose pixel data is cut off: found when decoding.
+    let t = tiny("truncpng");
+    let good = std::fs::read(t.0.join("train/r_001.png")).expect("r");
+    std::fs::write(t.0.join("train/r_001.png"), &good[..good.len() - 20]).expect("w");
+    let data = Dataset::open(&t.0, DatasetOptions::default()).expect("headers are fine");
+    let err = data.view(Split::Train, 1, 1.0).expect_err("pixels are not");
+    let msg = err.to_string();
+    assert!(
+        msg.contains("r_001.png") && msg.contains("does not decode"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn mixed_image_sizes_name_the_frame() {
+    let t = tiny("sizes");
+    write_png(&t.0.join("train/r_001.png"), 8, 4);
+    let msg = open_err(&t.0);
+    assert!(
+        msg.contains("transforms_train.json")
+            && msg.contains("frames[1].file_path")
+            && msg.contains("8x4"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn non_invertible_matrix_names_the_field() {
+    let t = tiny("singular");
+    set_train(
+        &t,
+        &[frame(
+            "./train/r_000",
+            "0.0",
+            "[[1,0,0,0],[0,0,0,0],[0,0,1,4],[0,0,0,1]]",
+        )],
+    );
+    let msg = open_err(&t.0);
+    assert!(
+        msg.contains("frames[0].transform_matrix") && msg.contains("not invertible"),
+        "{msg}"
+    );
+    set_train(
+        &t,
+        &[frame(
+            "./train/r_000",
+            "0.0",
+            "[[2,0,0,0],[0,2,0,0],[0,0,2,4],[0,0,0,1]]",
+        )],
+    );
+    let msg = open_err(&t.0);
+    assert!(
+        msg.contains("frames[0].transform_matrix") && msg.contains("not a rotation"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn scale_not_dividing_the_size_is_refused() {
+    let t = tiny("scale");
+    let data = Dataset::open(&t.0, DatasetOptions::default()).expect("valid");
+    let msg = data
+        .view(Split::Train, 0, 1.0 / 3.0)
+        .expect_err("3 does not divide 4")
+        .to_string();
+    assert!(
+        msg.contains("transforms_train.json")
+            && msg.contains("factor 3 does not divide the image size 4x4"),
+        "{msg}"
+    );
+    assert_eq!(data.cached_images(), 0);
+}
