@@ -2,14 +2,14 @@
 //!
 //! Six feature planes over pairs of (x, y, z, t), in SaRO-GS's order
 //! `itertools.combinations(range(4), 2)`: xy, xz, xt, yz, yt, zt. A query point is
-//! the Gaussian's canonical centre normalised to [0,1] by the scene bounds, its
+//! the Gaussian's canonical centre normalised to \[0,1] by the scene bounds, its
 //! temporal centre mu_t and its activated scale, all detached. The feature is the
 //! **sum** over the six planes (SaRO-GS `concat_planes = False`; 4DGaussians' HexPlane
 //! multiplies instead).
 //!
 //! Scale awareness ("Eq 18" in the SaRO-GS code): per spatial axis
 //! `level_a = log2(2 s_a / base_a)`, `base_a = extent_a / res`, with `s_a` clamped to
-//! `[base_a / 2, base_a / 2 * res]` so that the level lies in `[0, log2 res]`; a plane
+//! `\[base_a / 2, base_a / 2 * res]` so that the level lies in `\[0, log2 res]`; a plane
 //! uses the smaller level of its two axes; planes containing t use level 0. A spatial
 //! plane is sampled trilinearly in a 2x2 box-filtered mip pyramid (bilinear within a
 //! level, linear across levels), texel centres at `(i + 0.5) / res`, clamp at the
@@ -61,8 +61,8 @@ impl Default for KPlaneConfig {
     }
 }
 
-/// Layout of one plane and its mip pyramid (values stored [height, width, channels],
-/// width along the plane's first axis, as nvdiffrast's `[H, W, C]` texture).
+/// Layout of one plane and its mip pyramid (values stored \[height, width, channels],
+/// width along the plane's first axis, as nvdiffrast's `\[H, W, C]` texture).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PlaneGeom {
     /// Texels along the first axis (u).
@@ -100,7 +100,7 @@ impl PlaneGeom {
 pub struct KPlaneField<T: Float> {
     /// Sizes.
     pub config: KPlaneConfig,
-    /// Plane values, [`PLANE_NAMES`] order, each [height, width, channels].
+    /// Plane values, [`PLANE_NAMES`] order, each \[height, width, channels].
     pub planes: Vec<Tensor<T>>,
     /// Lower corner of the normalisation box (SaRO-GS: the AABB of the initial cloud).
     pub aabb_min: [f64; 3],
@@ -111,9 +111,9 @@ pub struct KPlaneField<T: Float> {
 /// Detached per-Gaussian query of the field: normalised coordinates and mip levels.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FieldQuery {
-    /// (x, y, z, t) per Gaussian, positions normalised to [0, 1] by the bounds.
+    /// (x, y, z, t) per Gaussian, positions normalised to \[0, 1] by the bounds.
     pub coords: Vec<[f64; 4]>,
-    /// Mip level per spatial axis, in [0, log2 res].
+    /// Mip level per spatial axis, in \[0, log2 res].
     pub levels: Vec<[f64; 3]>,
 }
 
@@ -167,9 +167,9 @@ impl<T: Float> KPlaneField<T> {
         Self::geom_of(&self.config, p)
     }
 
-    /// Builds the detached query for `N` Gaussians from canonical centres [N*3],
-    /// temporal centres [N] (already in the field's time unit, [0, 1]) and activated
-    /// scales [N*3] (SaRO-GS `ScaleAwareResField.get_density` + `get_level`).
+    /// Builds the detached query for `N` Gaussians from canonical centres \[N*3],
+    /// temporal centres \[N] (already in the field's time unit, \[0, 1]) and activated
+    /// scales \[N*3] (SaRO-GS `ScaleAwareResField.get_density` + `get_level`).
     pub fn query(&self, means: &[T], t_centre: &[T], scales: &[T]) -> FieldQuery {
         let n = t_centre.len();
         assert_eq!(means.len(), 3 * n);
@@ -206,7 +206,7 @@ impl<T: Float> KPlaneField<T> {
 /// Up to 8 (pyramid texel, weight) taps: 4 bilinear taps on each of two levels.
 type Taps = [(usize, f64); 8];
 
-/// Taps of one lookup of a plane: point (u, v) in [0,1]^2 (clamped at the border),
+/// Taps of one lookup of a plane: point (u, v) in \[0,1]^2 (clamped at the border),
 /// mip level `level` (clamped to the pyramid). Returns the number of taps used.
 fn plane_taps(g: &PlaneGeom, u: f64, v: f64, level: f64, taps: &mut Taps) -> usize {
     let max_level = (g.levels - 1) as f64;
@@ -271,7 +271,7 @@ fn for_each_child(g: &PlaneGeom, l: usize, mut f: impl FnMut(usize, usize)) {
     }
 }
 
-/// Mip pyramid of a plane [H, W, C]: level 0 is the plane, level l the 2x2 box mean
+/// Mip pyramid of a plane \[H, W, C]: level 0 is the plane, level l the 2x2 box mean
 /// of level l-1 (nvdiffrast's mip construction for power-of-two textures).
 pub fn build_pyramid<T: Float>(g: &PlaneGeom, plane: &[T], c: usize) -> Vec<T> {
     let mut pyr = vec![T::zero(); g.pyramid_texels() * c];
@@ -288,7 +288,7 @@ pub fn build_pyramid<T: Float>(g: &PlaneGeom, plane: &[T], c: usize) -> Vec<T> {
     pyr
 }
 
-/// Sums the six plane lookups of every Gaussian: output [N, C]. Inputs: the six planes
+/// Sums the six plane lookups of every Gaussian: output \[N, C]. Inputs: the six planes
 /// in [`PLANE_NAMES`] order. The query is a constant of the op (detached).
 pub struct PlaneSample {
     query: Arc<FieldQuery>,

@@ -36,20 +36,20 @@ pub use saro::{SaroConfig, SaroModel};
 
 /// The deformed 3D Gaussians at one time, as the renderer takes them.
 ///
-/// Conventions (DESIGN.md section 3): `means` [N,3] world units; `scales` [N,3]
-/// **activated** (positive standard deviations); `quats` [N,4] w,x,y,z, **not**
-/// normalised (the renderer normalises); `opacity` [N] **activated**, in (0,1);
-/// `sh` [N,K,3] with K = (degree+1)^2, colour = max(SH + 0.5, 0).
+/// Conventions (DESIGN.md section 3): `means` \[N,3] world units; `scales` \[N,3]
+/// **activated** (positive standard deviations); `quats` \[N,4] w,x,y,z, **not**
+/// normalised (the renderer normalises); `opacity` \[N] **activated**, in (0,1);
+/// `sh` \[N,K,3] with K = (degree+1)^2, colour = max(SH + 0.5, 0).
 pub struct DeformedGaussians<'t, T: Float> {
-    /// Centres [N,3].
+    /// Centres \[N,3].
     pub means: Var<'t, T>,
-    /// Activated scales [N,3].
+    /// Activated scales \[N,3].
     pub scales: Var<'t, T>,
-    /// Unnormalised quaternions [N,4] (w,x,y,z).
+    /// Unnormalised quaternions \[N,4] (w,x,y,z).
     pub quats: Var<'t, T>,
-    /// Activated opacity [N] (for SaRO: sigmoid opacity times the temporal factor).
+    /// Activated opacity \[N] (for SaRO: sigmoid opacity times the temporal factor).
     pub opacity: Var<'t, T>,
-    /// Spherical-harmonic coefficients [N,K,3].
+    /// Spherical-harmonic coefficients \[N,K,3].
     pub sh: Var<'t, T>,
 }
 
@@ -72,7 +72,7 @@ pub struct Regulariser<'t, T: Float> {
 /// and the lifespans) is done once at bind time and shared by every `deform` call, so
 /// a batch of views at different times costs one field query.
 pub trait Bound<'t, T: Float> {
-    /// The deformed Gaussians at `time` (the data set's time, in [0, 1] for D-NeRF).
+    /// The deformed Gaussians at `time` (the data set's time, in \[0, 1] for D-NeRF).
     fn deform(&self, time: f64) -> DeformedGaussians<'t, T>;
     /// Regularisers of this step (empty when none is active, e.g. in a warm-up stage).
     fn regularisers(&self) -> Vec<Regulariser<'t, T>>;
@@ -97,13 +97,13 @@ pub struct ParamSlot<'a, T: Float> {
 /// densification reads (scale threshold, split sampling, opacity prune).
 #[derive(Clone, Debug)]
 pub struct Canonical<T: Float> {
-    /// Centres [N,3].
+    /// Centres \[N,3].
     pub means: Tensor<T>,
-    /// Activated scales [N,3].
+    /// Activated scales \[N,3].
     pub scales: Tensor<T>,
-    /// Unnormalised quaternions [N,4] (w,x,y,z).
+    /// Unnormalised quaternions \[N,4] (w,x,y,z).
     pub quats: Tensor<T>,
-    /// Activated base opacity [N] (without any temporal factor).
+    /// Activated base opacity \[N] (without any temporal factor).
     pub opacity: Tensor<T>,
 }
 
@@ -128,14 +128,14 @@ pub trait Representation<T: Float> {
     /// does not bind simply get no gradient.
     fn params_mut(&mut self) -> Vec<ParamSlot<'_, T>>;
 
-    /// Replaces every per-Gaussian parameter's rows by `old[index[0]], old[index[1]], ...`
+    /// Replaces every per-Gaussian parameter's rows by `old\[index\[0]], old\[index\[1]], ...`
     /// (clone: repeat an index; split: repeat and drop; prune: leave out). Apply the
     /// same list to the optimiser moments and every other per-Gaussian container.
     fn select_rows(&mut self, index: &[usize]);
 
     /// Overwrites the canonical centres and **activated** scales of `rows` (after
     /// [`Representation::select_rows`] has created them, e.g. the two halves of a split).
-    /// `means` and `scales` are [rows.len(), 3].
+    /// `means` and `scales` are \[rows.len(), 3].
     fn set_rows(&mut self, rows: &[usize], means: &Tensor<T>, scales: &Tensor<T>);
 
     /// Canonical values for densification.
@@ -153,7 +153,7 @@ pub trait Representation<T: Float> {
     /// Number of stored scalars (parameters only, no optimiser state).
     fn num_scalars(&self) -> usize;
 
-    /// Deformed centres [N,3] at each of `times`, outside any training tape: what the
+    /// Deformed centres \[N,3] at each of `times`, outside any training tape: what the
     /// motion-aware filter refresh needs (DESIGN.md section 4: every training
     /// (camera, time) sees the *deformed* centre). The default deforms everything on a
     /// scratch tape per time; a representation should override it with a cheaper path.
@@ -176,14 +176,14 @@ pub trait Representation<T: Float> {
 pub struct PointCloud {
     /// Positions.
     pub points: Vec<[f64; 3]>,
-    /// Colours in [0, 1].
+    /// Colours in \[0, 1].
     pub colours: Vec<[f64; 3]>,
 }
 
 impl PointCloud {
-    /// `n` points uniform in the box `[lo, hi]^3` with uniform random colours, as
+    /// `n` points uniform in the box `\[lo, hi]^3` with uniform random colours, as
     /// SaRO-GS and D-NeRF loaders do for synthetic scenes (SaRO-GS
-    /// `scene/dataset_readers.py`: 100 000 points in [-1.3, 1.3]^3). Seeded.
+    /// `scene/dataset_readers.py`: 100 000 points in \[-1.3, 1.3]^3). Seeded.
     pub fn random_in_box(n: usize, lo: f64, hi: f64, seed: u64) -> Self {
         let mut rng = Pcg64::seed_from_u64(seed);
         let mut draw3 = |a: f64, b: f64| {

@@ -7,9 +7,9 @@
 //! - field features `f = F(sg(x), sg(mu_t), sg(s))` from the scale-aware K-plane field
 //!   ([`super::kplane`]), `sg` = stop-gradient;
 //! - lifespan `l = (1 - m)(1 - sigmoid(MLP_l(f))) + m`, `m = min_interval / duration`;
-//! - `Dt = t - mu_t`, input `h = [f, sg(PE(Dt))]`, PE = NeRF embedding with the
+//! - `Dt = t - mu_t`, input `h = \[f, sg(PE(Dt))]`, PE = NeRF embedding with the
 //!   identity and `sin, cos(2^k Dt)`, k < 4 (9 values);
-//! - `mu(t) = x + MLP_x(h)`, `[dq, ds] = MLP_r(h)`, `q(t) = q + dq` (normalised by the
+//! - `mu(t) = x + MLP_x(h)`, `\[dq, ds] = MLP_r(h)`, `q(t) = q + dq` (normalised by the
 //!   renderer), `s(t) = exp(log s + ds)`, `SH(t) = SH + MLP_sh(h)` (optional);
 //! - opacity `sigmoid(o) * exp(-4 (Dt / l)^2)` (the code's "Eq 9").
 //!
@@ -167,27 +167,27 @@ pub struct SaroModel<T: Float> {
     pub config: SaroConfig,
     /// Scene extent: scales the position learning rate (3DGS `spatial_lr_scale`).
     pub scene_extent: f64,
-    /// Canonical centres [N,3] (`_xyz`).
+    /// Canonical centres \[N,3] (`_xyz`).
     pub xyz: Tensor<T>,
-    /// Log-scales [N,3] (`_scaling`).
+    /// Log-scales \[N,3] (`_scaling`).
     pub log_scale: Tensor<T>,
-    /// Quaternions [N,4], w,x,y,z, unnormalised (`_rotation`).
+    /// Quaternions \[N,4], w,x,y,z, unnormalised (`_rotation`).
     pub rotation: Tensor<T>,
-    /// Opacity logits [N] (`_opacity`).
+    /// Opacity logits \[N] (`_opacity`).
     pub opacity: Tensor<T>,
-    /// SH DC [N,1,3] (`_features_dc`).
+    /// SH DC \[N,1,3] (`_features_dc`).
     pub sh_dc: Tensor<T>,
-    /// Higher SH bands [N,K-1,3] (`_features_rest`).
+    /// Higher SH bands \[N,K-1,3] (`_features_rest`).
     pub sh_rest: Tensor<T>,
-    /// Temporal centres [N] (`_temporal_pos`, not squashed: `sigmoid_tcenter` false).
+    /// Temporal centres \[N] (`_temporal_pos`, not squashed: `sigmoid_tcenter` false).
     pub t_centre: Tensor<T>,
     /// Scale-aware residual field.
     pub field: KPlaneField<T>,
-    /// `motion_mlp`: [f, PE] -> dx (3).
+    /// `motion_mlp`: \[f, PE] -> dx (3).
     pub motion_mlp: Mlp<T>,
-    /// `rot_mlp`: [f, PE] -> dq (4), d log s (3).
+    /// `rot_mlp`: \[f, PE] -> dq (4), d log s (3).
     pub rot_mlp: Mlp<T>,
-    /// `shs_mlp`: [f, PE] -> dSH (3K), when `sh_residual`.
+    /// `shs_mlp`: \[f, PE] -> dSH (3K), when `sh_residual`.
     pub sh_mlp: Option<Mlp<T>>,
     /// `opacity_mlp`: f -> lifespan logit (1).
     pub life_mlp: Mlp<T>,
@@ -233,7 +233,7 @@ struct DynamicVars<'t, T: Float> {
     lambda_sr: f64,
 }
 
-/// `[d, sin(2^0 d), cos(2^0 d), ..., sin(2^(F-1) d), cos(2^(F-1) d)]` per row (NeRF
+/// `\[d, sin(2^0 d), cos(2^0 d), ..., sin(2^(F-1) d), cos(2^(F-1) d)]` per row (NeRF
 /// embedder with `include_input`, log sampling; SaRO-GS `get_embedder`), as a constant.
 fn time_embedding<T: Float>(d: impl ExactSizeIterator<Item = f64>, freqs: usize) -> Tensor<T> {
     let n = d.len();
@@ -251,12 +251,12 @@ fn time_embedding<T: Float>(d: impl ExactSizeIterator<Item = f64>, freqs: usize)
 }
 
 impl<'t, T: Float> SaroBound<'t, T> {
-    /// Lifespans l [N] (None in the static stage).
+    /// Lifespans l \[N] (None in the static stage).
     pub fn lifespan(&self) -> Option<Var<'t, T>> {
         self.dynamic.as_ref().map(|d| d.lifespan)
     }
 
-    /// Field features [N, C] (None in the static stage).
+    /// Field features \[N, C] (None in the static stage).
     pub fn features(&self) -> Option<Var<'t, T>> {
         self.dynamic.as_ref().map(|d| d.features)
     }
@@ -392,7 +392,7 @@ fn mlp_vars<'t, T: Float>(
 impl<T: Float> SaroModel<T> {
     /// Initialises from a point cloud (SaRO-GS `create_from_pcd`): centres = points,
     /// scale = sqrt of the mean squared distance to the 3 nearest neighbours (log,
-    /// clamped to [-10, 1]), identity rotation, opacity 0.1 (as a logit), SH DC from the
+    /// clamped to \[-10, 1]), identity rotation, opacity 0.1 (as a logit), SH DC from the
     /// colour and zero higher bands, mu_t ~ U(0, 1), zero planes normalised by the
     /// cloud's bounds, residual heads zero, lifespan MLP with PyTorch's default init.
     pub fn from_point_cloud(
@@ -776,7 +776,7 @@ impl<T: Float> SaroModel<T> {
         out
     }
 
-    /// Lifespans `l` [N] from the current parameters (no gradient).
+    /// Lifespans `l` \[N] from the current parameters (no gradient).
     pub fn lifespans(&self) -> Vec<f64> {
         let tape = Tape::<T>::new();
         let planes: Vec<_> = self
@@ -806,9 +806,9 @@ impl<T: Float> SaroModel<T> {
             .collect()
     }
 
-    /// Temporal integral of each Gaussian's opacity factor over t in [0, 1] (SaRO-GS
+    /// Temporal integral of each Gaussian's opacity factor over t in \[0, 1] (SaRO-GS
     /// `get_intergral`, the code's "Eq 22"):
-    /// `I = l sqrt(pi)/2 [Q(2 sqrt2 (1 - mu_t)/l) - Q(2 sqrt2 (0 - mu_t)/l)]`, with the
+    /// `I = l sqrt(pi)/2 \[Q(2 sqrt2 (1 - mu_t)/l) - Q(2 sqrt2 (0 - mu_t)/l)]`, with the
     /// logistic approximation of the normal CDF
     /// `Q(x) = 1 - 1/(1 + exp(0.070565902 x^3 + 1.5976 x))`.
     pub fn temporal_integral(&self) -> Vec<f64> {
@@ -915,7 +915,7 @@ impl<T: Float> Representation<T> for SaroModel<T> {
         self.param_refs().iter().map(|t| t.len()).sum()
     }
 
-    /// `x + MLP_x([f, PE(t - mu_t)])` per time, with the field queried once and only
+    /// `x + MLP_x(\[f, PE(t - mu_t)])` per time, with the field queried once and only
     /// the motion MLP evaluated (one small scratch tape per time, so memory stays
     /// O(N H)). In the static stage the centres do not move.
     fn centres_at_times(&self, times: &[f64]) -> Vec<Tensor<T>> {
@@ -1373,7 +1373,7 @@ mod tests {
         }
     }
 
-    /// Where the MLP time goes: one [20000,41]x[41,64] GEMM vs the row-broadcast
+    /// Where the MLP time goes: one \[20000,41]x\[41,64] GEMM vs the row-broadcast
     /// bias add and the ReLU on its output (forward + backward each).
     #[test]
     #[ignore]
@@ -1418,5 +1418,16 @@ mod tests {
         }
         model.set_iteration(1);
         assert_eq!(model.centres_at_times(&[0.5])[0], model.xyz);
+    }
+
+    #[test]
+    fn the_trainer_can_hold_any_representation_as_a_trait_object() {
+        let model: Box<dyn Representation<f32>> = Box::new(tiny_model::<f32>(3, 2));
+        assert_eq!(model.name(), "saro");
+        assert_eq!(model.num_gaussians(), 3);
+        let tape = Tape::new();
+        let bound = model.bind(&tape);
+        assert_eq!(bound.deform(0.1).quats.shape().as_slice(), &[3, 4]);
+        assert_eq!(bound.regularisers()[0].name, "l_sr");
     }
 }
