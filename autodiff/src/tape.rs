@@ -321,12 +321,14 @@ impl<T: Float> Tape<T> {
                 .iter()
                 .map(|&i| inner.nodes[i].requires_grad)
                 .collect();
+            // Move the output cotangents out (no copy) and put them back afterwards so
+            // `Grads::wrt` still sees them; missing ones become zeros.
             let grad_outputs: Vec<Tensor<T>> = record
                 .outputs
                 .clone()
                 .map(|o| {
                     grads[o]
-                        .clone()
+                        .take()
                         .unwrap_or_else(|| Tensor::zeros(inner.nodes[o].value.shape()))
                 })
                 .collect();
@@ -344,6 +346,9 @@ impl<T: Float> Tape<T> {
             let input_grads = record
                 .op
                 .backward(&inputs, &outputs, &grad_outputs, &needs_grad);
+            for (o, g) in record.outputs.clone().zip(grad_outputs) {
+                grads[o] = Some(g);
+            }
             assert_eq!(
                 input_grads.len(),
                 inputs.len(),
@@ -426,6 +431,7 @@ impl<'t, T: Float> Var<'t, T> {
 }
 
 /// Gradients from one reverse sweep, keyed by node and by parameter name.
+#[derive(Debug)]
 pub struct Grads<T: Float> {
     by_node: Vec<Option<Tensor<T>>>,
     params: HashMap<String, usize>,

@@ -21,49 +21,75 @@ pub enum BinaryKind {
 /// An elementwise binary op (see [`BinaryKind`]).
 pub struct Binary(pub BinaryKind);
 
-/// Maps flat indices of the broadcast output to flat indices of one operand.
-struct Broadcast {
-    /// Output shape.
-    out: Vec<usize>,
-    /// Operand stride per output dimension (0 where the operand is repeated).
-    strides: Vec<usize>,
-    /// Operand element count.
-    len: usize,
-    same: bool,
+/// Maps flat indices of the broadcast output to flat indices of one operand, with
+/// fast paths for the common patterns (same shape, scalar, row vector, column).
+enum Broadcast {
+    /// Operand has the output's shape.
+    Same,
+    /// Operand has one element.
+    Scalar,
+    /// Operand equals the output's trailing dimensions: `index = i % len`.
+    Row(usize),
+    /// Operand equals the output's leading dimensions followed by ones:
+    /// `index = i / inner`.
+    Col(usize),
+    /// Anything else: operand stride per output dimension (0 where repeated).
+    General {
+        out: Vec<usize>,
+        strides: Vec<usize>,
+    },
 }
 
 impl Broadcast {
     fn new(out: &[usize], operand: &[usize]) -> Self {
+        let len: usize = operand.iter().product();
+        let total: usize = out.iter().product();
+        if out == operand {
+            return Broadcast::Same;
+        }
+        if len == 1 {
+            return Broadcast::Scalar;
+        }
+        let trimmed: Vec<usize> = operand.iter().copied().skip_while(|&d| d == 1).collect();
+        if out.ends_with(&trimmed) {
+            return Broadcast::Row(len);
+        }
         let rank = out.len();
+        let padded: Vec<usize> = std::iter::repeat_n(1, rank - operand.len())
+            .chain(operand.iter().copied())
+            .collect();
+        let lead = padded.iter().take_while(|&&d| d != 1).count();
+        if padded[..lead] == out[..lead] && padded[lead..].iter().all(|&d| d == 1) {
+            return Broadcast::Col(total / len);
+        }
         let mut strides = vec![0; rank];
         let mut stride = 1;
-        for k in 0..operand.len() {
-            let d = operand[operand.len() - 1 - k];
-            let od = rank - 1 - k;
-            strides[od] = if d == 1 { 0 } else { stride };
-            stride *= d;
+        for d in (0..rank).rev() {
+            strides[d] = if padded[d] == 1 { 0 } else { stride };
+            stride *= padded[d];
         }
-        Broadcast {
+        Broadcast::General {
             out: out.to_vec(),
             strides,
-            len: operand.iter().product(),
-            same: out == operand,
         }
     }
 
-    fn index(&self, mut flat: usize) -> usize {
-        if self.same {
-            return flat;
+    #[inline]
+    fn index(&self, flat: usize) -> usize {
+        match self {
+            Broadcast::Same => flat,
+            Broadcast::Scalar => 0,
+            Broadcast::Row(len) => flat % len,
+            Broadcast::Col(inner) => flat / inner,
+            Broadcast::General { out, strides } => {
+                let (mut flat, mut idx) = (flat, 0);
+                for (d, &n) in out.iter().enumerate().rev() {
+                    idx += (flat % n) * strides[d];
+                    flat /= n;
+                }
+                idx
+            }
         }
-        if self.len == 1 {
-            return 0;
-        }
-        let mut idx = 0;
-        for (d, &n) in self.out.iter().enumerate().rev() {
-            idx += (flat % n) * self.strides[d];
-            flat /= n;
-        }
-        idx
     }
 }
 
@@ -113,7 +139,7 @@ impl<T: Float> Op<T> for Binary {
             BinaryKind::Mul => x * y,
             BinaryKind::Div => x / y,
         };
-        let data = if ba.same && bb.same {
+        let data = if matches!((&ba, &bb), (Broadcast::Same, Broadcast::Same)) {
             ad.iter().zip(bd).map(|(&x, &y)| f(x, y)).collect()
         } else {
             (0..n)
@@ -131,6 +157,36 @@ impl<T: Float> Op<T> for Binary {
             Broadcast::new(shape, b.shape()),
         );
         let (ad, bd) = (a.data(), b.data());
+        if self.0 == BinaryKind::Add || self.0 == BinaryKind::Sub {
+            // Linear in both operands: the cotangent is g (or -g) summed over repeats.
+            let sign = if self.0 == BinaryKind::Sub {
+                -T::one()
+            } else {
+                T::one()
+            };
+            let reduce = |b: &Broadcast, shape: &[usize], sign: T| {
+                if matches!(b, Broadcast::Same) {
+                    return if sign == T::one() {
+                        g.clone()
+                    } else {
+                        g.map(|v| -v)
+                    };
+                }
+                let mut d: Tensor<T> = Tensor::zeros(shape);
+                let dd = d.data_mut();
+                for (i, &gi) in g.data().iter().enumerate() {
+                    dd[b.index(i)] += gi;
+                }
+                if sign != T::one() {
+                    dd.iter_mut().for_each(|v| *v = -*v);
+                }
+                d
+            };
+            return vec![
+                c.needs_grad[0].then(|| reduce(&ba, a.shape(), T::one())),
+                c.needs_grad[1].then(|| reduce(&bb, b.shape(), sign)),
+            ];
+        }
         let mut da = c.needs_grad[0].then(|| Tensor::zeros(a.shape()));
         let mut db = c.needs_grad[1].then(|| Tensor::zeros(b.shape()));
         for (i, &gi) in g.data().iter().enumerate() {
