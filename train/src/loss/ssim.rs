@@ -72,20 +72,27 @@ pub fn blur_same<T: Float>(img: &[T], h: usize, w: usize, c: usize, taps: &[T]) 
     );
     let r = taps.len() / 2;
     let row = w * c;
-    // Horizontal pass.
+    // Horizontal pass, one tap at a time: for tap `k` (offset `k - r`), every output
+    // pixel `j` whose source `j + k - r` is in range gets `taps[k] * src[j + k - r]`;
+    // both ranges are contiguous in the interleaved row, so this is a plain axpy.
     let mut tmp = vec![T::zero(); img.len()];
     for i in 0..h {
         let src = &img[i * row..(i + 1) * row];
         let dst = &mut tmp[i * row..(i + 1) * row];
-        for j in 0..w {
-            let lo = j.saturating_sub(r);
-            let hi = (j + r).min(w - 1);
-            for jj in lo..=hi {
-                let wt = taps[jj + r - j];
-                let s = &src[jj * c..(jj + 1) * c];
-                for (d, &v) in dst[j * c..(j + 1) * c].iter_mut().zip(s) {
-                    *d += wt * v;
-                }
+        for (k, &wt) in taps.iter().enumerate() {
+            // Output pixels j in [j0, j1) read source pixels j + k - r in [0, w).
+            let j0 = r.saturating_sub(k);
+            let j1 = (w + r).saturating_sub(k).min(w);
+            if j0 >= j1 {
+                continue;
+            }
+            let s0 = j0 + k - r;
+            let len = (j1 - j0) * c;
+            for (d, &v) in dst[j0 * c..j0 * c + len]
+                .iter_mut()
+                .zip(&src[s0 * c..s0 * c + len])
+            {
+                *d += wt * v;
             }
         }
     }
