@@ -13,13 +13,18 @@
 //!    Gaussians; the truncated Gaussian gives each bin `s` a contiguous group range.
 //! 2. Per Gaussian, each group's Weibull column `H_g[d] = sum_{j in g} K_w(...)` is
 //!    evaluated only on the band of grid points the truncated kernel reaches
-//!    (~0.35 / grid step = 35 points at the defaults, not D).
-//! 3. For each bin `s`, `rho[., s] = sum_g w[s, g] H_g` over the bin's groups, and
-//!    only its argmax is kept (one byte). The D x T matrix never exists; scratch is
-//!    `G x D` floats per thread.
+//!    (~0.35 / grid step = 37 points at the defaults, not D), branch-free and
+//!    vectorised.
+//! 3. Per block of 20 time bins, `rho[s, .] = sum_g w[s, g] H_g` is one small GEMM
+//!    over the block's groups (the workspace's SIMD GEMM), restricted to the
+//!    columns that can hold the argmax: every kernel is unimodal with its mode at
+//!    `xbar_j + h_x u_mode`, so the sum increases left of the leftmost mode and
+//!    decreases right of the rightmost one. Only the argmax is kept (one byte).
+//!    The D x T matrix of a Gaussian never exists; scratch is `G x D + 20 x D`
+//!    floats per thread.
 //!
-//! Cost per Gaussian: `J x band` kernel evaluations plus `T x (groups in support)
-//! x band` multiply-adds, instead of Algorithm 1's `J x D x T`.
+//! Cost per Gaussian: `J x band` kernel evaluations plus `T x (groups in a block's
+//! support) x (mode range)` multiply-adds, instead of Algorithm 1's `J x D x T`.
 //!
 //! Fallback: if `max_d rho[d, s] <= density_floor` (no observation within
 //! `time_support h_t` of the bin, or all nearby observations at the top of the
@@ -28,7 +33,7 @@
 //! observations, or the smallest `x_max` seen for a Gaussian never observed.
 //! nu is therefore always finite and positive.
 
-use maaf_autodiff::PerGaussian;
+use maaf_autodiff::{Float, PerGaussian};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -60,16 +65,25 @@ struct Plan {
     /// Frame indices sorted by time; group `g` is `frames[group_start[g]..group_start[g+1]]`.
     frames: Vec<u32>,
     group_start: Vec<usize>,
-    /// Per time bin: first group and weights of the contiguous groups in support.
-    bin_first: Vec<usize>,
-    bin_weights: Vec<Vec<f32>>,
+    /// Dense `T x G` time weights `w[s, g] = K_g((g_t[s] - t_g)/h_t) / (2 h_x h_t)`
+    /// (zero outside the truncated support).
+    w: Vec<f32>,
+    /// Time blocks `(s0, s1, g0, g1)`: bins `s0..s1` only see groups `g0..g1`.
+    blocks: Vec<(usize, usize, usize, usize)>,
     /// Grid g_x in f32.
     gx: Vec<f32>,
     inv_hx: f32,
-    h_x: f32,
+    /// Weibull support and mode offsets in g_x units: `h_x u_lo`, `h_x u_hi`, `h_x u_mode`.
+    lo_off: f32,
+    hi_off: f32,
+    mode_off: f32,
     weibull: WeibullF32,
     floor: f32,
 }
+
+/// Time bins per GEMM block: small enough that a block's group range stays close to
+/// the kernel support, large enough to amortise the GEMM call.
+const BLOCK_T: usize = 20;
 
 impl Plan {
     fn new(times: &[f32], cfg: &FilterConfig, kern: &Kernels) -> Plan {
@@ -87,33 +101,43 @@ impl Plan {
         }
         group_start.push(frames.len());
         let norm = 1.0 / (2.0 * kern.h_x * kern.h_t);
-        let t_grid = cfg.grid_t;
-        let mut bin_first = Vec::with_capacity(t_grid);
-        let mut bin_weights = Vec::with_capacity(t_grid);
+        let (t_grid, groups) = (cfg.grid_t, group_time.len());
+        let mut w = vec![0.0f32; t_grid * groups];
+        let mut support = Vec::with_capacity(t_grid);
         for s in 0..t_grid {
             let gs = s as f64 / (t_grid - 1) as f64;
-            let w = |g: usize| norm * kern.gauss((gs - group_time[g] as f64) / kern.h_t);
-            // Groups are sorted by time, so the support is one contiguous run.
-            let first =
-                group_time.partition_point(|&t| (gs - t as f64) / kern.h_t > kern.t_support);
-            let mut weights = Vec::new();
-            let mut g = first;
-            while g < group_time.len() && w(g) > 0.0 {
-                weights.push(w(g) as f32);
-                g += 1;
+            let (mut first, mut end) = (groups, 0);
+            for (g, &t) in group_time.iter().enumerate() {
+                let v = norm * kern.gauss((gs - t as f64) / kern.h_t);
+                if v > 0.0 {
+                    w[s * groups + g] = v as f32;
+                    first = first.min(g);
+                    end = end.max(g + 1);
+                }
             }
-            bin_first.push(first);
-            bin_weights.push(weights);
+            support.push((first, end));
         }
+        let blocks = (0..t_grid)
+            .step_by(BLOCK_T)
+            .map(|s0| {
+                let s1 = (s0 + BLOCK_T).min(t_grid);
+                let g0 = support[s0..s1].iter().map(|r| r.0).min().unwrap_or(0);
+                let g1 = support[s0..s1].iter().map(|r| r.1).max().unwrap_or(0);
+                (s0, s1, g0, g1.max(g0))
+            })
+            .collect();
         let d = cfg.grid_x;
+        let h_x = cfg.h_x;
         Plan {
             frames,
             group_start,
-            bin_first,
-            bin_weights,
+            w,
+            blocks,
             gx: (0..d).map(|i| (i as f64 / (d - 1) as f64) as f32).collect(),
-            inv_hx: 1.0 / cfg.h_x,
-            h_x: cfg.h_x,
+            inv_hx: 1.0 / h_x,
+            lo_off: (kern.h_x * kern.u_lo) as f32,
+            hi_off: (kern.h_x * kern.u_hi) as f32,
+            mode_off: (kern.h_x * kern.u_mode) as f32,
             weibull: kern.weibull_f32(),
             floor: cfg.density_floor,
         }
@@ -128,8 +152,11 @@ impl Plan {
 struct Scratch {
     /// `G x D` Weibull columns, kept all-zero between Gaussians.
     h: Vec<f32>,
-    /// Used band `[lo, hi)` of each group's column (`lo >= hi`: group unobserved).
+    /// Per group: used band `[lo, hi)` of its column (`lo >= hi`: unobserved) and
+    /// the min / max of its normalised observations.
     band: Vec<(usize, usize)>,
+    xb_range: Vec<(f32, f32)>,
+    /// `BLOCK_T x D` density block.
     acc: Vec<f32>,
 }
 
@@ -153,7 +180,8 @@ impl MotionCurves {
                 || Scratch {
                     h: vec![0.0; groups * d],
                     band: vec![(0, 0); groups],
-                    acc: vec![0.0; d],
+                    xb_range: vec![(0.0, 0.0); groups],
+                    acc: vec![0.0; BLOCK_T * d],
                 },
                 |scratch, (n, (codes, xm))| {
                     *xm = curve_one(table.row(n), &plan, scratch, codes);
@@ -260,19 +288,20 @@ impl MotionCurves {
 
 /// Fast Algorithm 1 for one Gaussian: fills `codes` (length T) and returns x_max.
 fn curve_one(row: &[f32], plan: &Plan, scratch: &mut Scratch, codes: &mut [u8]) -> f32 {
+    codes.fill(FALLBACK);
+    // Line 3: x_max over the valid slots (empty slots hold 0).
     let x_max = row.iter().copied().fold(0.0f32, f32::max);
     if x_max <= 0.0 {
-        codes.fill(FALLBACK);
         return 0.0;
     }
     let d = plan.gx.len();
+    let groups = plan.num_groups();
     let inv_max = 1.0 / x_max;
-    let wk = &plan.weibull;
-    let (lo_off, hi_off) = (plan.h_x * wk.u_lo, plan.h_x * wk.u_hi);
     let dm1 = (d - 1) as f32;
-    // Step 2: Weibull columns per time group, on each observation's band only.
-    for g in 0..plan.num_groups() {
+    // Step 2: Weibull columns H_g per time group, on each observation's band only.
+    for g in 0..groups {
         let (mut glo, mut ghi) = (d, 0);
+        let (mut xmin, mut xmax) = (f32::INFINITY, f32::NEG_INFINITY);
         let col = &mut scratch.h[g * d..(g + 1) * d];
         for &f in &plan.frames[plan.group_start[g]..plan.group_start[g + 1]] {
             let x = row[f as usize];
@@ -282,68 +311,122 @@ fn curve_one(row: &[f32], plan: &Plan, scratch: &mut Scratch, codes: &mut [u8]) 
             let xb = x * inv_max;
             // Grid points with u in [u_lo, u_hi], widened by one on each side
             // against rounding (the kernel itself is zero outside its support).
-            let lo = (((xb + lo_off) * dm1).ceil() as usize).saturating_sub(1);
-            let hi = ((((xb + hi_off) * dm1).floor() as usize) + 2).min(d);
+            let lo = (((xb + plan.lo_off) * dm1).ceil() as usize).saturating_sub(1);
+            let hi = ((((xb + plan.hi_off) * dm1).floor() as usize) + 2).min(d);
             if lo >= hi {
                 continue;
             }
-            for (v, &gx) in col[lo..hi].iter_mut().zip(&plan.gx[lo..hi]) {
-                *v += wk.eval((gx - xb) * plan.inv_hx);
-            }
+            plan.weibull
+                .add_band(xb, plan.inv_hx, &plan.gx[lo..hi], &mut col[lo..hi]);
             glo = glo.min(lo);
             ghi = ghi.max(hi);
+            xmin = xmin.min(xb);
+            xmax = xmax.max(xb);
         }
         scratch.band[g] = (glo, ghi);
+        scratch.xb_range[g] = (xmin, xmax);
     }
-    // Step 3: per time bin, the conditional density over the union band, argmax.
-    for (s, code) in codes.iter_mut().enumerate() {
-        let first = plan.bin_first[s];
-        let weights = &plan.bin_weights[s];
+    // Step 3: per block of time bins, rho[s, d] = sum_g w[s, g] H_g[d] as a GEMM
+    // over the block's groups, restricted to the columns that can hold the argmax:
+    // every kernel is unimodal (mode at xbar + h_x u_mode), so the sum increases
+    // left of the leftmost mode and decreases right of the rightmost one.
+    for &(s0, s1, g0, g1) in &plan.blocks {
         let (mut lo, mut hi) = (d, 0);
-        for g in first..first + weights.len() {
+        let (mut xmin, mut xmax) = (f32::INFINITY, f32::NEG_INFINITY);
+        for g in g0..g1 {
             let (a, b) = scratch.band[g];
             if a < b {
                 lo = lo.min(a);
                 hi = hi.max(b);
+                xmin = xmin.min(scratch.xb_range[g].0);
+                xmax = xmax.max(scratch.xb_range[g].1);
             }
         }
-        *code = FALLBACK;
+        // Modes above the grid (xbar + h_x u_mode > 1) leave the top point as candidate.
+        let c_lo = ((((xmin + plan.mode_off) * dm1).floor() as usize).saturating_sub(1)).min(d - 1);
+        let c_hi = ((((xmax + plan.mode_off) * dm1).ceil() as usize) + 2).min(d);
+        let (lo, hi) = (lo.max(c_lo), hi.min(c_hi));
         if lo >= hi {
             continue;
         }
-        let acc = &mut scratch.acc[lo..hi];
-        acc.fill(0.0);
-        for (i, &w) in weights.iter().enumerate() {
-            let g = first + i;
-            let (a, b) = scratch.band[g];
-            if a >= b {
-                continue;
+        let (m, n) = (s1 - s0, hi - lo);
+        let acc = &mut scratch.acc[..m * n];
+        gemm_chunked(
+            m,
+            g1 - g0,
+            n,
+            &plan.w[s0 * groups + g0..],
+            groups,
+            &scratch.h[g0 * d + lo..],
+            d,
+            acc,
+        );
+        for (i, code) in codes[s0..s1].iter_mut().enumerate() {
+            // First maximum, as Alg. 1 line 12's argmax.
+            let (mut best, mut best_d) = (f32::NEG_INFINITY, 0);
+            for (j, &v) in acc[i * n..(i + 1) * n].iter().enumerate() {
+                if v > best {
+                    best = v;
+                    best_d = j;
+                }
             }
-            let col = &scratch.h[g * d + a..g * d + b];
-            for (v, &h) in acc[a - lo..b - lo].iter_mut().zip(col) {
-                *v += w * h;
+            if best > plan.floor {
+                *code = (lo + best_d) as u8;
             }
-        }
-        // First maximum, as Alg. 1 line 12's argmax.
-        let (mut best, mut best_d) = (f32::NEG_INFINITY, 0);
-        for (i, &v) in acc.iter().enumerate() {
-            if v > best {
-                best = v;
-                best_d = i;
-            }
-        }
-        if best > plan.floor {
-            *code = (lo + best_d) as u8;
         }
     }
     // Restore the all-zero invariant of the column scratch.
-    for g in 0..plan.num_groups() {
+    for g in 0..groups {
         let (a, b) = scratch.band[g];
         if a < b {
             scratch.h[g * d + a..g * d + b].fill(0.0);
         }
     }
     x_max
+}
+
+/// `C (m x n) = A (m x k, row stride lda) B (k x n, row stride ldb)` through the
+/// workspace GEMM (runtime-dispatched SIMD). `k` is split so that every call has
+/// `(m + n) k < 2^15`, below `matrixmultiply`'s threading threshold: each rayon
+/// worker's GEMM stays single-threaded.
+#[allow(clippy::too_many_arguments)]
+fn gemm_chunked(
+    m: usize,
+    k: usize,
+    n: usize,
+    a: &[f32],
+    lda: usize,
+    b: &[f32],
+    ldb: usize,
+    c: &mut [f32],
+) {
+    if k == 0 {
+        c.fill(0.0);
+        return;
+    }
+    let chunk = (((1usize << 15) - 1) / (m + n)).max(1);
+    let mut k0 = 0;
+    while k0 < k {
+        let kc = chunk.min(k - k0);
+        let beta = if k0 == 0 { 0.0 } else { 1.0 };
+        <f32 as Float>::gemm(
+            m,
+            kc,
+            n,
+            1.0,
+            &a[k0..],
+            lda as isize,
+            1,
+            &b[k0 * ldb..],
+            ldb as isize,
+            1,
+            beta,
+            c,
+            n as isize,
+            1,
+        );
+        k0 += kc;
+    }
 }
 
 impl PerGaussian for MotionCurves {
