@@ -1360,6 +1360,12 @@ mod tests {
                     *acc += d / reps as f64 * 1e3;
                 }
             }
+            let times: Vec<f64> = (0..5).map(|k| k as f64 / 4.0).collect();
+            let c0 = clock();
+            let centres = model.centres_at_times(&times);
+            let per_time = (clock() - c0) / times.len() as f64 * 1e3;
+            assert_eq!(centres.len(), times.len());
+            println!("  centres_at_times: {per_time:.0} ms CPU per time");
             println!(
                 "  CPU ms per step: field lookup fwd {:.0} / bwd {:.0} (included below); \
                  bind {:.0}, deform(t) {:.0}, backward {:.0}, total {:.0}",
