@@ -2,6 +2,7 @@
 //! the frustum clamp and the 2D filter (DESIGN.md section 3).
 
 use maaf_autodiff::{BackwardCtx, Float, Op, Tensor, Var};
+use rayon::prelude::*;
 
 use crate::Camera;
 use crate::math::{M3, mul3, mul3tv, mul3v, rotmat, rotmat_vjp, sym_from6, transpose3};
@@ -39,12 +40,11 @@ impl<T: Float> Op<T> for QuatScaleToCov {
             "quat_scale_to_cov: scales must be [N,3]"
         );
         let mut out = vec![T::zero(); 6 * n];
-        for i in 0..n {
+        out.par_chunks_mut(6).enumerate().for_each(|(i, o)| {
             let (qh, _) = normalise(&q.data()[4 * i..4 * i + 4]);
             let r = rotmat(qh);
             let sc = &s.data()[3 * i..3 * i + 3];
             // Sigma_ab = sum_k R_ak s_k^2 R_bk
-            let o = &mut out[6 * i..6 * i + 6];
             let mut k = 0;
             for a in 0..3 {
                 for b in a..3 {
@@ -52,7 +52,7 @@ impl<T: Float> Op<T> for QuatScaleToCov {
                     k += 1;
                 }
             }
-        }
+        });
         (vec![Tensor::from_vec(out, &[n, 6])], ())
     }
 
@@ -64,38 +64,41 @@ impl<T: Float> Op<T> for QuatScaleToCov {
         let two = T::of(2.0);
         let mut dq = vec![T::zero(); 4 * n];
         let mut ds = vec![T::zero(); 3 * n];
-        for i in 0..n {
-            let (qh, qn) = normalise(&q.data()[4 * i..4 * i + 4]);
-            let r = rotmat(qh);
-            let sc = &s.data()[3 * i..3 * i + 3];
-            let g = &g6.data()[6 * i..6 * i + 6];
-            // Symmetric cotangent: packed off-diagonals are split over both halves.
-            let gs: M3<T> = [
-                [g[0], half * g[1], half * g[2]],
-                [half * g[1], g[3], half * g[4]],
-                [half * g[2], half * g[4], g[5]],
-            ];
-            let mut m = [[T::zero(); 3]; 3];
-            for a in 0..3 {
-                for j in 0..3 {
-                    m[a][j] = r[a][j] * sc[j];
+        dq.par_chunks_mut(4)
+            .zip(ds.par_chunks_mut(3))
+            .enumerate()
+            .for_each(|(i, (dq, ds))| {
+                let (qh, qn) = normalise(&q.data()[4 * i..4 * i + 4]);
+                let r = rotmat(qh);
+                let sc = &s.data()[3 * i..3 * i + 3];
+                let g = &g6.data()[6 * i..6 * i + 6];
+                // Symmetric cotangent: packed off-diagonals are split over both halves.
+                let gs: M3<T> = [
+                    [g[0], half * g[1], half * g[2]],
+                    [half * g[1], g[3], half * g[4]],
+                    [half * g[2], half * g[4], g[5]],
+                ];
+                let mut m = [[T::zero(); 3]; 3];
+                for a in 0..3 {
+                    for j in 0..3 {
+                        m[a][j] = r[a][j] * sc[j];
+                    }
                 }
-            }
-            let gm = mul3(&gs, &m);
-            let mut gr = [[T::zero(); 3]; 3];
-            for a in 0..3 {
-                for j in 0..3 {
-                    let dm = two * gm[a][j];
-                    gr[a][j] = dm * sc[j];
-                    ds[3 * i + j] += dm * r[a][j];
+                let gm = mul3(&gs, &m);
+                let mut gr = [[T::zero(); 3]; 3];
+                for a in 0..3 {
+                    for j in 0..3 {
+                        let dm = two * gm[a][j];
+                        gr[a][j] = dm * sc[j];
+                        ds[j] += dm * r[a][j];
+                    }
                 }
-            }
-            let dqh = rotmat_vjp(qh, &gr);
-            let dot = (0..4).map(|k| qh[k] * dqh[k]).sum::<T>();
-            for k in 0..4 {
-                dq[4 * i + k] = (dqh[k] - qh[k] * dot) / qn;
-            }
-        }
+                let dqh = rotmat_vjp(qh, &gr);
+                let dot = (0..4).map(|k| qh[k] * dqh[k]).sum::<T>();
+                for k in 0..4 {
+                    dq[k] = (dqh[k] - qh[k] * dot) / qn;
+                }
+            });
         vec![
             Some(Tensor::from_vec(dq, &[n, 4])),
             Some(Tensor::from_vec(ds, &[n, 3])),
@@ -222,6 +225,16 @@ impl<T: Float> ProjectEwa<T> {
     }
 }
 
+/// One projected Gaussian (forward result row).
+struct Row<T> {
+    m2: [T; 2],
+    con: [T; 3],
+    op: T,
+    dep: T,
+    rad: T,
+    saved: ProjSaved<T>,
+}
+
 /// Per-Gaussian values the forward keeps for the backward.
 #[derive(Clone, Copy)]
 pub struct ProjSaved<T> {
@@ -295,7 +308,7 @@ impl<T: Float> Op<T> for ProjectEwa<T> {
             n
         ];
         let rt = transpose3(&self.rot);
-        for i in 0..n {
+        let one = |i: usize| -> Option<Row<T>> {
             let mu = [
                 means.data()[3 * i],
                 means.data()[3 * i + 1],
@@ -308,7 +321,7 @@ impl<T: Float> Op<T> for ProjectEwa<T> {
                 tm[2] + self.trans[2],
             ];
             if t[2] <= self.near {
-                continue; // culled: outputs stay 0 (NaN compares false and is kept)
+                return None; // culled: outputs stay 0 (NaN compares false and is kept)
             }
             let z = t[2];
             let mx = self.fx * t[0] / z + self.cx;
@@ -330,7 +343,7 @@ impl<T: Float> Op<T> for ProjectEwa<T> {
             let det = ad * cd - b * b;
             let nonfinite = !(det.is_finite() && mx.is_finite() && my.is_finite());
             if !nonfinite && det <= zero {
-                continue;
+                return None;
             }
             let comp = if !self.compensate {
                 T::one()
@@ -349,25 +362,35 @@ impl<T: Float> Op<T> for ProjectEwa<T> {
                 if pixel_range(mxf, rf, self.width).is_none()
                     || pixel_range(myf, rf, self.height).is_none()
                 {
-                    continue;
+                    return None;
                 }
             }
-            m2[2 * i] = mx;
-            m2[2 * i + 1] = my;
-            con[3 * i] = cd / det;
-            con[3 * i + 1] = -b / det;
-            con[3 * i + 2] = ad / det;
-            op[i] = opac.data()[i] * comp;
-            dep[i] = z;
-            rad[i] = if nonfinite { zero } else { r };
-            saved[i] = ProjSaved {
-                visible: !nonfinite,
-                t,
-                u,
-                v,
-                cov: [a, b, c],
-                comp,
-            };
+            Some(Row {
+                m2: [mx, my],
+                con: [cd / det, -b / det, ad / det],
+                op: opac.data()[i] * comp,
+                dep: z,
+                rad: if nonfinite { zero } else { r },
+                saved: ProjSaved {
+                    visible: !nonfinite,
+                    t,
+                    u,
+                    v,
+                    cov: [a, b, c],
+                    comp,
+                },
+            })
+        };
+        let rows: Vec<Option<Row<T>>> = (0..n).into_par_iter().map(one).collect();
+        for (i, row) in rows.into_iter().enumerate() {
+            if let Some(r) = row {
+                m2[2 * i..2 * i + 2].copy_from_slice(&r.m2);
+                con[3 * i..3 * i + 3].copy_from_slice(&r.con);
+                op[i] = r.op;
+                dep[i] = r.dep;
+                rad[i] = r.rad;
+                saved[i] = r.saved;
+            }
         }
         (
             vec![
@@ -397,15 +420,16 @@ impl<T: Float> Op<T> for ProjectEwa<T> {
         let mut d_mean = vec![zero; 3 * n];
         let mut d_cov = vec![zero; 6 * n];
         let mut d_op = vec![zero; n];
-        for (i, sv) in ctx.saved.iter().enumerate() {
+        let one = |i: usize| -> Option<([T; 3], [T; 6], T)> {
+            let sv = &ctx.saved[i];
             if !sv.visible {
-                continue;
+                return None;
             }
             let [tx, ty, tz] = sv.t;
             let [a, b, c] = sv.cov;
             // opacity' = o * comp
             let gop = g_op.data()[i];
-            d_op[i] = gop * sv.comp;
+            let d_op_i = gop * sv.comp;
             let g_comp = gop * opac.data()[i];
             // conic = inverse of the dilated covariance (a+k, b; b, c+k)
             let (ca, cb, cc) = (
@@ -465,7 +489,7 @@ impl<T: Float> Op<T> for ProjectEwa<T> {
             }
             // dL/dSigma = R^T G_sc R, packed (off-diagonals doubled).
             let gs = mul3(&mul3(&rt, &g_sc), &self.rot);
-            let dcv = &mut d_cov[6 * i..6 * i + 6];
+            let mut dcv = [zero; 6];
             dcv[0] = gs[0][0];
             dcv[1] = gs[0][1] + gs[1][0];
             dcv[2] = gs[0][2] + gs[2][0];
@@ -499,8 +523,15 @@ impl<T: Float> Op<T> for ProjectEwa<T> {
             gt[1] += gmy * self.fy / tz;
             gt[2] += -gmx * self.fx * tx / z2 - gmy * self.fy * ty / z2;
             gt[2] += g_dep.data()[i];
-            let gm = mul3tv(&self.rot, gt);
-            d_mean[3 * i..3 * i + 3].copy_from_slice(&gm);
+            Some((mul3tv(&self.rot, gt), dcv, d_op_i))
+        };
+        let rows: Vec<_> = (0..n).into_par_iter().map(one).collect();
+        for (i, row) in rows.into_iter().enumerate() {
+            if let Some((gm, gc, go)) = row {
+                d_mean[3 * i..3 * i + 3].copy_from_slice(&gm);
+                d_cov[6 * i..6 * i + 6].copy_from_slice(&gc);
+                d_op[i] = go;
+            }
         }
         vec![
             Some(Tensor::from_vec(d_mean, &[n, 3])),

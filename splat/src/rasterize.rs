@@ -128,10 +128,18 @@ impl Binning {
     }
 }
 
-/// Tile ranges `(x0..=x1, y0..=y1)` touched by a Gaussian, or `None`.
-fn tile_rect(mx: f64, my: f64, r: f64, w: u32, h: u32) -> Option<(usize, usize, usize, usize)> {
-    let (xl, xh) = pixel_range(mx, r, w)?;
-    let (yl, yh) = pixel_range(my, r, h)?;
+/// Tile ranges `(x0..=x1, y0..=y1)` touched by a Gaussian's box of half-extents
+/// `(rx, ry)`, or `None`.
+fn tile_rect(
+    mx: f64,
+    my: f64,
+    rx: f64,
+    ry: f64,
+    w: u32,
+    h: u32,
+) -> Option<(usize, usize, usize, usize)> {
+    let (xl, xh) = pixel_range(mx, rx, w)?;
+    let (yl, yh) = pixel_range(my, ry, h)?;
     Some((
         xl as usize / TILE,
         xh as usize / TILE,
@@ -141,9 +149,17 @@ fn tile_rect(mx: f64, my: f64, r: f64, w: u32, h: u32) -> Option<(usize, usize, 
 }
 
 /// Bins visible Gaussians (`radius > 0`) into 16x16 tiles and sorts each tile's list
-/// by `(depth, index)`; not differentiable.
+/// by `(depth as f32, index)`; not differentiable.
+///
+/// The box of a Gaussian is the bounding box of its support ellipse `power <= 4.5`,
+/// i.e. half-extents `3 sqrt(Sigma_xx)` and `3 sqrt(Sigma_yy)` of the dilated 2D
+/// covariance `Sigma = conic^-1` (like gsplat's per-axis radius), capped by the
+/// isotropic 3DGS `radius`; a 1e-4 relative margin absorbs rounding so that no pixel
+/// with `power <= 4.5` is ever left out. Flat splats seen edge-on touch far fewer
+/// tiles than with the isotropic radius.
 pub fn bin_gaussians<T: Float>(
     means2d: &[T],
+    conics: &[T],
     radii: &[T],
     depths: &[T],
     width: u32,
@@ -155,12 +171,27 @@ pub fn bin_gaussians<T: Float>(
     let rects: Vec<Option<(usize, usize, usize, usize)>> = (0..n)
         .into_par_iter()
         .map(|i| {
-            let r = radii[i].to_f64();
+            let r = Float::to_f64(radii[i]);
             if r > 0.0 {
+                let (a, b, c) = (
+                    Float::to_f64(conics[3 * i]),
+                    Float::to_f64(conics[3 * i + 1]),
+                    Float::to_f64(conics[3 * i + 2]),
+                );
+                let det = a * c - b * b;
+                let ext = |v: f64| {
+                    let e = (9.0 * v / det).sqrt() * (1.0 + 1e-4) + 1e-4;
+                    if e.is_finite() && det > 0.0 {
+                        e.min(r)
+                    } else {
+                        r
+                    }
+                };
                 tile_rect(
-                    means2d[2 * i].to_f64(),
-                    means2d[2 * i + 1].to_f64(),
-                    r,
+                    Float::to_f64(means2d[2 * i]),
+                    Float::to_f64(means2d[2 * i + 1]),
+                    ext(c),
+                    ext(a),
                     width,
                     height,
                 )
@@ -194,7 +225,10 @@ pub fn bin_gaussians<T: Float>(
             }
         }
     }
-    let keys: Vec<u64> = depths.iter().map(|&d| Float::to_f64(d).to_bits()).collect();
+    // Depths of visible Gaussians are > near > 0, so their f32 bit patterns order
+    // like the values; the index in the low bits breaks ties and makes keys unique.
+    let key =
+        |g: u32| ((Float::to_f64(depths[g as usize]) as f32).to_bits() as u64) << 32 | g as u64;
     let mut slices: Vec<&mut [u32]> = Vec::with_capacity(tiles_x * tiles_y);
     let mut rest = ids.as_mut_slice();
     for t in 0..tiles_x * tiles_y {
@@ -202,11 +236,13 @@ pub fn bin_gaussians<T: Float>(
         slices.push(head);
         rest = tail;
     }
-    // Depths of visible Gaussians are > near > 0, so their f64 bit patterns order
-    // like the values; ties are broken by index, which makes the order unique.
-    slices
-        .par_iter_mut()
-        .for_each(|s| s.sort_unstable_by_key(|&g| (keys[g as usize], g)));
+    slices.par_iter_mut().for_each(|s| {
+        let mut keyed: Vec<u64> = s.iter().map(|&g| key(g)).collect();
+        keyed.sort_unstable();
+        for (d, k) in s.iter_mut().zip(keyed) {
+            *d = k as u32;
+        }
+    });
     Binning {
         tiles_x,
         tiles_y,
@@ -395,6 +431,7 @@ impl<T: Float> Op<T> for Rasterize<T> {
         }
         let bins = bin_gaussians(
             inputs[0].data(),
+            inputs[1].data(),
             inputs[5].data(),
             inputs[4].data(),
             self.width,

@@ -3,6 +3,7 @@
 //! `SH_C0..SH_C3`, gsplat `_eval_sh_bases_fast`).
 
 use maaf_autodiff::{BackwardCtx, Float, Op, Tensor, Var};
+use rayon::prelude::*;
 
 /// `Y_0^0 = 1 / (2 sqrt(pi))`.
 pub const SH_C0: f64 = 0.282_094_791_773_878_14;
@@ -155,16 +156,16 @@ impl<T: Float> Op<T> for ShColor<T> {
         );
         let k = sh.shape()[1];
         let mut out = vec![T::zero(); 3 * n];
-        for i in 0..n {
+        out.par_chunks_mut(3).enumerate().for_each(|(i, out)| {
             let (d, _) = self.dir(&means.data()[3 * i..3 * i + 3]);
             let b = sh_basis(d);
             let coeffs = &sh.data()[3 * k * i..3 * k * (i + 1)];
             for ch in 0..3 {
                 let v: T = (0..nk).map(|j| b[j] * coeffs[3 * j + ch]).sum::<T>() + T::of(0.5);
                 // max(v, 0) that keeps NaN (validate mode must see it)
-                out[3 * i + ch] = if v < T::zero() { T::zero() } else { v };
+                out[ch] = if v < T::zero() { T::zero() } else { v };
             }
-        }
+        });
         (vec![Tensor::from_vec(out, &[n, 3])], ())
     }
 
@@ -177,31 +178,34 @@ impl<T: Float> Op<T> for ShColor<T> {
         let nk = num_coeffs(self.degree);
         let mut dm = vec![T::zero(); 3 * n];
         let mut dsh = vec![T::zero(); sh.len()];
-        for i in 0..n {
-            let (d, len) = self.dir(&means.data()[3 * i..3 * i + 3]);
-            let b = sh_basis(d);
-            let db = sh_basis_grad(d);
-            let coeffs = &sh.data()[3 * k * i..3 * k * (i + 1)];
-            let mut gd = [T::zero(); 3];
-            for ch in 0..3 {
-                // The clamp max(v, 0) passes no gradient where it is active (v <= 0).
-                if out.data()[3 * i + ch] <= T::zero() {
-                    continue;
-                }
-                let gc = g.data()[3 * i + ch];
-                for j in 0..nk {
-                    dsh[3 * k * i + 3 * j + ch] = b[j] * gc;
-                    for a in 0..3 {
-                        gd[a] += gc * coeffs[3 * j + ch] * db[j][a];
+        dm.par_chunks_mut(3)
+            .zip(dsh.par_chunks_mut(3 * k))
+            .enumerate()
+            .for_each(|(i, (dm, dsh))| {
+                let (d, len) = self.dir(&means.data()[3 * i..3 * i + 3]);
+                let b = sh_basis(d);
+                let db = sh_basis_grad(d);
+                let coeffs = &sh.data()[3 * k * i..3 * k * (i + 1)];
+                let mut gd = [T::zero(); 3];
+                for ch in 0..3 {
+                    // The clamp max(v, 0) passes no gradient where it is active (v <= 0).
+                    if out.data()[3 * i + ch] <= T::zero() {
+                        continue;
+                    }
+                    let gc = g.data()[3 * i + ch];
+                    for j in 0..nk {
+                        dsh[3 * j + ch] = b[j] * gc;
+                        for a in 0..3 {
+                            gd[a] += gc * coeffs[3 * j + ch] * db[j][a];
+                        }
                     }
                 }
-            }
-            // d = v / |v|: dv = (gd - d (d . gd)) / |v|
-            let dot = d[0] * gd[0] + d[1] * gd[1] + d[2] * gd[2];
-            for a in 0..3 {
-                dm[3 * i + a] = (gd[a] - d[a] * dot) / len;
-            }
-        }
+                // d = v / |v|: dv = (gd - d (d . gd)) / |v|
+                let dot = d[0] * gd[0] + d[1] * gd[1] + d[2] * gd[2];
+                for a in 0..3 {
+                    dm[a] = (gd[a] - d[a] * dot) / len;
+                }
+            });
         vec![
             Some(Tensor::from_vec(dm, &[n, 3])),
             Some(Tensor::from_vec(dsh, sh.shape())),
