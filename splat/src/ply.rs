@@ -1,0 +1,426 @@
+//! The standard 3DGS PLY (Inria layout): read with `serde-ply`, written by hand as
+//! `binary_little_endian` (DESIGN.md section 3).
+//!
+//! One `vertex` element with float properties `x y z nx ny nz f_dc_0..2
+//! f_rest_0..(3(K-1)-1) opacity scale_0..2 rot_0..3`: opacity is a logit, scales are
+//! logs, the rotation is `(w, x, y, z)`. `f_rest` is channel-major: property
+//! `f_rest_{c (K-1) + (k-1)}` holds SH coefficient `k >= 1` of channel `c`
+//! (Inria `save_ply` flattens `features_rest` transposed to `[N, 3, K-1]`). Normals are
+//! optional on read and written as zeros; extra properties are ignored on read.
+
+use std::io::{BufReader, Write};
+use std::path::Path;
+
+use maaf_autodiff::Tensor;
+use serde::Deserialize;
+use serde::de::{IgnoredAny, MapAccess, Visitor};
+
+use crate::gaussians::Gaussians;
+
+/// Errors of PLY reading and writing; each names the file and, where it applies,
+/// the property.
+#[derive(Debug, thiserror::Error)]
+pub enum PlyError {
+    /// The file could not be opened, read or written.
+    #[error("{path}: {source}")]
+    Io {
+        /// File that failed.
+        path: String,
+        /// Underlying error.
+        source: std::io::Error,
+    },
+    /// The header or data could not be parsed (truncated file, wrong count, bad type).
+    #[error("{path}: invalid PLY: {message}")]
+    Format {
+        /// File that failed.
+        path: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// A required property is absent from the `vertex` element.
+    #[error("{path}: missing property `{property}` in element `vertex`")]
+    MissingProperty {
+        /// File that failed.
+        path: String,
+        /// Missing property name.
+        property: String,
+    },
+    /// A property value is NaN or infinite.
+    #[error("{path}: property `{property}` of vertex {row} is not finite ({value})")]
+    NonFinite {
+        /// File that failed.
+        path: String,
+        /// Offending property.
+        property: String,
+        /// Vertex index.
+        row: usize,
+        /// The value read.
+        value: f32,
+    },
+}
+
+/// One row as the values of its properties, in header order.
+struct Row(Vec<f32>);
+
+impl<'de> Deserialize<'de> for Row {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct RowVisitor;
+        impl<'de> Visitor<'de> for RowVisitor {
+            type Value = Row;
+            fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str("a PLY row of scalar properties")
+            }
+            fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<Row, A::Error> {
+                let mut values = Vec::with_capacity(64);
+                while map.next_key::<IgnoredAny>()?.is_some() {
+                    values.push(map.next_value::<f32>()?);
+                }
+                Ok(Row(values))
+            }
+        }
+        d.deserialize_map(RowVisitor)
+    }
+}
+
+fn required_names(k: usize) -> Vec<String> {
+    let mut names: Vec<String> = ["x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2"]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+    names.extend((0..3 * (k - 1)).map(|i| format!("f_rest_{i}")));
+    names.push("opacity".into());
+    names.extend((0..3).map(|i| format!("scale_{i}")));
+    names.extend((0..4).map(|i| format!("rot_{i}")));
+    names
+}
+
+/// Reads a 3DGS PLY file (ascii or binary) into [`Gaussians`]. The SH degree is
+/// inferred from the number of `f_rest_*` properties (0, 9, 24 or 45).
+pub fn read_ply(path: &Path) -> Result<Gaussians, PlyError> {
+    let shown = path.display().to_string();
+    let file = std::fs::File::open(path).map_err(|source| PlyError::Io {
+        path: shown.clone(),
+        source,
+    })?;
+    let format = |message: String| PlyError::Format {
+        path: shown.clone(),
+        message,
+    };
+    let mut reader = serde_ply::PlyReader::from_reader(BufReader::new(file))
+        .map_err(|e| format(format!("header: {e}")))?;
+    let elements: Vec<String> = reader
+        .header()
+        .elem_defs
+        .iter()
+        .map(|e| e.name.clone())
+        .collect();
+    let Some(vi) = elements.iter().position(|e| e == "vertex") else {
+        return Err(format("no element `vertex`".into()));
+    };
+    for name in &elements[..vi] {
+        reader
+            .next_element::<IgnoredAny>()
+            .map_err(|e| format(format!("element `{name}`: {e}")))?;
+    }
+    let def = reader
+        .current_element()
+        .ok_or_else(|| format("no element `vertex`".into()))?
+        .clone();
+    let props: Vec<String> = def.properties.iter().map(|p| p.name.clone()).collect();
+    let n_rest = props.iter().filter(|p| p.starts_with("f_rest_")).count();
+    let degree = match n_rest {
+        0 => 0,
+        9 => 1,
+        24 => 2,
+        45 => 3,
+        other => {
+            return Err(format(format!(
+                "{other} `f_rest_*` properties; expected 0, 9, 24 or 45 (SH degree 0-3)"
+            )));
+        }
+    };
+    let k = crate::sh::num_coeffs(degree);
+    let names = required_names(k);
+    let mut column = Vec::with_capacity(names.len());
+    for name in &names {
+        match props.iter().position(|p| p == name) {
+            Some(c) => column.push(c),
+            None => {
+                return Err(PlyError::MissingProperty {
+                    path: shown.clone(),
+                    property: name.clone(),
+                });
+            }
+        }
+    }
+    let rows: Vec<Row> = reader.next_element().map_err(|e| {
+        format(format!(
+            "element `vertex` ({} rows declared): {e}",
+            def.count
+        ))
+    })?;
+    if rows.len() != def.count {
+        return Err(format(format!(
+            "element `vertex` declares {} rows, read {}",
+            def.count,
+            rows.len()
+        )));
+    }
+    let n = rows.len();
+    let mut means = Vec::with_capacity(3 * n);
+    let mut log_scales = Vec::with_capacity(3 * n);
+    let mut quats = Vec::with_capacity(4 * n);
+    let mut raw_opacity = Vec::with_capacity(n);
+    let mut sh = vec![0.0f32; n * k * 3];
+    for (i, row) in rows.iter().enumerate() {
+        if row.0.len() != props.len() {
+            return Err(format(format!(
+                "vertex {i} has {} values for {} properties",
+                row.0.len(),
+                props.len()
+            )));
+        }
+        let get = |j: usize| -> Result<f32, PlyError> {
+            let v = row.0[column[j]];
+            if v.is_finite() {
+                Ok(v)
+            } else {
+                Err(PlyError::NonFinite {
+                    path: shown.clone(),
+                    property: names[j].clone(),
+                    row: i,
+                    value: v,
+                })
+            }
+        };
+        for j in 0..3 {
+            means.push(get(j)?);
+        }
+        for c in 0..3 {
+            sh[(i * k) * 3 + c] = get(3 + c)?;
+        }
+        for c in 0..3 {
+            for kk in 1..k {
+                sh[(i * k + kk) * 3 + c] = get(6 + c * (k - 1) + (kk - 1))?;
+            }
+        }
+        let base = 6 + 3 * (k - 1);
+        raw_opacity.push(get(base)?);
+        for j in 0..3 {
+            log_scales.push(get(base + 1 + j)?);
+        }
+        for j in 0..4 {
+            quats.push(get(base + 4 + j)?);
+        }
+    }
+    Ok(Gaussians {
+        means: Tensor::from_vec(means, &[n, 3]),
+        log_scales: Tensor::from_vec(log_scales, &[n, 3]),
+        quats: Tensor::from_vec(quats, &[n, 4]),
+        raw_opacity: Tensor::from_vec(raw_opacity, &[n]),
+        sh: Tensor::from_vec(sh, &[n, k, 3]),
+        sh_degree: degree,
+    })
+}
+
+/// Encodes `g` as a `binary_little_endian` 3DGS PLY.
+pub fn ply_bytes(g: &Gaussians) -> Vec<u8> {
+    let n = g.len();
+    let k = crate::sh::num_coeffs(g.sh_degree);
+    let mut names: Vec<String> = [
+        "x", "y", "z", "nx", "ny", "nz", "f_dc_0", "f_dc_1", "f_dc_2",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    names.extend((0..3 * (k - 1)).map(|i| format!("f_rest_{i}")));
+    names.push("opacity".into());
+    names.extend((0..3).map(|i| format!("scale_{i}")));
+    names.extend((0..4).map(|i| format!("rot_{i}")));
+    let mut out = Vec::with_capacity(200 + n * names.len() * 4);
+    out.extend_from_slice(b"ply\nformat binary_little_endian 1.0\n");
+    out.extend_from_slice(format!("element vertex {n}\n").as_bytes());
+    for name in &names {
+        out.extend_from_slice(format!("property float {name}\n").as_bytes());
+    }
+    out.extend_from_slice(b"end_header\n");
+    let shk = g.sh.shape()[1];
+    for i in 0..n {
+        let mut row: Vec<f32> = Vec::with_capacity(names.len());
+        row.extend_from_slice(&g.means.data()[3 * i..3 * i + 3]);
+        row.extend_from_slice(&[0.0; 3]);
+        for c in 0..3 {
+            row.push(g.sh.data()[(i * shk) * 3 + c]);
+        }
+        for c in 0..3 {
+            for kk in 1..k {
+                row.push(g.sh.data()[(i * shk + kk) * 3 + c]);
+            }
+        }
+        row.push(g.raw_opacity.data()[i]);
+        row.extend_from_slice(&g.log_scales.data()[3 * i..3 * i + 3]);
+        row.extend_from_slice(&g.quats.data()[4 * i..4 * i + 4]);
+        for v in row {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    out
+}
+
+/// Writes `bytes` to `path` atomically: a temporary file in the same directory is
+/// written, flushed and renamed over the target.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    let dir = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let name = path
+        .file_name()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "out".into());
+    let tmp = dir.join(format!(".{name}.tmp{}", std::process::id()));
+    let result = (|| {
+        let mut f = std::fs::File::create(&tmp)?;
+        f.write_all(bytes)?;
+        f.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result
+}
+
+/// Writes a 3DGS PLY (binary little endian) atomically.
+pub fn write_ply(path: &Path, g: &Gaussians) -> Result<(), PlyError> {
+    write_atomic(path, &ply_bytes(g)).map_err(|source| PlyError::Io {
+        path: path.display().to_string(),
+        source,
+    })
+}
+
+/// Writes the "baked" PLY: the 3D filter of per-Gaussian variance `var` folded into
+/// scale and opacity ([`Gaussians::with_3d_filter`], Mip-Splatting
+/// `save_fused_ply`), so that ordinary 3DGS viewers show the filtered scene.
+pub fn write_baked_ply(path: &Path, g: &Gaussians, var: &[f32]) -> Result<(), PlyError> {
+    write_ply(path, &g.with_3d_filter(var))
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    fn scene(deg: usize) -> Gaussians {
+        let k = crate::sh::num_coeffs(deg);
+        let n = 5;
+        let f = |len: usize, s: f32| {
+            Tensor::from_vec(
+                (0..len).map(|i| (i as f32 * 0.37 + s).sin()).collect(),
+                &[len],
+            )
+        };
+        Gaussians {
+            means: f(3 * n, 0.1).reshaped(&[n, 3]),
+            log_scales: f(3 * n, 0.2).reshaped(&[n, 3]),
+            quats: f(4 * n, 0.3).reshaped(&[n, 4]),
+            raw_opacity: f(n, 0.4),
+            sh: f(3 * n * k, 0.5).reshaped(&[n, k, 3]),
+            sh_degree: deg,
+        }
+    }
+
+    fn tmp(name: &str) -> std::path::PathBuf {
+        let dir = std::env::temp_dir().join(format!("maaf-splat-ply-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        dir.join(name)
+    }
+
+    #[test]
+    fn round_trip_every_degree() {
+        for deg in 0..=3 {
+            let g = scene(deg);
+            let p = tmp(&format!("rt{deg}.ply"));
+            write_ply(&p, &g).unwrap();
+            let back = read_ply(&p).unwrap();
+            assert_eq!(back, g, "degree {deg}");
+        }
+    }
+
+    #[test]
+    fn f_rest_is_channel_major() {
+        let g = scene(1);
+        let bytes = ply_bytes(&g);
+        let header_end = bytes
+            .windows(11)
+            .position(|w| w == b"end_header\n")
+            .unwrap()
+            + 11;
+        let vals: Vec<f32> = bytes[header_end..]
+            .chunks_exact(4)
+            .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+            .collect();
+        // Row 0: x y z nx ny nz dc0 dc1 dc2 f_rest_0..8 ...; f_rest_1 is channel 0,
+        // coefficient 2.
+        assert_eq!(vals[9 + 1], g.sh.data()[2 * 3]);
+        // f_rest_3 is channel 1, coefficient 1.
+        assert_eq!(vals[9 + 3], g.sh.data()[3 + 1]);
+    }
+
+    #[test]
+    fn errors_name_file_and_property() {
+        let text = "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nproperty float f_dc_0\nproperty float f_dc_1\nproperty float f_dc_2\nproperty float opacity\nproperty float scale_0\nproperty float scale_1\nproperty float scale_2\nproperty float rot_0\nproperty float rot_1\nproperty float rot_2\nend_header\n0 0 0 0 0 0 0 0 0 0 1 0 0\n";
+        let p = tmp("missing.ply");
+        std::fs::write(&p, text).unwrap();
+        let e = read_ply(&p).unwrap_err().to_string();
+        assert!(e.contains("missing.ply") && e.contains("rot_3"), "{e}");
+
+        let p = tmp("nan.ply");
+        std::fs::write(
+            &p,
+            text.replace(
+                "property float rot_2\n",
+                "property float rot_2\nproperty float rot_3\n",
+            )
+            .replace(
+                "0 0 0 0 0 0 0 0 0 0 1 0 0\n",
+                "0 0 0 0 0 0 nan 0 0 0 1 0 0 0\n",
+            ),
+        )
+        .unwrap();
+        let e = read_ply(&p).unwrap_err().to_string();
+        assert!(e.contains("nan.ply") && e.contains("opacity"), "{e}");
+
+        let g = scene(0);
+        let mut bytes = ply_bytes(&g);
+        bytes.truncate(bytes.len() - 10);
+        let p = tmp("short.ply");
+        std::fs::write(&p, bytes).unwrap();
+        let e = read_ply(&p).unwrap_err().to_string();
+        assert!(e.contains("short.ply") && e.contains("vertex"), "{e}");
+
+        let e = read_ply(&tmp("absent.ply")).unwrap_err().to_string();
+        assert!(e.contains("absent.ply"), "{e}");
+    }
+
+    #[test]
+    fn baked_export_folds_the_filter() {
+        let g = scene(0);
+        let var = vec![0.01f32; g.len()];
+        let b = g.with_3d_filter(&var);
+        for i in 0..g.len() {
+            let mut ratio = 1.0;
+            for j in 0..3 {
+                let s = g.log_scales.data()[3 * i + j].exp();
+                let sb = b.log_scales.data()[3 * i + j].exp();
+                assert!((sb * sb - (s * s + 0.01)).abs() < 1e-5);
+                ratio *= s * s / (s * s + 0.01);
+            }
+            let o = g.opacities().data()[i] * f32::sqrt(ratio);
+            assert!((b.opacities().data()[i] - o).abs() < 1e-5);
+        }
+        let p = tmp("baked.ply");
+        write_baked_ply(&p, &g, &var).unwrap();
+        assert_eq!(read_ply(&p).unwrap(), b);
+    }
+}
