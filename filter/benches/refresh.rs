@@ -1,7 +1,10 @@
 //! Criterion bench of the motion-aware filter refresh (issue 5): N = 50k Gaussians
 //! with J = 150 observations (D-NeRF: 150 training frames, one camera per time) and
-//! J = 300 x 20 (multi-view video: 300 times x 20 cameras). Prints the memory per
-//! Gaussian of the observation table and of the stored curves.
+//! J = 300 x 20 (multi-view video: 300 times x 20 cameras). The video case is run
+//! at N = 5k (its observation table alone is 24 kB per Gaussian, 1.2 GB at 50k, and
+//! one refresh takes seconds): the work is independent per Gaussian, so the 50k
+//! time is 10x (the `refresh_timing` example measures it directly). Prints the
+//! memory per Gaussian of the observation table and of the stored curves.
 //!
 //! `CARGO_TARGET_DIR=/work/target-filter cargo bench -p maaf-filter --bench refresh -- --warm-up-time 1 --measurement-time 3`
 
@@ -13,13 +16,14 @@ use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 
 const N: usize = 50_000;
+const N_VIDEO: usize = 5_000;
 
 /// Observations of `N` synthetic Gaussians: half static (constant f/d per camera),
 /// half moving (f/d oscillating with time), 10% of slots empty (not visible).
-fn synthetic(times: Vec<f32>, cameras: usize) -> ObservationTable {
+fn synthetic(times: Vec<f32>, cameras: usize, rows: usize) -> ObservationTable {
     let mut rng = Pcg64::seed_from_u64(1);
-    let mut table = ObservationTable::new(times.clone(), N);
-    for n in 0..N {
+    let mut table = ObservationTable::new(times.clone(), rows);
+    for n in 0..rows {
         let base = rng.random_range(50.0f32..800.0);
         let amp = if n % 2 == 0 {
             0.0
@@ -51,15 +55,15 @@ fn refresh(c: &mut Criterion) {
         .collect();
     let mut group = c.benchmark_group("motion_refresh");
     group.sample_size(10);
-    for (name, times, cameras) in [
-        ("dnerf_n50k_j150", dnerf_times, 1),
-        ("video_n50k_j300x20", video_times, 20),
+    for (name, times, cameras, rows) in [
+        ("dnerf_n50k_j150", dnerf_times, 1, N),
+        ("video_n5k_j300x20", video_times, 20, N_VIDEO),
     ] {
-        let table = synthetic(times, cameras);
+        let table = synthetic(times, cameras, rows);
         let curves = MotionCurves::refresh(&table, &cfg).expect("refresh");
         eprintln!(
             "{name}: observation table {} B/Gaussian, curves {} B/Gaussian (paper density: {} B/Gaussian)",
-            table.bytes() / N,
+            table.bytes() / rows,
             curves.bytes_per_gaussian(),
             4 * cfg.grid_x * cfg.grid_t
         );

@@ -53,7 +53,7 @@ fn synthetic(times: &[f32], cams: usize, n: usize) -> ObservationTable {
         } else {
             0.1 + 0.7 * hash(g, 1)
         };
-        let phase = 6.28 * hash(g, 2);
+        let phase = std::f32::consts::TAU * hash(g, 2);
         let row = table.row_mut(g);
         for (f, x) in row.iter_mut().enumerate() {
             if hash(g, 10 + f) < 0.1 {
