@@ -158,6 +158,10 @@ struct Scratch {
     xb_range: Vec<(f32, f32)>,
     /// `BLOCK_T x D` density block.
     acc: Vec<f32>,
+    /// Band cache per position within a group: x, band and values (`max group x D`).
+    cache_x: Vec<f32>,
+    cache_band: Vec<(usize, usize)>,
+    cache_vals: Vec<f32>,
 }
 
 impl MotionCurves {
@@ -172,6 +176,12 @@ impl MotionCurves {
         let mut codes = vec![FALLBACK; rows * t];
         let mut x_max = vec![0.0f32; rows];
         let groups = plan.num_groups();
+        let max_group = plan
+            .group_start
+            .windows(2)
+            .map(|w| w[1] - w[0])
+            .max()
+            .unwrap_or(0);
         codes
             .par_chunks_mut(t)
             .zip(x_max.par_iter_mut())
@@ -182,6 +192,9 @@ impl MotionCurves {
                     band: vec![(0, 0); groups],
                     xb_range: vec![(0.0, 0.0); groups],
                     acc: vec![0.0; BLOCK_T * d],
+                    cache_x: vec![f32::NAN; max_group],
+                    cache_band: vec![(0, 0); max_group],
+                    cache_vals: vec![0.0; max_group * d],
                 },
                 |scratch, (n, (codes, xm))| {
                     *xm = curve_one(table.row(n), &plan, scratch, codes);
@@ -299,25 +312,51 @@ fn curve_one(row: &[f32], plan: &Plan, scratch: &mut Scratch, codes: &mut [u8]) 
     let inv_max = 1.0 / x_max;
     let dm1 = (d - 1) as f32;
     // Step 2: Weibull columns H_g per time group, on each observation's band only.
+    // The band of the i-th frame of a group is cached and reused when the i-th
+    // frame of the next group has bitwise the same x (in a multi-view layout the
+    // i-th frame of every time is the same camera, so a static Gaussian repeats
+    // its x): same input, same values, and a copy instead of ~40 kernel evaluations.
+    scratch.cache_x.fill(f32::NAN);
     for g in 0..groups {
         let (mut glo, mut ghi) = (d, 0);
         let (mut xmin, mut xmax) = (f32::INFINITY, f32::NEG_INFINITY);
         let col = &mut scratch.h[g * d..(g + 1) * d];
-        for &f in &plan.frames[plan.group_start[g]..plan.group_start[g + 1]] {
+        let frames = &plan.frames[plan.group_start[g]..plan.group_start[g + 1]];
+        for (i, &f) in frames.iter().enumerate() {
             let x = row[f as usize];
             if x <= 0.0 {
                 continue;
             }
             let xb = x * inv_max;
-            // Grid points with u in [u_lo, u_hi], widened by one on each side
-            // against rounding (the kernel itself is zero outside its support).
-            let lo = (((xb + plan.lo_off) * dm1).ceil() as usize).saturating_sub(1);
-            let hi = ((((xb + plan.hi_off) * dm1).floor() as usize) + 2).min(d);
+            let cached = &mut scratch.cache_vals[i * d..(i + 1) * d];
+            let (lo, hi) = if scratch.cache_x[i].to_bits() == x.to_bits() {
+                scratch.cache_band[i]
+            } else {
+                // Grid points with u in [u_lo, u_hi], widened by one on each side
+                // against rounding (the kernel itself is zero outside its support),
+                // then padded to a multiple of 4 lanes so no scalar tail remains.
+                let lo = (((xb + plan.lo_off) * dm1).ceil() as usize).saturating_sub(1);
+                let hi = ((((xb + plan.hi_off) * dm1).floor() as usize) + 2).min(d);
+                let (lo, hi) = if lo < hi {
+                    let len = (hi - lo).next_multiple_of(4).min(d);
+                    let hi = (lo + len).min(d);
+                    (hi - len, hi)
+                } else {
+                    (0, 0)
+                };
+                cached[lo..hi].fill(0.0);
+                plan.weibull
+                    .add_band(xb, plan.inv_hx, &plan.gx[lo..hi], &mut cached[lo..hi]);
+                scratch.cache_x[i] = x;
+                scratch.cache_band[i] = (lo, hi);
+                (lo, hi)
+            };
             if lo >= hi {
                 continue;
             }
-            plan.weibull
-                .add_band(xb, plan.inv_hx, &plan.gx[lo..hi], &mut col[lo..hi]);
+            for (c, &v) in col[lo..hi].iter_mut().zip(&cached[lo..hi]) {
+                *c += v;
+            }
             glo = glo.min(lo);
             ghi = ghi.max(hi);
             xmin = xmin.min(xb);
