@@ -4,3 +4,4 @@ pub mod loss;
 pub mod metrics;
 pub mod data;
 pub mod models;
+pub mod trainer;

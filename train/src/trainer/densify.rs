@@ -1,0 +1,232 @@
+//! Adaptive density control (3DGS `densify_and_prune`, as configured by SaRO-GS):
+//! statistics of the screen-space positional gradient, clone / split / prune as one
+//! row-index list applied to every per-Gaussian container.
+
+use maaf_autodiff::{PerGaussian, Tensor};
+use rand::SeedableRng;
+use rand_pcg::Pcg64;
+
+use super::config::DensifyConfig;
+use crate::models::Representation;
+
+/// Per-Gaussian statistics between densifications: accumulated screen-space gradient
+/// norm, number of views in which the Gaussian was visible, and its largest radius.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct DensifyStats {
+    /// Sum over visible views of `|dL/d mean2d|` in NDC units.
+    pub grad_accum: Vec<f32>,
+    /// Views in which the Gaussian was visible.
+    pub denom: Vec<f32>,
+    /// Largest screen radius seen (pixels).
+    pub max_radii: Vec<f32>,
+}
+
+impl DensifyStats {
+    /// Zeroed statistics for `n` Gaussians.
+    pub fn new(n: usize) -> Self {
+        DensifyStats {
+            grad_accum: vec![0.0; n],
+            denom: vec![0.0; n],
+            max_radii: vec![0.0; n],
+        }
+    }
+
+    /// Adds one view: `grad` is `dL/d means2d` `[N,2]` in pixels; 3DGS thresholds the
+    /// gradient with respect to NDC coordinates, `d/d ndc_x = (W/2) d/d px`, so the
+    /// norm is taken of `(gx W/2, gy H/2)`. Gaussians with radius 0 are not counted.
+    pub fn record(&mut self, grad: Option<&Tensor<f32>>, radii: &[u32], width: u32, height: u32) {
+        let (hw, hh) = (width as f32 * 0.5, height as f32 * 0.5);
+        for (i, &r) in radii.iter().enumerate() {
+            if r == 0 {
+                continue;
+            }
+            if let Some(g) = grad {
+                let (gx, gy) = (g.data()[2 * i] * hw, g.data()[2 * i + 1] * hh);
+                self.grad_accum[i] += (gx * gx + gy * gy).sqrt();
+            }
+            self.denom[i] += 1.0;
+            self.max_radii[i] = self.max_radii[i].max(r as f32);
+        }
+    }
+
+    /// Mean gradient norm per Gaussian (0 where never visible).
+    pub fn mean_grad(&self) -> Vec<f32> {
+        self.grad_accum
+            .iter()
+            .zip(&self.denom)
+            .map(|(&g, &d)| if d > 0.0 { g / d } else { 0.0 })
+            .collect()
+    }
+}
+
+impl PerGaussian for DensifyStats {
+    fn rows(&self) -> usize {
+        self.denom.len()
+    }
+    fn select_rows(&mut self, index: &[usize]) {
+        self.grad_accum.select_rows(index);
+        self.denom.select_rows(index);
+        self.max_radii.select_rows(index);
+    }
+}
+
+/// One densification as a row-index list over the old Gaussians plus the new
+/// centres and scales of the rows that clones and splits created.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct DensifyPlan {
+    /// New rows as old row indices (survivors, then clones, then split halves).
+    pub index: Vec<usize>,
+    /// Rows (in the new numbering) whose centre and scale must be overwritten.
+    pub new_rows: Vec<usize>,
+    /// Centres of `new_rows`, flat `[len, 3]`.
+    pub new_means: Vec<f32>,
+    /// Activated scales of `new_rows`, flat `[len, 3]`.
+    pub new_scales: Vec<f32>,
+    /// Gaussians cloned.
+    pub cloned: usize,
+    /// Gaussians split (each into two).
+    pub split: usize,
+    /// Gaussians pruned.
+    pub pruned: usize,
+}
+
+/// Plans clone / split / prune (3DGS Sec. 5):
+/// - candidates have mean NDC gradient `>= grad_threshold`; those whose largest
+///   scale is `<= percent_dense * extent` are cloned (a copy at the same place),
+///   the others split into two Gaussians sampled from the original
+///   (`mu + R (s * n)`, `n ~ N(0, I)`) with scale `s / 1.6`;
+/// - pruned: base opacity `< min_opacity`, screen radius above `max_screen_size`
+///   when `big_screen` is set (after the first opacity reset), and whatever the
+///   representation reports as short-lived; a pruned Gaussian is neither cloned nor split;
+/// - growth stops at `max_gaussians`, taking the largest gradients first.
+pub fn plan(
+    model: &dyn Representation<f32>,
+    stats: &DensifyStats,
+    cfg: &DensifyConfig,
+    extent: f64,
+    big_screen: bool,
+    seed: u64,
+) -> DensifyPlan {
+    let canon = model.canonical();
+    let n = model.num_gaussians();
+    let grad = stats.mean_grad();
+    let mut prune = vec![false; n];
+    for i in model.short_lived() {
+        prune[i] = true;
+    }
+    for i in 0..n {
+        let o = canon.opacity.data()[i] as f64;
+        if o < cfg.min_opacity || (big_screen && stats.max_radii[i] as f64 > cfg.max_screen_size) {
+            prune[i] = true;
+        }
+    }
+    let max_scale = |i: usize| {
+        canon.scales.data()[3 * i..3 * i + 3]
+            .iter()
+            .fold(0.0f32, |a, &b| a.max(b)) as f64
+    };
+    let mut candidates: Vec<usize> = (0..n)
+        .filter(|&i| !prune[i] && grad[i] as f64 >= cfg.grad_threshold)
+        .collect();
+    candidates.sort_by(|&a, &b| grad[b].total_cmp(&grad[a]).then(a.cmp(&b)));
+    let survivors = prune.iter().filter(|&&p| !p).count();
+    let mut budget = cfg.max_gaussians.saturating_sub(survivors);
+    let (mut clone, mut split) = (Vec::new(), Vec::new());
+    for &i in &candidates {
+        let is_small = max_scale(i) <= cfg.percent_dense * extent;
+        // A clone adds one row; a split replaces one row by two.
+        if budget == 0 {
+            break;
+        }
+        budget -= 1;
+        if is_small {
+            clone.push(i)
+        } else {
+            split.push(i)
+        }
+    }
+    clone.sort_unstable();
+    split.sort_unstable();
+    let mut is_split = vec![false; n];
+    for &i in &split {
+        is_split[i] = true;
+    }
+    let mut out = DensifyPlan {
+        pruned: prune.iter().filter(|&&p| p).count(),
+        ..Default::default()
+    };
+    out.index = (0..n).filter(|&i| !prune[i] && !is_split[i]).collect();
+    out.index.extend(&clone);
+    out.cloned = clone.len();
+    out.split = split.len();
+    let mut rng = Pcg64::seed_from_u64(seed);
+    for &i in &split {
+        let s: [f32; 3] = std::array::from_fn(|a| canon.scales.data()[3 * i + a]);
+        let q: [f32; 4] = std::array::from_fn(|a| canon.quats.data()[4 * i + a]);
+        let mu: [f32; 3] = std::array::from_fn(|a| canon.means.data()[3 * i + a]);
+        for _ in 0..2 {
+            let local: [f32; 3] = std::array::from_fn(|a| s[a] * standard_normal(&mut rng));
+            let off = rotate(q, local);
+            out.new_rows.push(out.index.len());
+            out.index.push(i);
+            out.new_means.extend((0..3).map(|a| mu[a] + off[a]));
+            out.new_scales.extend(s.iter().map(|v| v / 1.6));
+        }
+    }
+    out
+}
+
+/// A standard normal sample (Box-Muller).
+fn standard_normal(rng: &mut Pcg64) -> f32 {
+    use rand::RngExt;
+    let u1: f64 = rng.random_range(f64::MIN_POSITIVE..1.0);
+    let u2: f64 = rng.random_range(0.0..1.0);
+    ((-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()) as f32
+}
+
+/// Rotates `v` by the (normalised) quaternion `q = (w, x, y, z)`.
+fn rotate(q: [f32; 4], v: [f32; 3]) -> [f32; 3] {
+    let norm = (q.iter().map(|a| a * a).sum::<f32>()).sqrt().max(1e-12);
+    let (w, x, y, z) = (q[0] / norm, q[1] / norm, q[2] / norm, q[3] / norm);
+    let r = [
+        [
+            1.0 - 2.0 * (y * y + z * z),
+            2.0 * (x * y - w * z),
+            2.0 * (x * z + w * y),
+        ],
+        [
+            2.0 * (x * y + w * z),
+            1.0 - 2.0 * (x * x + z * z),
+            2.0 * (y * z - w * x),
+        ],
+        [
+            2.0 * (x * z - w * y),
+            2.0 * (y * z + w * x),
+            1.0 - 2.0 * (x * x + y * y),
+        ],
+    ];
+    std::array::from_fn(|i| r[i][0] * v[0] + r[i][1] * v[1] + r[i][2] * v[2])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rotation_by_a_quarter_turn_about_z() {
+        let h = std::f32::consts::FRAC_1_SQRT_2;
+        let v = rotate([h, 0.0, 0.0, h], [1.0, 0.0, 0.0]);
+        assert!((v[0]).abs() < 1e-6 && (v[1] - 1.0).abs() < 1e-6 && v[2].abs() < 1e-6);
+    }
+
+    #[test]
+    fn stats_use_ndc_units_and_skip_culled() {
+        let mut s = DensifyStats::new(2);
+        let g = Tensor::from_vec(vec![1.0, 0.0, 5.0, 5.0], &[2, 2]);
+        s.record(Some(&g), &[3, 0], 10, 20);
+        assert_eq!(s.grad_accum, vec![5.0, 0.0]);
+        assert_eq!(s.denom, vec![1.0, 0.0]);
+        assert_eq!(s.max_radii, vec![3.0, 0.0]);
+        assert_eq!(s.mean_grad(), vec![5.0, 0.0]);
+    }
+}

@@ -1,0 +1,150 @@
+//! A whole training run in a run directory: `config.json`, `log.csv`, checkpoints
+//! under `checkpoints/`, the final model in `model/`, and `timings.json`.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use serde::{Deserialize, Serialize};
+
+use super::{Timings, TrainConfig, TrainError, Trainer, load_checkpoint, save_checkpoint};
+use crate::data::Dataset;
+
+/// What a finished run reports (also written as `RUN/summary.json`).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct RunSummary {
+    /// Iterations completed.
+    pub iterations: usize,
+    /// Wall time of the training loop in this process, seconds (plus that of the runs it resumed).
+    pub train_seconds: f64,
+    /// Final number of Gaussians.
+    pub num_gaussians: usize,
+    /// Steps skipped for non-finite values.
+    pub skipped_steps: usize,
+    /// Time per phase.
+    pub timings: Timings,
+}
+
+fn io(path: &Path) -> impl FnOnce(std::io::Error) -> TrainError + '_ {
+    move |source| TrainError::Io {
+        path: path.display().to_string(),
+        source,
+    }
+}
+
+/// Writes `bytes` to `path` through a temporary file and a rename.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), TrainError> {
+    let tmp = path.with_extension("tmp");
+    std::fs::write(&tmp, bytes).map_err(io(&tmp))?;
+    std::fs::rename(&tmp, path).map_err(io(path))
+}
+
+/// Trains on `data` into `out` (created if needed), or continues the run in `out`
+/// from its `model/` checkpoint when `resume` is set. Prints a progress bar on a
+/// terminal and a line every 10% otherwise.
+pub fn train_run(
+    data: &Dataset,
+    config: TrainConfig,
+    out: &Path,
+    resume: bool,
+) -> Result<RunSummary, TrainError> {
+    std::fs::create_dir_all(out).map_err(io(out))?;
+    let model_dir = out.join("model");
+    let mut trainer = if resume {
+        let mut t = load_checkpoint(data, &model_dir)?;
+        // Only the iteration budget may change on resume.
+        t.config.iterations = config.iterations;
+        t
+    } else {
+        Trainer::new(data, config)?
+    };
+    let config_json =
+        serde_json::to_vec_pretty(&trainer.config).map_err(|e| TrainError::Input(e.to_string()))?;
+    write_atomic(&out.join("config.json"), &config_json)?;
+    let log_path = out.join("log.csv");
+    let new_log = !resume || !log_path.exists();
+    let mut log = std::fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(&log_path)
+        .map_err(io(&log_path))?;
+    if new_log {
+        let mut header = String::from("iteration");
+        for name in trainer.objective.names() {
+            header.push(',');
+            header.push_str(&name);
+        }
+        header.push_str(",total,num_gaussians,elapsed_seconds,skipped_steps\n");
+        log.write_all(header.as_bytes()).map_err(io(&log_path))?;
+    }
+    let total = trainer.config.iterations;
+    let bar = indicatif::ProgressBar::new(total as u64);
+    bar.set_position(trainer.iteration as u64);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{bar:30} {pos}/{len} [{elapsed_precise}<{eta_precise}] {msg}",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    let start = Instant::now();
+    let before = trainer.timings.total();
+    let ckpt_every = trainer.config.checkpoint_every.max(1);
+    while trainer.iteration < total {
+        trainer.step();
+        let it = trainer.iteration;
+        let loss = trainer
+            .last_terms
+            .iter()
+            .find(|(n, _)| n == "total")
+            .map_or(f64::NAN, |(_, v)| *v);
+        if it % trainer.config.log_every.max(1) == 0 || it == total {
+            let mut row = it.to_string();
+            for name in trainer.objective.names() {
+                let v = trainer
+                    .last_terms
+                    .iter()
+                    .find(|(n, _)| *n == name)
+                    .map_or(f64::NAN, |(_, v)| *v);
+                row.push_str(&format!(",{v:.6e}"));
+            }
+            row.push_str(&format!(
+                ",{loss:.6e},{},{:.3},{}\n",
+                trainer.num_gaussians(),
+                before + start.elapsed().as_secs_f64(),
+                trainer.skipped_steps
+            ));
+            log.write_all(row.as_bytes()).map_err(io(&log_path))?;
+            bar.set_message(format!(
+                "loss {loss:.4}  gaussians {}",
+                trainer.num_gaussians()
+            ));
+        }
+        bar.set_position(it as u64);
+        if bar.is_hidden() && (it * 10 / total.max(1)) != ((it - 1) * 10 / total.max(1)) {
+            eprintln!(
+                "maaf: iteration {it}/{total}  loss {loss:.4}  gaussians {}",
+                trainer.num_gaussians()
+            );
+        }
+        if it % ckpt_every == 0 && it < total {
+            save_checkpoint(&mut trainer, &checkpoint_dir(out, it))?;
+        }
+    }
+    bar.finish_and_clear();
+    save_checkpoint(&mut trainer, &model_dir)?;
+    let summary = RunSummary {
+        iterations: trainer.iteration,
+        train_seconds: trainer.timings.total(),
+        num_gaussians: trainer.num_gaussians(),
+        skipped_steps: trainer.skipped_steps,
+        timings: trainer.timings.clone(),
+    };
+    let json = serde_json::to_vec_pretty(&summary).map_err(|e| TrainError::Input(e.to_string()))?;
+    write_atomic(&out.join("summary.json"), &json)?;
+    Ok(summary)
+}
+
+/// `RUN/checkpoints/iter_NNNNNN`.
+pub fn checkpoint_dir(run: &Path, iteration: usize) -> PathBuf {
+    run.join("checkpoints").join(format!("iter_{iteration:06}"))
+}

@@ -1,0 +1,55 @@
+//! Wall time per training phase.
+
+use serde::{Deserialize, Serialize};
+
+/// Seconds spent in each phase of the training step, summed over iterations.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Timings {
+    /// Binding parameters, residual field and MLPs (the deformation).
+    pub field_mlp: f64,
+    /// Filter fold, projection, rasterization and objective.
+    pub render_forward: f64,
+    /// Reverse sweep of the tape.
+    pub backward: f64,
+    /// Adam updates, statistics and observation recording.
+    pub optimiser: f64,
+    /// Filter refreshes (static nu or motion-aware KDE).
+    pub filter_refresh: f64,
+    /// Densification, pruning and opacity resets.
+    pub densification: f64,
+}
+
+impl Timings {
+    /// Sum of all phases.
+    pub fn total(&self) -> f64 {
+        self.field_mlp
+            + self.render_forward
+            + self.backward
+            + self.optimiser
+            + self.filter_refresh
+            + self.densification
+    }
+
+    /// One line per phase with seconds, ms per iteration and share of the total.
+    pub fn report(&self, iterations: usize) -> String {
+        let total = self.total().max(1e-12);
+        let per = |s: f64| 1e3 * s / iterations.max(1) as f64;
+        [
+            ("field+MLP", self.field_mlp),
+            ("render forward", self.render_forward),
+            ("backward", self.backward),
+            ("optimiser", self.optimiser),
+            ("filter refresh", self.filter_refresh),
+            ("densification", self.densification),
+        ]
+        .iter()
+        .map(|(name, s)| {
+            format!(
+                "{name:>15}: {s:8.1} s  {:7.2} ms/it  {:5.1}%\n",
+                per(*s),
+                100.0 * s / total
+            )
+        })
+        .collect()
+    }
+}
