@@ -3,9 +3,15 @@
 //! against a full observation pass with the current deformation, on a synthetic
 //! scene whose motion is still being learnt (amplitude `1 - exp(-it / tau)`).
 //!
-//! `cargo run -p maaf-filter --release --example stale_observations`
+//! `cargo run -p maaf-filter --release --example stale_observations [-- EXPORT_DIR]`
+//!
+//! With `EXPORT_DIR`, also writes `dnerf_fd.json` / `dnerf_fd.csv`: observations and
+//! nu(t) of two static and two moving Gaussians at the last refresh (the paper's
+//! f/d-over-time figure).
 
-use maaf_filter::{FilterConfig, Frame, MotionCurves, ObservationTable};
+use std::path::Path;
+
+use maaf_filter::{AnalysisExport, FilterConfig, Frame, MotionCurves, ObservationTable, static_nu};
 use maaf_splat::Camera;
 use rand::seq::SliceRandom;
 use rand::{RngExt, SeedableRng};
@@ -127,7 +133,14 @@ fn compare(rec: &MotionCurves, full: &MotionCurves, table: &ObservationTable) ->
     }
 }
 
-fn run(name: &str, times: usize, cams_per_time: usize, n: usize, last: usize) {
+fn run(
+    name: &str,
+    times: usize,
+    cams_per_time: usize,
+    n: usize,
+    last: usize,
+    export: Option<&Path>,
+) {
     let cfg = FilterConfig::default();
     let mut rng = Pcg64::seed_from_u64(42);
     let scene = Scene::new(n, &mut rng);
@@ -189,11 +202,28 @@ fn run(name: &str, times: usize, cams_per_time: usize, n: usize, last: usize) {
                 100.0 * st.p95_rel,
                 100.0 * st.max_rel
             );
+            if let (Some(dir), true) = (export, it == last) {
+                // Even indices are static, odd ones move (Scene::new).
+                let chosen: Vec<(usize, String)> =
+                    [(0, "static"), (2, "static"), (1, "moving"), (3, "moving")]
+                        .iter()
+                        .map(|&(i, l)| (i, l.to_string()))
+                        .collect();
+                let nu_static = static_nu(&scene.canonical, &cams, &cfg).expect("visible");
+                let ex =
+                    AnalysisExport::collect(&full, &b, &chosen, Some(&nu_static)).expect("export");
+                ex.write_json(&dir.join("dnerf_fd.json"))
+                    .expect("write json");
+                ex.write_csv(&dir.join("dnerf_fd.csv")).expect("write csv");
+                println!("wrote {}/dnerf_fd.{{json,csv}}", dir.display());
+            }
         }
     }
 }
 
 fn main() {
-    run("D-NeRF layout", 150, 1, 2000, 5000);
-    run("multi-view video layout", 300, 20, 300, 5000);
+    let export = std::env::args().nth(1);
+    let export = export.as_deref().map(Path::new);
+    run("D-NeRF layout", 150, 1, 2000, 5000, export);
+    run("multi-view video layout", 300, 20, 300, 5000, None);
 }

@@ -265,7 +265,7 @@ impl MotionCurves {
         }
     }
 
-    /// The whole curve nu_n(g_t[s]) of Gaussian `n`, length T.
+    /// The whole curve `nu_n(g_t[s])` of Gaussian `n`, length T.
     pub fn curve(&self, n: usize) -> Vec<f32> {
         (0..self.grid_t).map(|s| self.nu(n, s)).collect()
     }
