@@ -88,13 +88,15 @@ impl Viewer {
 ///
 /// `centres` are the Gaussians' *canonical* (static) centres for the
 /// "SaRO-GS + 3D filter" baseline; `cameras` are the training cameras only.
-/// Errors with [`FilterError::NothingVisible`] when no camera sees any Gaussian
-/// (and `centres` is not empty). Parallel over Gaussians.
+/// Errors with the config error if `cfg` is invalid, and with
+/// [`FilterError::NothingVisible`] when no camera sees any Gaussian (and `centres`
+/// is not empty). Parallel over Gaussians.
 pub fn static_nu(
     centres: &[[f32; 3]],
     cameras: &[Camera],
     cfg: &FilterConfig,
 ) -> Result<Vec<f32>, FilterError> {
+    cfg.validate()?;
     let viewers: Vec<Viewer> = cameras.iter().map(|c| Viewer::new(c, cfg)).collect();
     let mut nu: Vec<f32> = centres
         .par_iter()

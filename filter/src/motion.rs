@@ -166,9 +166,11 @@ struct Scratch {
 
 impl MotionCurves {
     /// Recomputes every Gaussian's curve from `table` (fast path of Algorithm 1,
-    /// parallel over Gaussians). `cfg` must be validated. Errors with
-    /// [`FilterError::NothingVisible`] if the table has Gaussians but no observation.
+    /// parallel over Gaussians). Errors with the config error if `cfg` is invalid
+    /// (re-checked here, it costs nothing) and with [`FilterError::NothingVisible`]
+    /// if the table has Gaussians but no observation.
     pub fn refresh(table: &ObservationTable, cfg: &FilterConfig) -> Result<Self, FilterError> {
+        cfg.validate()?;
         let kern = Kernels::new(cfg);
         let plan = Plan::new(table.times(), cfg, &kern);
         let rows = table.rows();

@@ -440,6 +440,14 @@ fn per_gaussian_resize_keeps_survivors_values() {
 #[test]
 fn nothing_visible_is_an_error_not_a_zero_nu() {
     let cfg = FilterConfig::default();
+    // An invalid config is refused by refresh too, before any work.
+    let bad = FilterConfig {
+        grid_x: 300,
+        ..FilterConfig::default()
+    };
+    let err =
+        MotionCurves::refresh(&ObservationTable::new(vec![0.0], 1), &bad).expect_err("bad config");
+    assert!(err.to_string().contains("`grid_x`"), "{err}");
     let table = ObservationTable::new(vec![0.0, 1.0], 3);
     assert!(MotionCurves::refresh(&table, &cfg).is_err());
     let empty = ObservationTable::new(vec![0.0, 1.0], 0);
