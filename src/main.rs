@@ -2,6 +2,8 @@
 
 use clap::{Parser, Subcommand};
 
+mod cli;
+
 /// Alias-free 4D Gaussian splatting of dynamic scenes (motion-aware smoothing filter).
 #[derive(Parser)]
 #[command(name = "maaf", version, about, long_about = None)]
@@ -14,11 +16,14 @@ struct Cli {
 enum Command {
     /// Print the build configuration (float types, thread count) and exit.
     Info,
+    /// Render a static 3DGS PLY from a camera JSON to a PNG or float32 NPY image.
+    RenderPly(cli::render_ply::RenderPlyArgs),
 }
 
 fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {
+        Command::RenderPly(args) => cli::render_ply::run(&args)?,
         Command::Info => {
             println!("maaf {}", env!("CARGO_PKG_VERSION"));
             println!(

@@ -20,6 +20,7 @@ pub mod camera;
 pub mod filter3d;
 pub mod gaussians;
 mod math;
+pub mod output;
 pub mod ply;
 pub mod project;
 pub mod rasterize;

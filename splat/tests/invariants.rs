@@ -4,7 +4,7 @@
 
 mod common;
 
-use maaf_autodiff::{Tape, Tensor, TapeError};
+use maaf_autodiff::{Tape, TapeError, Tensor};
 use maaf_splat::{AlphaCutoff, Filter2d, GaussianVars, RenderSettings, render};
 
 /// Renders `scene` and backpropagates a fixed weighted loss; returns the image and
@@ -57,8 +57,16 @@ fn bit_identical_across_thread_counts() {
     let three = run(3);
     for (k, ((a, b), c)) in one.iter().zip(&two).zip(&three).enumerate() {
         let bits = |t: &Tensor<f32>| t.data().iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-        assert_eq!(bits(a), bits(b), "output {k} differs between 1 and 2 threads");
-        assert_eq!(bits(a), bits(c), "output {k} differs between 1 and 3 threads");
+        assert_eq!(
+            bits(a),
+            bits(b),
+            "output {k} differs between 1 and 2 threads"
+        );
+        assert_eq!(
+            bits(a),
+            bits(c),
+            "output {k} differs between 1 and 3 threads"
+        );
     }
 }
 
@@ -130,7 +138,10 @@ fn nan_input_is_reported_with_the_op_name() {
             sh: t2.constant(s.sh.clone()),
         };
         let out2 = render(&t2, &g2, &cam, &RenderSettings::default());
-        assert!(out2.image.value().data().iter().all(|v| v.is_nan()), "{param}");
+        assert!(
+            out2.image.value().data().iter().all(|v| v.is_nan()),
+            "{param}"
+        );
     }
 }
 
@@ -154,7 +165,10 @@ fn three_d_filter_with_zero_variance_renders_the_same() {
         alpha_cutoff: AlphaCutoff::Hard,
         ..RenderSettings::default()
     };
-    let a = render(&t, &mk(scales, opac), &cam, &st).image.value().clone();
+    let a = render(&t, &mk(scales, opac), &cam, &st)
+        .image
+        .value()
+        .clone();
     let b = render(&t, &mk(s2, o2), &cam, &st).image.value().clone();
     // sqrt(s^2 + 0) may round differently from s in the last bit.
     let c = maaf_autodiff::check::compare(&a, &b, 1e-6, 0.0);
