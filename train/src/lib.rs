@@ -5,3 +5,4 @@ pub mod metrics;
 pub mod data;
 pub mod models;
 pub mod trainer;
+pub mod eval;

@@ -1,0 +1,204 @@
+//! Loading a trained run for evaluation and rendering it: at a test view or any
+//! camera, at any time, and as a fixed-camera video over time (PNG frames + GIF).
+
+use std::path::{Path, PathBuf};
+
+use maaf_autodiff::Tensor;
+use maaf_splat::{Camera, RenderSettings, render_tensors};
+use serde::{Deserialize, Serialize};
+
+use super::{EvalError, images, write_atomic};
+use crate::data::{Dataset, Split};
+use crate::trainer::{Trainer, frame_at, load_checkpoint};
+
+/// What a run was trained on, written as `RUN/data.json` by [`record_data`]; when it
+/// is present, [`load_run`] refuses a data set that differs from it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct DataFingerprint {
+    /// Data folder (informational; a moved folder still matches).
+    pub root: PathBuf,
+    /// Number of training views.
+    pub train_views: usize,
+    /// Number of test views.
+    pub test_views: usize,
+    /// Source image width of the training split.
+    pub width: u32,
+    /// Source image height of the training split.
+    pub height: u32,
+    /// Background colour the images were composited on.
+    pub background: [f32; 3],
+}
+
+impl DataFingerprint {
+    /// The fingerprint of `data`.
+    pub fn of(data: &Dataset) -> Result<Self, EvalError> {
+        let meta = data
+            .split(Split::Train)
+            .map_err(|e| EvalError::Input(e.to_string()))?;
+        Ok(DataFingerprint {
+            root: data.root().to_path_buf(),
+            train_views: data.len(Split::Train),
+            test_views: data.len(Split::Test),
+            width: meta.width,
+            height: meta.height,
+            background: data.background(),
+        })
+    }
+}
+
+/// Writes `RUN/data.json` (the data set's [`DataFingerprint`]), so later evaluations
+/// can refuse a different data set. Training (or the demo) calls this once.
+pub fn record_data(run: &Path, data: &Dataset) -> Result<(), EvalError> {
+    let fp = DataFingerprint::of(data)?;
+    let json =
+        serde_json::to_vec_pretty(&fp).map_err(|e| EvalError::Input(format!("data.json: {e}")))?;
+    write_atomic(&run.join("data.json"), &json)
+}
+
+/// Reads `RUN/data.json` if the run has one.
+pub fn recorded_data(run: &Path) -> Result<Option<DataFingerprint>, EvalError> {
+    let path = run.join("data.json");
+    if !path.exists() {
+        return Ok(None);
+    }
+    let text = std::fs::read_to_string(&path).map_err(|e| EvalError::io(&path, e))?;
+    serde_json::from_str(&text)
+        .map(Some)
+        .map_err(|e| EvalError::Input(format!("{}: {e}", path.display())))
+}
+
+/// Loads the trained model of `run` (`RUN/model/`) on `data`. One-line errors for a
+/// missing run or model and for a data set that does not match the run (different
+/// number of training views, different image size when `RUN/data.json` records it,
+/// or a training scale the images cannot be downsampled to).
+pub fn load_run(run: &Path, data: &Dataset) -> Result<Trainer, EvalError> {
+    if !run.is_dir() {
+        return Err(EvalError::Input(format!(
+            "{}: run directory does not exist",
+            run.display()
+        )));
+    }
+    let model = run.join("model");
+    if !model.join("state.json").is_file() || !model.join("tensors.safetensors").is_file() {
+        return Err(EvalError::Input(format!(
+            "{}: no trained model (expected {}/state.json and tensors.safetensors; train with `maaf train --out {}`)",
+            run.display(),
+            model.display(),
+            run.display()
+        )));
+    }
+    if let Some(rec) = recorded_data(run)? {
+        let now = DataFingerprint::of(data)?;
+        if (rec.train_views, rec.width, rec.height) != (now.train_views, now.width, now.height) {
+            return Err(EvalError::Input(format!(
+                "{}: does not match the run's data ({} training views of {}x{} in {}; this one has {} of {}x{})",
+                data.root().display(),
+                rec.train_views,
+                rec.width,
+                rec.height,
+                rec.root.display(),
+                now.train_views,
+                now.width,
+                now.height
+            )));
+        }
+        if rec.background != now.background {
+            return Err(EvalError::Input(format!(
+                "{}: background {:?} differs from the {:?} the run was trained on",
+                data.root().display(),
+                now.background,
+                rec.background
+            )));
+        }
+    }
+    load_checkpoint(data, &model).map_err(|e| {
+        let msg = e.to_string();
+        if msg.contains("different data set") {
+            EvalError::Input(format!(
+                "{}: does not match the run {} (it was trained on a different number of training views; this data set has {})",
+                data.root().display(),
+                run.display(),
+                data.len(Split::Train)
+            ))
+        } else {
+            EvalError::Input(format!("{}: cannot load the model: {msg}", run.display()))
+        }
+    })
+}
+
+/// Camera of view `index` of `split` at `scale` relative to the run's training scale
+/// (no ground truth is needed, so zoom-in beyond the source images is allowed).
+pub fn run_camera(
+    trainer: &Trainer,
+    data: &Dataset,
+    split: Split,
+    index: usize,
+    scale: f64,
+) -> Result<Camera, EvalError> {
+    if !(scale.is_finite() && scale > 0.0) {
+        return Err(EvalError::Input(format!(
+            "scale {scale}: must be a positive number"
+        )));
+    }
+    let source = data
+        .camera(split, index, 1.0)
+        .map_err(|e| EvalError::Input(e.to_string()))?;
+    let s = trainer.config.train_scale * scale;
+    let cam = source.scaled(s);
+    if cam.width as u64 * cam.height as u64 > 64_000_000 {
+        return Err(EvalError::Input(format!(
+            "scale {scale}: {}x{} is too large to render",
+            cam.width, cam.height
+        )));
+    }
+    Ok(cam)
+}
+
+/// Renders the run's Gaussians at `time` from `camera` (float `[H, W, 3]`).
+pub fn render_image(
+    trainer: &Trainer,
+    camera: &Camera,
+    time: f64,
+    settings: &RenderSettings,
+) -> Tensor<f32> {
+    let [m, s, q, o, sh] = frame_at(
+        trainer.model.as_ref(),
+        &trainer.filter,
+        trainer.config.filter.kind,
+        time,
+    );
+    render_tensors(&m, &s, &q, &o, &sh, camera, settings).image
+}
+
+/// Renders `frames` evenly spaced times over `[t0, t1]` from one fixed `camera` into
+/// `out` as `frame_NNNN.png` plus an animated `video.gif` (10 frames per second).
+/// Returns the PNG paths. `out` is created if needed; existing frames are replaced.
+pub fn render_video(
+    trainer: &Trainer,
+    camera: &Camera,
+    (t0, t1): (f64, f64),
+    frames: usize,
+    out: &Path,
+) -> Result<Vec<PathBuf>, EvalError> {
+    if frames == 0 {
+        return Err(EvalError::Input("--frames must be at least 1".into()));
+    }
+    std::fs::create_dir_all(out).map_err(|e| EvalError::io(out, e))?;
+    let settings = trainer.render_settings(trainer.iteration);
+    let mut paths = Vec::with_capacity(frames);
+    let mut rgb = Vec::with_capacity(frames);
+    for i in 0..frames {
+        let t = if frames == 1 {
+            t0
+        } else {
+            t0 + (t1 - t0) * i as f64 / (frames - 1) as f64
+        };
+        let img = images::to_rgb8(&render_image(trainer, camera, t, &settings))?;
+        let path = out.join(format!("frame_{i:04}.png"));
+        images::save_png_atomic(&img, &path)?;
+        paths.push(path);
+        rgb.push(img);
+    }
+    images::save_gif(&rgb, 100, &out.join("video.gif"))?;
+    Ok(paths)
+}

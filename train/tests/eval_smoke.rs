@@ -1,0 +1,212 @@
+//! Evaluation end to end on a tiny run of the D-NeRF mutant scene (100x100 training
+//! images): eval.json has exactly the contract fields, renders and error maps are
+//! written, bad input fails with one line and overwrites nothing.
+
+use std::path::{Path, PathBuf};
+
+use maaf_filter::FilterKind;
+use maaf_train::data::{Dataset, DatasetOptions};
+use maaf_train::eval::render::record_data;
+use maaf_train::eval::{EvalOptions, evaluate_run};
+use maaf_train::trainer::{TrainConfig, train_run};
+
+fn mutant_root() -> Option<PathBuf> {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/dnerf/mutant");
+    if !root.exists() {
+        eprintln!("skipping: {} is absent", root.display());
+        return None;
+    }
+    Some(root)
+}
+
+fn tiny_config() -> TrainConfig {
+    let mut c = TrainConfig {
+        iterations: 30,
+        train_scale: 0.125,
+        init_points: 500,
+        seed: 5,
+        ..TrainConfig::default()
+    };
+    c.filter.kind = FilterKind::Motion;
+    c.filter.refresh.start = 10;
+    c.filter.refresh.every = 10;
+    c.densify.from = 10;
+    c.densify.every = 10;
+    c.densify.opacity_reset_every = 0;
+    c.model.static_iterations = 10;
+    c
+}
+
+/// A copy of `root` (json files only; image folders symlinked) with the first
+/// `keep` training frames: a data set that does not match a run trained on `root`.
+fn fewer_training_views(root: &Path, keep: usize, out: &Path) {
+    std::fs::create_dir_all(out).expect("mkdir");
+    for name in ["transforms_test.json", "transforms_val.json"] {
+        std::fs::copy(root.join(name), out.join(name)).expect("copy json");
+    }
+    let text = std::fs::read_to_string(root.join("transforms_train.json")).expect("json");
+    let mut v: serde_json::Value = serde_json::from_str(&text).expect("parse");
+    let frames = v["frames"].as_array_mut().expect("frames");
+    frames.truncate(keep);
+    std::fs::write(
+        out.join("transforms_train.json"),
+        serde_json::to_vec(&v).expect("json"),
+    )
+    .expect("write");
+    for dir in ["train", "test", "val"] {
+        let link = out.join(dir);
+        if !link.exists() {
+            std::os::unix::fs::symlink(root.join(dir).canonicalize().expect("abs"), &link)
+                .expect("symlink");
+        }
+    }
+}
+
+#[test]
+fn eval_writes_the_contract_and_refuses_bad_input() {
+    let Some(root) = mutant_root() else { return };
+    let data = Dataset::open(&root, DatasetOptions::default()).expect("mutant");
+    let tmp = std::env::temp_dir().join(format!("maaf_eval_{}", std::process::id()));
+    let run = tmp.join("run");
+    train_run(&data, tiny_config(), &run, false).expect("train");
+    record_data(&run, &data).expect("data.json");
+
+    let options = EvalOptions {
+        scales: vec![0.5, 1.0, 2.0],
+        max_views: Some(2),
+        ..EvalOptions::default()
+    };
+    let report = evaluate_run(&run, &data, &options).expect("eval");
+    assert_eq!(report.scales.len(), 3);
+    assert_eq!(
+        [
+            report.scales[0].width,
+            report.scales[1].width,
+            report.scales[2].width
+        ],
+        [50, 100, 200]
+    );
+
+    // eval.json: exactly the contract keys, lpips and warp_error null.
+    let text = std::fs::read_to_string(run.join("eval.json")).expect("eval.json");
+    let v: serde_json::Value = serde_json::from_str(&text).expect("json");
+    let mut keys: Vec<&str> = v
+        .as_object()
+        .expect("object")
+        .keys()
+        .map(String::as_str)
+        .collect();
+    keys.sort_unstable();
+    let mut want = vec![
+        "model",
+        "filter",
+        "train_scale",
+        "iterations",
+        "train_seconds",
+        "num_gaussians",
+        "model_bytes",
+        "filter_bytes",
+        "background",
+        "quantized_8bit",
+        "scales",
+    ];
+    want.sort_unstable();
+    assert_eq!(keys, want);
+    assert_eq!(v["filter"], "motion");
+    assert_eq!(v["quantized_8bit"], false);
+    assert_eq!(v["iterations"], 30);
+    assert!(v["filter_bytes"].as_u64().expect("bytes") > 0);
+    assert!(v["model_bytes"].as_u64().expect("bytes") > 0);
+    for s in v["scales"].as_array().expect("scales") {
+        let mut k: Vec<&str> = s
+            .as_object()
+            .expect("object")
+            .keys()
+            .map(String::as_str)
+            .collect();
+        k.sort_unstable();
+        assert_eq!(
+            k,
+            [
+                "height",
+                "lpips",
+                "psnr",
+                "scale",
+                "ssim",
+                "warp_error",
+                "width"
+            ]
+        );
+        assert!(s["lpips"].is_null() && s["warp_error"].is_null());
+        let psnr = s["psnr"].as_f64().expect("psnr");
+        let ssim = s["ssim"].as_f64().expect("ssim");
+        assert!(psnr > 5.0 && psnr < 60.0, "psnr {psnr}");
+        assert!(ssim > 0.0 && ssim <= 1.0, "ssim {ssim}");
+    }
+    for label in ["0.5x", "1x", "2x"] {
+        let dir = run.join("eval").join(label);
+        for f in ["render_000.png", "error_000.png", "metrics.csv"] {
+            let len = std::fs::metadata(dir.join(f)).expect(f).len();
+            assert!(len > 0, "{label}/{f}");
+        }
+    }
+    assert!(run.join("eval/filter_analysis.json").exists());
+
+    // Bad input: one line, nothing overwritten.
+    let before = std::fs::read(run.join("eval.json")).expect("eval.json");
+    let one_line = |e: &dyn std::fmt::Display| {
+        let m = e.to_string();
+        assert!(!m.contains('\n'), "multi-line error: {m}");
+        m
+    };
+    // Zoom-in beyond the 800x800 source: 0.125 * 16 = 2.
+    let e = evaluate_run(
+        &run,
+        &data,
+        &EvalOptions {
+            scales: vec![1.0, 16.0],
+            ..EvalOptions::default()
+        },
+    )
+    .expect_err("16x");
+    let m = one_line(&e);
+    assert!(m.contains("1600x1600") && m.contains("800x800"), "{m}");
+    // Not an integer factor of the source.
+    let e = evaluate_run(
+        &run,
+        &data,
+        &EvalOptions {
+            scales: vec![3.0],
+            ..EvalOptions::default()
+        },
+    )
+    .expect_err("3x");
+    one_line(&e);
+    let e = evaluate_run(
+        &run,
+        &data,
+        &EvalOptions {
+            scales: vec![-1.0],
+            ..EvalOptions::default()
+        },
+    )
+    .expect_err("negative");
+    one_line(&e);
+    // A run without a model.
+    let empty = tmp.join("empty");
+    std::fs::create_dir_all(&empty).expect("mkdir");
+    let e = evaluate_run(&empty, &data, &options).expect_err("no model");
+    assert!(one_line(&e).contains("no trained model"));
+    // A data set that does not match the run (fewer training views).
+    let other_root = tmp.join("fewer");
+    fewer_training_views(&root, 20, &other_root);
+    let other = Dataset::open(&other_root, DatasetOptions::default()).expect("subset");
+    let e = evaluate_run(&run, &other, &options).expect_err("mismatch");
+    assert!(one_line(&e).contains("does not match"), "{e}");
+    assert_eq!(
+        std::fs::read(run.join("eval.json")).expect("eval.json"),
+        before
+    );
+    assert!(run.join("eval/1x/render_000.png").exists());
+    std::fs::remove_dir_all(&tmp).ok();
+}
