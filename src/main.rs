@@ -16,6 +16,10 @@ struct Cli {
 enum Command {
     /// Print the build configuration (float types, thread count) and exit.
     Info,
+    /// Write a built-in synthetic dynamic scene (D-NeRF format, supersampled, with flow).
+    Generate(cli::generate::GenerateArgs),
+    /// Summarise a D-NeRF-format data set (views, resolution, times, cameras, bounds).
+    Inspect(cli::inspect::InspectArgs),
     /// Render a static 3DGS PLY from a camera JSON to a PNG or float32 NPY image.
     RenderPly(cli::render_ply::RenderPlyArgs),
 }
@@ -23,6 +27,8 @@ enum Command {
 fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {
+        Command::Generate(args) => cli::generate::run(&args)?,
+        Command::Inspect(args) => cli::inspect::run(&args)?,
         Command::RenderPly(args) => cli::render_ply::run(&args)?,
         Command::Info => {
             println!("maaf {}", env!("CARGO_PKG_VERSION"));

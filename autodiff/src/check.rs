@@ -247,6 +247,9 @@ fn record(
     }
 }
 
+/// A function that builds outputs from inputs on a tape (an op under test or its reference).
+type Build<'a, T> = dyn for<'t> Fn(&'t Tape<T>, &[Var<'t, T>]) -> Vec<Var<'t, T>> + 'a;
+
 /// Checks a hand-written op against a reference built from differentiable primitives.
 ///
 /// Both `op` and `reference` map the same inputs to the same list of outputs. The
@@ -273,8 +276,7 @@ where
         seed: cfg.seed,
         failures: Vec::new(),
     };
-    let run = |g: &dyn for<'t> Fn(&'t Tape<T>, &[Var<'t, T>]) -> Vec<Var<'t, T>>,
-               seeds: Option<&[Tensor<T>]>| {
+    let run = |g: &Build<'_, T>, seeds: Option<&[Tensor<T>]>| {
         let tape = Tape::new();
         let vars: Vec<_> = inputs.iter().map(|x| tape.var(x.clone())).collect();
         let outs = g(&tape, &vars);

@@ -175,15 +175,16 @@ impl<T: Float> Tape<T> {
 
     fn push_leaf(&self, value: Tensor<T>, requires_grad: bool) -> usize {
         let mut inner = self.inner.borrow_mut();
-        if inner.validate && inner.first_error.is_none() {
-            if let Some(index) = value.first_non_finite() {
-                inner.first_error = Some(TapeError::Forward {
-                    op: "leaf".into(),
-                    output: 0,
-                    index,
-                    value: value.data()[index].to_f64(),
-                });
-            }
+        if inner.validate
+            && inner.first_error.is_none()
+            && let Some(index) = value.first_non_finite()
+        {
+            inner.first_error = Some(TapeError::Forward {
+                op: "leaf".into(),
+                output: 0,
+                index,
+                value: value.data()[index].to_f64(),
+            });
         }
         inner.nodes.push(Node {
             value,
@@ -368,15 +369,15 @@ impl<T: Float> Tape<T> {
                     "backward of op `{}`: gradient {k} has the wrong shape",
                     name()
                 );
-                if inner.validate {
-                    if let Some(index) = g.first_non_finite() {
-                        return Err(TapeError::Backward {
-                            op: name(),
-                            input: k,
-                            index,
-                            value: g.data()[index].to_f64(),
-                        });
-                    }
+                if inner.validate
+                    && let Some(index) = g.first_non_finite()
+                {
+                    return Err(TapeError::Backward {
+                        op: name(),
+                        input: k,
+                        index,
+                        value: g.data()[index].to_f64(),
+                    });
                 }
                 accumulate(&mut grads[input], g);
             }

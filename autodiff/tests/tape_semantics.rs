@@ -36,9 +36,12 @@ fn constants_get_no_gradient_and_detach_stops_flow() {
     assert!(g.wrt(c).is_none() && g.wrt(d).is_none());
 }
 
+/// Cotangents an op saw, shared with the test.
+type Seen = Arc<std::sync::Mutex<Vec<Vec<f64>>>>;
+
 /// Two outputs: (2x, x^2). Records the cotangents it was given.
 struct TwoOut {
-    seen: Arc<std::sync::Mutex<Vec<Vec<f64>>>>,
+    seen: Seen,
     calls: Arc<AtomicUsize>,
 }
 
@@ -66,11 +69,7 @@ impl Op<f64> for TwoOut {
     }
 }
 
-fn two_out() -> (
-    TwoOut,
-    Arc<std::sync::Mutex<Vec<Vec<f64>>>>,
-    Arc<AtomicUsize>,
-) {
+fn two_out() -> (TwoOut, Seen, Arc<AtomicUsize>) {
     let seen = Arc::new(std::sync::Mutex::new(Vec::new()));
     let calls = Arc::new(AtomicUsize::new(0));
     (

@@ -93,6 +93,40 @@ impl Broadcast {
     }
 }
 
+/// Calls `f(i, ia, ib)` for every output index `i` in order, with the operand indices;
+/// the common patterns run as plain nested loops (no per-element index arithmetic).
+#[inline]
+fn visit(ba: &Broadcast, bb: &Broadcast, n: usize, mut f: impl FnMut(usize, usize, usize)) {
+    use Broadcast::{Col, Row, Same, Scalar};
+    let rows_of = |len: usize| n.checked_div(len).unwrap_or(0);
+    match (ba, bb) {
+        (Same, Same) => (0..n).for_each(|i| f(i, i, i)),
+        (Same, Scalar) => (0..n).for_each(|i| f(i, i, 0)),
+        (Scalar, Same) => (0..n).for_each(|i| f(i, 0, i)),
+        (Same, Row(len)) => {
+            for r in 0..rows_of(*len) {
+                (0..*len).for_each(|j| f(r * len + j, r * len + j, j));
+            }
+        }
+        (Row(len), Same) => {
+            for r in 0..rows_of(*len) {
+                (0..*len).for_each(|j| f(r * len + j, j, r * len + j));
+            }
+        }
+        (Same, Col(inner)) => {
+            for r in 0..rows_of(*inner) {
+                (0..*inner).for_each(|j| f(r * inner + j, r * inner + j, r));
+            }
+        }
+        (Col(inner), Same) => {
+            for r in 0..rows_of(*inner) {
+                (0..*inner).for_each(|j| f(r * inner + j, r, r * inner + j));
+            }
+        }
+        _ => (0..n).for_each(|i| f(i, ba.index(i), bb.index(i))),
+    }
+}
+
 /// The broadcast shape of `a` and `b`, or a panic naming both.
 fn broadcast_shape(a: &[usize], b: &[usize]) -> Vec<usize> {
     let rank = a.len().max(b.len());
@@ -139,13 +173,8 @@ impl<T: Float> Op<T> for Binary {
             BinaryKind::Mul => x * y,
             BinaryKind::Div => x / y,
         };
-        let data = if matches!((&ba, &bb), (Broadcast::Same, Broadcast::Same)) {
-            ad.iter().zip(bd).map(|(&x, &y)| f(x, y)).collect()
-        } else {
-            (0..n)
-                .map(|i| f(ad[ba.index(i)], bd[bb.index(i)]))
-                .collect()
-        };
+        let mut data = Vec::with_capacity(n);
+        visit(&ba, &bb, n, |_, ia, ib| data.push(f(ad[ia], bd[ib])));
         (vec![Tensor::from_vec(data, &shape)], ())
     }
 
@@ -174,9 +203,9 @@ impl<T: Float> Op<T> for Binary {
                 }
                 let mut d: Tensor<T> = Tensor::zeros(shape);
                 let dd = d.data_mut();
-                for (i, &gi) in g.data().iter().enumerate() {
-                    dd[b.index(i)] += gi;
-                }
+                let gd = g.data();
+                let same = Broadcast::Same;
+                visit(&same, b, gd.len(), |i, _, ib| dd[ib] += gd[i]);
                 if sign != T::one() {
                     dd.iter_mut().for_each(|v| *v = -*v);
                 }
@@ -187,24 +216,19 @@ impl<T: Float> Op<T> for Binary {
                 c.needs_grad[1].then(|| reduce(&bb, b.shape(), sign)),
             ];
         }
-        let mut da = c.needs_grad[0].then(|| Tensor::zeros(a.shape()));
-        let mut db = c.needs_grad[1].then(|| Tensor::zeros(b.shape()));
-        for (i, &gi) in g.data().iter().enumerate() {
-            let (ia, ib) = (ba.index(i), bb.index(i));
-            let (x, y) = (ad[ia], bd[ib]);
-            let (ga, gb) = match self.0 {
-                BinaryKind::Add => (gi, gi),
-                BinaryKind::Sub => (gi, -gi),
+        let (mut da, mut db) = (Tensor::zeros(a.shape()), Tensor::zeros(b.shape()));
+        let (dad, dbd, gd) = (da.data_mut(), db.data_mut(), g.data());
+        let kind = self.0;
+        visit(&ba, &bb, gd.len(), |i, ia, ib| {
+            let (gi, x, y) = (gd[i], ad[ia], bd[ib]);
+            let (ga, gb) = match kind {
                 BinaryKind::Mul => (gi * y, gi * x),
-                BinaryKind::Div => (gi / y, -gi * x / (y * y)),
+                _ => (gi / y, -gi * x / (y * y)),
             };
-            if let Some(da) = da.as_mut() {
-                da.data_mut()[ia] += ga;
-            }
-            if let Some(db) = db.as_mut() {
-                db.data_mut()[ib] += gb;
-            }
-        }
+            dad[ia] += ga;
+            dbd[ib] += gb;
+        });
+        let (da, db) = (c.needs_grad[0].then_some(da), c.needs_grad[1].then_some(db));
         vec![da, db]
     }
 }
@@ -213,38 +237,24 @@ impl<'t, T: Float> Var<'t, T> {
     fn binary(self, kind: BinaryKind, rhs: Var<'t, T>) -> Var<'t, T> {
         self.tape().apply1(Binary(kind), &[self, rhs])
     }
-    /// `self + rhs` with broadcasting (also available as `+`).
-    pub fn add(self, rhs: Var<'t, T>) -> Var<'t, T> {
-        self.binary(BinaryKind::Add, rhs)
-    }
-    /// `self - rhs` with broadcasting (also `-`).
-    pub fn sub(self, rhs: Var<'t, T>) -> Var<'t, T> {
-        self.binary(BinaryKind::Sub, rhs)
-    }
-    /// `self * rhs` elementwise with broadcasting (also `*`).
-    pub fn mul(self, rhs: Var<'t, T>) -> Var<'t, T> {
-        self.binary(BinaryKind::Mul, rhs)
-    }
-    /// `self / rhs` elementwise with broadcasting (also `/`).
-    pub fn div(self, rhs: Var<'t, T>) -> Var<'t, T> {
-        self.binary(BinaryKind::Div, rhs)
-    }
 }
 
+/// `a + b`, `a - b`, `a * b`, `a / b` on [`Var`]s record a [`Binary`] op
+/// (elementwise, with broadcasting).
 macro_rules! impl_std_op {
-    ($tr:ident, $method:ident) => {
+    ($tr:ident, $method:ident, $kind:ident) => {
         impl<'t, T: Float> std::ops::$tr for Var<'t, T> {
             type Output = Var<'t, T>;
             fn $method(self, rhs: Var<'t, T>) -> Var<'t, T> {
-                Var::$method(self, rhs)
+                self.binary(BinaryKind::$kind, rhs)
             }
         }
     };
 }
-impl_std_op!(Add, add);
-impl_std_op!(Sub, sub);
-impl_std_op!(Mul, mul);
-impl_std_op!(Div, div);
+impl_std_op!(Add, add, Add);
+impl_std_op!(Sub, sub, Sub);
+impl_std_op!(Mul, mul, Mul);
+impl_std_op!(Div, div, Div);
 
 #[cfg(test)]
 mod tests {

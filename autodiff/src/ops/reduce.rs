@@ -159,7 +159,7 @@ mod tests {
             for axis in [None, Some(0), Some(1), Some(2)] {
                 let report = gradcheck(
                     |t, v| t.apply1(Reduce { axis, mean }, v).square(),
-                    &[x.clone()],
+                    std::slice::from_ref(&x),
                     &cfg,
                 );
                 assert!(report.passed(), "mean={mean} axis={axis:?}: {report}");

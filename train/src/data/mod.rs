@@ -14,6 +14,8 @@ pub mod downsample;
 pub mod error;
 pub mod flow;
 pub mod image;
+pub mod inspect;
+pub mod synthetic;
 
 pub use bounds::Aabb;
 pub use dataset::{BLACK, Dataset, DatasetOptions, View, WHITE};

@@ -1,0 +1,30 @@
+//! `maaf inspect`: summarise a D-NeRF-format data set before training.
+
+use std::path::PathBuf;
+
+use maaf_train::data::inspect::inspect;
+
+/// Arguments of `maaf inspect`.
+#[derive(clap::Args, Debug)]
+pub struct InspectArgs {
+    /// Data folder holding transforms_{train,val,test}.json.
+    #[arg(long)]
+    pub data: PathBuf,
+    /// Print the summary as JSON.
+    #[arg(long)]
+    pub json: bool,
+    /// Only read image headers; skip decoding every image.
+    #[arg(long)]
+    pub no_decode: bool,
+}
+
+/// Runs `maaf inspect`.
+pub fn run(args: &InspectArgs) -> anyhow::Result<()> {
+    let summary = inspect(&args.data, !args.no_decode)?;
+    if args.json {
+        println!("{}", summary.to_json_string());
+    } else {
+        print!("{}", summary.to_text());
+    }
+    Ok(())
+}
