@@ -344,53 +344,102 @@ struct TileOut<T> {
 }
 
 impl<T: Float> Rasterize<T> {
+    /// Composites one tile. The loop runs Gaussian-major (each Gaussian, front to
+    /// back, visits only the pixels of its support box inside the tile) with per-pixel
+    /// state, which performs exactly the per-pixel operations of the textbook
+    /// pixel-major loop in the same order, so results are identical; it just never
+    /// touches pixel-Gaussian pairs that cannot overlap.
     fn render_tile(&self, splats: &[Splat<T>], rect: (usize, usize, usize, usize)) -> TileOut<T> {
         let (x0, y0, x1, y1) = rect;
-        let np = (x1 - x0) * (y1 - y0);
-        let mut out = TileOut {
-            rgb: Vec::with_capacity(np),
-            t_final: Vec::with_capacity(np),
-            depth: Vec::with_capacity(np),
-            n: Vec::with_capacity(np),
-        };
+        let tw = x1 - x0;
+        let np = tw * (y1 - y0);
         let half = T::of(0.5);
         let t_min = T::of(T_MIN);
         let hard = self.cutoff == AlphaCutoff::Hard;
-        for y in y0..y1 {
-            let py = T::of(y as f64) + half;
-            for x in x0..x1 {
-                let px = T::of(x as f64) + half;
-                let mut tr = T::one();
-                let mut rgb = [T::zero(); 3];
-                let mut d = T::zero();
-                let mut last = 0u32;
-                for (j, s) in splats.iter().enumerate() {
-                    let Some((alpha, _)) = alpha_of(self.cutoff, s, px - s.mx, py - s.my) else {
+        let mut tr = vec![T::one(); np];
+        let mut rgb = vec![[T::zero(); 3]; np];
+        let mut depth = vec![T::zero(); np];
+        let mut n = vec![0u32; np];
+        let mut done = vec![false; np];
+        let mut n_done = 0;
+        for (j, s) in splats.iter().enumerate() {
+            if n_done == np {
+                break;
+            }
+            let Some((bx0, bx1, by0, by1)) = splat_box(s, rect) else {
+                continue;
+            };
+            for y in by0..=by1 {
+                let py = T::of(y as f64) + half;
+                let dy = py - s.my;
+                for x in bx0..=bx1 {
+                    let k = (y - y0) * tw + (x - x0);
+                    if done[k] {
+                        continue;
+                    }
+                    let px = T::of(x as f64) + half;
+                    let Some((alpha, _)) = alpha_of(self.cutoff, s, px - s.mx, dy) else {
                         continue;
                     };
-                    let next = tr * (T::one() - alpha);
+                    let next = tr[k] * (T::one() - alpha);
                     if hard && next < t_min {
-                        break;
+                        done[k] = true;
+                        n_done += 1;
+                        continue;
                     }
-                    let w = alpha * tr;
-                    rgb[0] += s.col[0] * w;
-                    rgb[1] += s.col[1] * w;
-                    rgb[2] += s.col[2] * w;
-                    d += s.z * w;
-                    tr = next;
-                    last = j as u32 + 1;
+                    let w = alpha * tr[k];
+                    let c = &mut rgb[k];
+                    c[0] += s.col[0] * w;
+                    c[1] += s.col[1] * w;
+                    c[2] += s.col[2] * w;
+                    depth[k] += s.z * w;
+                    tr[k] = next;
+                    n[k] = j as u32 + 1;
                 }
-                for (c, bg) in rgb.iter_mut().zip(self.background) {
-                    *c += tr * bg;
-                }
-                out.rgb.push(rgb);
-                out.t_final.push(tr);
-                out.depth.push(d);
-                out.n.push(last);
             }
         }
-        out
+        for (c, &t) in rgb.iter_mut().zip(&tr) {
+            for (v, bg) in c.iter_mut().zip(self.background) {
+                *v += t * bg;
+            }
+        }
+        TileOut {
+            rgb,
+            t_final: tr,
+            depth,
+            n,
+        }
     }
+}
+
+/// Pixel box `(x0, x1, y0, y1)` (inclusive, image indices) of the support ellipse
+/// `power <= 4.5` of `s` inside the tile `rect`, or `None` when they do not meet.
+/// Half-extents are `3 sqrt(Sigma_xx)`, `3 sqrt(Sigma_yy)` of `Sigma = conic^-1` with
+/// a 1e-4 relative margin against rounding; a non-positive-definite conic gets the
+/// whole tile (the per-pixel test then decides).
+fn splat_box<T: Float>(
+    s: &Splat<T>,
+    rect: (usize, usize, usize, usize),
+) -> Option<(usize, usize, usize, usize)> {
+    let (x0, y0, x1, y1) = rect;
+    let (a, b, c) = (Float::to_f64(s.a), Float::to_f64(s.b), Float::to_f64(s.c));
+    let det = a * c - b * b;
+    let ext = |v: f64| (9.0 * v / det).sqrt() * (1.0 + 1e-4) + 1e-4;
+    let (ex, ey) = (ext(c), ext(a));
+    if !(det > 0.0 && ex.is_finite() && ey.is_finite()) {
+        return Some((x0, x1 - 1, y0, y1 - 1));
+    }
+    let (mx, my) = (Float::to_f64(s.mx), Float::to_f64(s.my));
+    let lo_x = (mx - ex - 0.5).ceil().max(x0 as f64);
+    let hi_x = (mx + ex - 0.5).floor().min((x1 - 1) as f64);
+    let lo_y = (my - ey - 0.5).ceil().max(y0 as f64);
+    let hi_y = (my + ey - 0.5).floor().min((y1 - 1) as f64);
+    (lo_x <= hi_x && lo_y <= hi_y).then_some((
+        lo_x as usize,
+        hi_x as usize,
+        lo_y as usize,
+        hi_y as usize,
+    ))
 }
 
 impl<T: Float> Op<T> for Rasterize<T> {
@@ -511,47 +560,69 @@ impl<T: Float> Op<T> for Rasterize<T> {
                 let list = bins.tile(t);
                 let splats = gather_splats(list, ctx.inputs);
                 let mut grads = vec![[T::zero(); 10]; list.len()];
-                let (x0, y0, x1, y1) = tile_pixels(t, bins.tiles_x, self.width, self.height);
+                let rect = tile_pixels(t, bins.tiles_x, self.width, self.height);
+                let (x0, y0, x1, y1) = rect;
+                let tw = x1 - x0;
+                let np = tw * (y1 - y0);
+                // Per-pixel state of the back-to-front walk.
+                let mut tr = vec![T::zero(); np];
+                let mut behind = vec![[T::zero(); 4]; np];
+                let mut n_last = vec![0usize; np];
+                let mut jmax = 0;
                 for y in y0..y1 {
-                    let py = T::of(y as f64) + half;
                     for x in x0..x1 {
-                        let p = y * w + x;
-                        let last = saved.n_contrib[p] as usize;
-                        if last == 0 {
-                            continue;
-                        }
-                        let px = T::of(x as f64) + half;
-                        let t_final = saved.final_t[p];
-                        let gc = [g_img[3 * p], g_img[3 * p + 1], g_img[3 * p + 2]];
-                        let (ga, gd) = (g_alpha[p], g_depth[p]);
-                        let mut tr = t_final;
-                        let mut behind = [
-                            self.background[0] * t_final,
-                            self.background[1] * t_final,
-                            self.background[2] * t_final,
+                        let (k, p) = ((y - y0) * tw + (x - x0), y * w + x);
+                        let tf = saved.final_t[p];
+                        tr[k] = tf;
+                        behind[k] = [
+                            self.background[0] * tf,
+                            self.background[1] * tf,
+                            self.background[2] * tf,
+                            T::zero(),
                         ];
-                        let mut behind_d = T::zero();
-                        for j in (0..last).rev() {
-                            let s = &splats[j];
-                            let (dx, dy) = (px - s.mx, py - s.my);
+                        n_last[k] = saved.n_contrib[p] as usize;
+                        jmax = jmax.max(n_last[k]);
+                    }
+                }
+                for j in (0..jmax).rev() {
+                    let s = &splats[j];
+                    let Some((bx0, bx1, by0, by1)) = splat_box(s, rect) else {
+                        continue;
+                    };
+                    let mut acc = [T::zero(); 10];
+                    for y in by0..=by1 {
+                        let py = T::of(y as f64) + half;
+                        let dy = py - s.my;
+                        for x in bx0..=bx1 {
+                            let k = (y - y0) * tw + (x - x0);
+                            if j >= n_last[k] {
+                                continue;
+                            }
+                            let px = T::of(x as f64) + half;
+                            let dx = px - s.mx;
                             let Some((alpha, g)) = alpha_of(self.cutoff, s, dx, dy) else {
                                 continue;
                             };
+                            let p = y * w + x;
+                            let t_final = saved.final_t[p];
+                            let gc = [g_img[3 * p], g_img[3 * p + 1], g_img[3 * p + 2]];
+                            let (ga, gd) = (g_alpha[p], g_depth[p]);
                             let inv = one / (one - alpha);
-                            tr *= inv;
-                            let wgt = alpha * tr;
-                            let gr = &mut grads[j];
-                            gr[6] += gc[0] * wgt;
-                            gr[7] += gc[1] * wgt;
-                            gr[8] += gc[2] * wgt;
-                            gr[9] += gd * wgt;
+                            tr[k] *= inv;
+                            let trk = tr[k];
+                            let wgt = alpha * trk;
+                            acc[6] += gc[0] * wgt;
+                            acc[7] += gc[1] * wgt;
+                            acc[8] += gc[2] * wgt;
+                            acc[9] += gd * wgt;
+                            let bh = &mut behind[k];
                             let mut g_al = ga * t_final * inv;
                             for ch in 0..3 {
-                                g_al += gc[ch] * (s.col[ch] * tr - behind[ch] * inv);
-                                behind[ch] += s.col[ch] * wgt;
+                                g_al += gc[ch] * (s.col[ch] * trk - bh[ch] * inv);
+                                bh[ch] += s.col[ch] * wgt;
                             }
-                            g_al += gd * (s.z * tr - behind_d * inv);
-                            behind_d += s.z * wgt;
+                            g_al += gd * (s.z * trk - bh[3] * inv);
+                            bh[3] += s.z * wgt;
                             // alpha(o, power)
                             let (g_o, g_p) = match self.cutoff {
                                 AlphaCutoff::Hard => {
@@ -563,18 +634,19 @@ impl<T: Float> Op<T> for Rasterize<T> {
                                 }
                                 AlphaCutoff::Smooth => {
                                     let pw = half * (s.a * dx * dx + s.c * dy * dy) + s.b * dx * dy;
-                                    let (tw, dtw) = taper(pw);
-                                    (g_al * g * tw, g_al * s.o * g * (dtw - tw))
+                                    let (wt, dtw) = taper(pw);
+                                    (g_al * g * wt, g_al * s.o * g * (dtw - wt))
                                 }
                             };
-                            gr[5] += g_o;
-                            gr[2] += g_p * half * dx * dx;
-                            gr[3] += g_p * dx * dy;
-                            gr[4] += g_p * half * dy * dy;
-                            gr[0] -= g_p * (s.a * dx + s.b * dy);
-                            gr[1] -= g_p * (s.b * dx + s.c * dy);
+                            acc[5] += g_o;
+                            acc[2] += g_p * half * dx * dx;
+                            acc[3] += g_p * dx * dy;
+                            acc[4] += g_p * half * dy * dy;
+                            acc[0] -= g_p * (s.a * dx + s.b * dy);
+                            acc[1] -= g_p * (s.b * dx + s.c * dy);
                         }
                     }
+                    grads[j] = acc;
                 }
                 grads
             })
