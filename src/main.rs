@@ -22,6 +22,14 @@ enum Command {
     Inspect(cli::inspect::InspectArgs),
     /// Render a static 3DGS PLY from a camera JSON to a PNG or float32 NPY image.
     RenderPly(cli::render_ply::RenderPlyArgs),
+    /// Evaluate a trained run at several scales (PSNR, SSIM) and write RUN/eval.json.
+    Eval(cli::eval::EvalArgs),
+    /// Render one image of a trained run at a time from a data-set view or camera JSON.
+    Render(cli::render::RenderArgs),
+    /// Render a fixed-camera video of a trained run over time (PNG frames + GIF).
+    RenderVideo(cli::render::RenderVideoArgs),
+    /// Compare evaluated runs: markdown tables (paper Tab. 2 layout) and PNG charts.
+    Report(cli::report::ReportArgs),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -30,6 +38,10 @@ fn main() -> anyhow::Result<()> {
         Command::Generate(args) => cli::generate::run(&args)?,
         Command::Inspect(args) => cli::inspect::run(&args)?,
         Command::RenderPly(args) => cli::render_ply::run(&args)?,
+        Command::Eval(args) => cli::eval::run(&args)?,
+        Command::Render(args) => cli::render::run(&args)?,
+        Command::RenderVideo(args) => cli::render::run_video(&args)?,
+        Command::Report(args) => cli::report::run(&args)?,
         Command::Info => {
             println!("maaf {}", env!("CARGO_PKG_VERSION"));
             println!(

@@ -1,5 +1,8 @@
 //! Subcommand implementations of the `maaf` binary, one file per command.
 
+pub mod eval;
 pub mod generate;
 pub mod inspect;
+pub mod render;
 pub mod render_ply;
+pub mod report;

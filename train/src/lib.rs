@@ -6,3 +6,4 @@ pub mod data;
 pub mod models;
 pub mod trainer;
 pub mod eval;
+pub mod report;

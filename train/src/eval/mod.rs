@@ -341,8 +341,8 @@ fn measure_view(
     })
 }
 
-/// Picks the Gaussians to show in the nu(t) chart: among Gaussians observed at
-/// least twice, the one whose motion-aware nu varies least over time ("static") and
+/// Picks the Gaussians to show in the nu(t) chart: among Gaussians observed in at
+/// least a quarter of the training frames, the one whose motion-aware nu varies least over time ("static") and
 /// the one whose nu varies most ("moving"), by the range of its curve relative to
 /// its mean.
 pub fn pick_static_and_moving(trainer: &Trainer) -> Option<Vec<(usize, String)>> {
@@ -350,10 +350,12 @@ pub fn pick_static_and_moving(trainer: &Trainer) -> Option<Vec<(usize, String)>>
         return None;
     };
     let n = curves.rows().min(trainer.observations.rows());
+    // Well-observed Gaussians only: seen in at least a quarter of the training frames.
+    let min_obs = (trainer.observations.num_frames() / 4).max(2);
     let mut best: Option<(f32, usize)> = None;
     let mut worst: Option<(f32, usize)> = None;
     for k in 0..n {
-        if curves.x_max()[k] <= 0.0 || trainer.observations.observations(k).len() < 2 {
+        if curves.x_max()[k] <= 0.0 || trainer.observations.observations(k).len() < min_obs {
             continue;
         }
         let c = curves.curve(k);

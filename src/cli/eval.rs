@@ -1,0 +1,129 @@
+//! `maaf eval`: multi-scale evaluation of a trained run (writes `RUN/eval.json`).
+
+use std::path::{Path, PathBuf};
+
+use anyhow::bail;
+use maaf_train::data::{BLACK, Dataset, DatasetOptions, Split, WHITE};
+use maaf_train::eval::render::recorded_data;
+use maaf_train::eval::{DEFAULT_SCALES, EvalOptions, evaluate_run, scale_label};
+
+/// Arguments of `maaf eval`.
+#[derive(clap::Args, Debug)]
+pub struct EvalArgs {
+    /// Run directory written by `maaf train` (holds model/).
+    #[arg(long)]
+    pub run: PathBuf,
+    /// Data folder the run was trained on (default: the one in RUN/data.json).
+    #[arg(long)]
+    pub data: Option<PathBuf>,
+    /// Scales relative to the training scale (2, 4 = zoom-in; 0.5, 0.25 = zoom-out).
+    #[arg(long, value_delimiter = ',', default_values_t = DEFAULT_SCALES.to_vec())]
+    pub scales: Vec<f64>,
+    /// Split to evaluate.
+    #[arg(long, value_enum, default_value = "test")]
+    pub split: SplitArg,
+    /// Evaluate only the first N views (quick checks).
+    #[arg(long)]
+    pub max_views: Option<usize>,
+    /// Do not save renders and error maps (metrics only).
+    #[arg(long)]
+    pub no_images: bool,
+    /// Background the data is composited on (default: RUN/data.json's, else white).
+    #[arg(long, value_enum)]
+    pub background: Option<BackgroundArg>,
+}
+
+/// `--split` values.
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum SplitArg {
+    /// transforms_test.json.
+    Test,
+    /// transforms_val.json.
+    Val,
+    /// transforms_train.json.
+    Train,
+}
+
+impl From<SplitArg> for Split {
+    fn from(s: SplitArg) -> Self {
+        match s {
+            SplitArg::Test => Split::Test,
+            SplitArg::Val => Split::Val,
+            SplitArg::Train => Split::Train,
+        }
+    }
+}
+
+/// `--background` values.
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum BackgroundArg {
+    /// White.
+    White,
+    /// Black.
+    Black,
+}
+
+/// Opens the data set of `run`: `data` if given, else the folder in `RUN/data.json`;
+/// the background from `background`, else the recorded one, else white.
+pub fn open_run_data(
+    run: &Path,
+    data: Option<&Path>,
+    background: Option<BackgroundArg>,
+) -> anyhow::Result<Dataset> {
+    let recorded = recorded_data(run)?;
+    let root = match (data, &recorded) {
+        (Some(d), _) => d.to_path_buf(),
+        (None, Some(r)) => r.root.clone(),
+        (None, None) => bail!(
+            "{}: no data.json records the training data; pass --data DIR",
+            run.display()
+        ),
+    };
+    let background = match (background, &recorded) {
+        (Some(BackgroundArg::White), _) => WHITE,
+        (Some(BackgroundArg::Black), _) => BLACK,
+        (None, Some(r)) => r.background,
+        (None, None) => WHITE,
+    };
+    Ok(Dataset::open(&root, DatasetOptions { background })?)
+}
+
+/// Runs `maaf eval`.
+pub fn run(args: &EvalArgs) -> anyhow::Result<()> {
+    let data = open_run_data(&args.run, args.data.as_deref(), args.background)?;
+    let options = EvalOptions {
+        scales: args.scales.clone(),
+        split: args.split.into(),
+        max_views: args.max_views,
+        save_images: !args.no_images,
+    };
+    let report = evaluate_run(&args.run, &data, &options)?;
+    println!(
+        "{} / {} at training scale {}: {} Gaussians, {:.1} MB (+{:.1} MB filter)",
+        report.model,
+        report.filter,
+        report.train_scale,
+        report.num_gaussians,
+        report.model_bytes as f64 / 1e6,
+        report.filter_bytes as f64 / 1e6
+    );
+    println!("| scale | size | PSNR | SSIM |");
+    println!("|---|---|---|---|");
+    for s in &report.scales {
+        println!(
+            "| {} | {}x{} | {:.2} | {:.4} |",
+            scale_label(s.scale),
+            s.width,
+            s.height,
+            s.psnr,
+            s.ssim
+        );
+    }
+    println!(
+        "| avg | | {:.2} | {:.4} |",
+        report.mean_psnr(),
+        report.mean_ssim()
+    );
+    println!("wrote {}", args.run.join("eval.json").display());
+    Ok(())
+}

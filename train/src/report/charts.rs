@@ -1,0 +1,390 @@
+//! PNG charts of the report, drawn with plotters' bitmap backend and the vendored
+//! DejaVu Sans font (no system font libraries): quality vs scale, quality vs
+//! training time, quality vs model size, and nu(t) of static vs moving Gaussians.
+
+use std::path::Path;
+use std::sync::OnceLock;
+
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use plotters::style::{FontStyle, register_font};
+
+use super::{ReportRun, scale_header};
+use crate::eval::EvalError;
+use crate::eval::images::save_png_atomic;
+
+/// DejaVu Sans (Bitstream Vera licence, see `train/assets/DejaVuSans-LICENSE.txt`).
+static FONT: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
+
+/// Font family name the charts use.
+const FAMILY: &str = "sans-serif";
+
+/// Series colours (colour-blind-safe Tableau-like palette), by run order.
+const PALETTE: [RGBColor; 6] = [
+    RGBColor(31, 119, 180),
+    RGBColor(255, 127, 14),
+    RGBColor(214, 39, 40),
+    RGBColor(44, 160, 44),
+    RGBColor(148, 103, 189),
+    RGBColor(140, 86, 75),
+];
+
+/// Colour of run `i`: by filter when it is one of the three, else by position.
+fn colour(run: &ReportRun, i: usize) -> RGBColor {
+    match run.eval.filter.as_str() {
+        "none" => PALETTE[0],
+        "mip3d" => PALETTE[1],
+        "motion" => PALETTE[2],
+        _ => PALETTE[(i + 3) % PALETTE.len()],
+    }
+}
+
+/// Registers the embedded font once per process.
+fn ensure_font() -> Result<(), EvalError> {
+    static DONE: OnceLock<Result<(), String>> = OnceLock::new();
+    DONE.get_or_init(|| {
+        register_font(FAMILY, FontStyle::Normal, FONT)
+            .map_err(|_| "the embedded chart font is not a valid TTF".to_string())
+    })
+    .clone()
+    .map_err(EvalError::Input)
+}
+
+fn plot_err(path: &Path) -> impl Fn(String) -> EvalError + '_ {
+    move |e| EvalError::Input(format!("{}: drawing the chart failed: {e}", path.display()))
+}
+
+type Area<'a> = DrawingArea<BitMapBackend<'a>, Shift>;
+
+/// Draws a `width x height` chart with `draw` and writes it to `path` as PNG.
+fn save_chart(
+    path: &Path,
+    (width, height): (u32, u32),
+    draw: impl FnOnce(&Area<'_>) -> Result<(), String>,
+) -> Result<(), EvalError> {
+    ensure_font()?;
+    let mut buf = vec![0u8; width as usize * height as usize * 3];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (width, height)).into_drawing_area();
+        root.fill(&WHITE)
+            .map_err(|e| plot_err(path)(e.to_string()))?;
+        draw(&root).map_err(plot_err(path))?;
+        root.present().map_err(|e| plot_err(path)(e.to_string()))?;
+    }
+    let img = image::RgbImage::from_raw(width, height, buf)
+        .ok_or_else(|| EvalError::Input("chart buffer has the wrong size".into()))?;
+    save_png_atomic(&img, path)
+}
+
+/// `(lo, hi)` of `values` padded by `pad` of the span (or a unit when flat).
+fn padded_range(values: impl Iterator<Item = f64>, pad: f64) -> (f64, f64) {
+    let (lo, hi) = values
+        .filter(|v| v.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+            (lo.min(v), hi.max(v))
+        });
+    if !lo.is_finite() {
+        return (0.0, 1.0);
+    }
+    let span = hi - lo;
+    if span < 1e-12 {
+        let d = lo.abs() * 0.05 + 0.01;
+        return (lo - d, hi + d);
+    }
+    (lo - pad * span, hi + pad * span)
+}
+
+/// Widens `(lo, hi)` by `below` and `above` times its span (room for a legend).
+fn widen((lo, hi): (f64, f64), below: f64, above: f64) -> (f64, f64) {
+    let span = hi - lo;
+    (lo - below * span, hi + above * span)
+}
+
+fn text(size: u32) -> TextStyle<'static> {
+    (FAMILY, size).into_font().color(&BLACK)
+}
+
+fn e2s<E: std::fmt::Display>(e: E) -> String {
+    e.to_string()
+}
+
+/// PSNR (left) and SSIM (right) against the render scale (log2 axis), one line per run.
+pub fn quality_vs_scale(runs: &[ReportRun], path: &Path) -> Result<(), EvalError> {
+    let scales = super::all_scales(runs);
+    let keys: Vec<f64> = scales.iter().map(|s| s.log2()).collect();
+    let (x0, x1) = padded_range(keys.iter().copied(), 0.08);
+    save_chart(path, (1300, 560), |root| {
+        let panels = root.split_evenly((1, 2));
+        for (p, area) in panels.iter().enumerate() {
+            let metric = |s: &crate::eval::ScaleResult| if p == 0 { s.psnr } else { s.ssim };
+            let (y0, y1) = padded_range(
+                runs.iter()
+                    .flat_map(|r| r.eval.scales.iter().map(metric).collect::<Vec<_>>()),
+                0.05,
+            );
+            // Room below the lines for the legend.
+            let (y0, y1) = widen((y0, y1), 0.45, 0.0);
+            let name = if p == 0 { "PSNR (dB)" } else { "SSIM" };
+            let mut chart = ChartBuilder::on(area)
+                .caption(format!("{name} vs render scale"), text(24))
+                .margin(14)
+                .x_label_area_size(55)
+                .y_label_area_size(70)
+                .build_cartesian_2d(x0..x1, y0..y1)
+                .map_err(e2s)?;
+            chart
+                .configure_mesh()
+                .x_desc("render scale relative to training (log axis)")
+                .y_desc(name)
+                .x_labels(keys.len().max(2))
+                .x_label_formatter(&|x| {
+                    // Labels only at whole powers of two (the evaluated scales).
+                    if (x - x.round()).abs() < 1e-6 {
+                        scale_header(2f64.powf(x.round()))
+                    } else {
+                        String::new()
+                    }
+                })
+                .y_label_formatter(&|y| {
+                    if p == 0 {
+                        format!("{y:.1}")
+                    } else {
+                        format!("{y:.3}")
+                    }
+                })
+                .label_style(text(16))
+                .axis_desc_style(text(17))
+                .light_line_style(WHITE.mix(0.0))
+                .draw()
+                .map_err(e2s)?;
+            for (i, r) in runs.iter().enumerate() {
+                let c = colour(r, i);
+                let mut pts: Vec<(f64, f64)> = r
+                    .eval
+                    .scales
+                    .iter()
+                    .map(|s| (s.scale.log2(), metric(s)))
+                    .collect();
+                pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+                chart
+                    .draw_series(LineSeries::new(pts.clone(), c.stroke_width(3)))
+                    .map_err(e2s)?
+                    .label(r.label.clone())
+                    .legend(move |(x, y)| {
+                        PathElement::new(vec![(x, y), (x + 24, y)], c.stroke_width(3))
+                    });
+                chart
+                    .draw_series(pts.iter().map(|&q| Circle::new(q, 5, c.filled())))
+                    .map_err(e2s)?;
+            }
+            chart
+                .configure_series_labels()
+                .position(SeriesLabelPosition::LowerLeft)
+                .background_style(WHITE.mix(0.85))
+                .border_style(BLACK)
+                .label_font(text(15))
+                .draw()
+                .map_err(e2s)?;
+        }
+        Ok(())
+    })
+}
+
+/// One scatter panel: a point per run at `(x(run), y(run))`, labelled in the legend.
+fn scatter_panel(
+    area: &Area<'_>,
+    runs: &[ReportRun],
+    title: &str,
+    (x_desc, x): (&str, &dyn Fn(&ReportRun) -> f64),
+    (y_desc, y): (&str, &dyn Fn(&ReportRun) -> f64),
+) -> Result<(), String> {
+    let (x0, x1) = padded_range(runs.iter().map(x), 0.15);
+    let (y0, y1) = widen(padded_range(runs.iter().map(y), 0.15), 0.5, 0.0);
+    let x0 = if x0 < 0.0 && runs.iter().all(|r| x(r) >= 0.0) {
+        0.0
+    } else {
+        x0
+    };
+    let mut chart = ChartBuilder::on(area)
+        .caption(title, text(22))
+        .margin(14)
+        .x_label_area_size(55)
+        .y_label_area_size(70)
+        .build_cartesian_2d(x0..x1, y0..y1)
+        .map_err(e2s)?;
+    chart
+        .configure_mesh()
+        .x_desc(x_desc)
+        .y_desc(y_desc)
+        .label_style(text(16))
+        .axis_desc_style(text(17))
+        .light_line_style(WHITE.mix(0.0))
+        .x_labels(6)
+        .y_labels(6)
+        .draw()
+        .map_err(e2s)?;
+    for (i, r) in runs.iter().enumerate() {
+        let c = colour(r, i);
+        chart
+            .draw_series(std::iter::once(Circle::new((x(r), y(r)), 8, c.filled())))
+            .map_err(e2s)?
+            .label(r.label.clone())
+            .legend(move |(px, py)| Circle::new((px + 12, py), 6, c.filled()));
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::LowerRight)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font(text(15))
+        .draw()
+        .map_err(e2s)?;
+    Ok(())
+}
+
+/// Mean PSNR (left) and mean SSIM (right) over the evaluated scales against the
+/// training wall time: speed vs accuracy.
+pub fn quality_vs_time(runs: &[ReportRun], path: &Path) -> Result<(), EvalError> {
+    save_chart(path, (1300, 560), |root| {
+        let panels = root.split_evenly((1, 2));
+        let t = |r: &ReportRun| r.eval.train_seconds;
+        let psnr = |r: &ReportRun| r.eval.mean_psnr();
+        let ssim = |r: &ReportRun| r.eval.mean_ssim();
+        scatter_panel(
+            &panels[0],
+            runs,
+            "Mean PSNR over scales vs training time",
+            ("training wall time (s)", &t),
+            ("mean PSNR (dB)", &psnr),
+        )?;
+        scatter_panel(
+            &panels[1],
+            runs,
+            "Mean SSIM over scales vs training time",
+            ("training wall time (s)", &t),
+            ("mean SSIM", &ssim),
+        )
+    })
+}
+
+/// Mean PSNR against the number of Gaussians (left) and against the bytes of the
+/// model plus its filter state (right).
+pub fn quality_vs_size(runs: &[ReportRun], path: &Path) -> Result<(), EvalError> {
+    save_chart(path, (1300, 560), |root| {
+        let panels = root.split_evenly((1, 2));
+        let n = |r: &ReportRun| r.eval.num_gaussians as f64 / 1000.0;
+        let mb = |r: &ReportRun| r.eval.total_bytes() as f64 / 1e6;
+        let psnr = |r: &ReportRun| r.eval.mean_psnr();
+        scatter_panel(
+            &panels[0],
+            runs,
+            "Mean PSNR vs number of Gaussians",
+            ("Gaussians (thousands)", &n),
+            ("mean PSNR (dB)", &psnr),
+        )?;
+        scatter_panel(
+            &panels[1],
+            runs,
+            "Mean PSNR vs size (model + filter state)",
+            ("model + filter state (MB)", &mb),
+            ("mean PSNR (dB)", &psnr),
+        )
+    })
+}
+
+/// The paper's f/d-over-time figure: for each exported Gaussian (a static and a
+/// moving one), its observed sampling rates f/d over time (dots) and the
+/// motion-aware nu(t) the filter uses (line), one panel each.
+pub fn nu_over_time(run: &ReportRun, path: &Path) -> Result<(), EvalError> {
+    let Some(export) = &run.analysis else {
+        return Err(EvalError::Input(format!(
+            "{}: no nu(t) export for the chart",
+            run.dir.display()
+        )));
+    };
+    let traces = &export.gaussians;
+    if traces.is_empty() {
+        return Err(EvalError::Input(format!(
+            "{}: the nu(t) export holds no Gaussian",
+            run.dir.display()
+        )));
+    }
+    let n = traces.len() as u32;
+    save_chart(path, (650 * n, 560), |root| {
+        let panels = root.split_evenly((1, traces.len()));
+        for (g, area) in traces.iter().zip(panels.iter()) {
+            let obs: Vec<(f64, f64)> = g
+                .observations
+                .iter()
+                .map(|o| (f64::from(o[0]), f64::from(o[1])))
+                .collect();
+            let nu: Vec<(f64, f64)> =
+                g.nu.iter()
+                    .map(|o| (f64::from(o[0]), f64::from(o[1])))
+                    .collect();
+            let (x0, x1) = padded_range(obs.iter().chain(&nu).map(|p| p.0), 0.03);
+            let (y0, y1) = widen(
+                padded_range(obs.iter().chain(&nu).map(|p| p.1), 0.05),
+                0.0,
+                0.3,
+            );
+            let y0 = y0.max(0.0);
+            let mut chart = ChartBuilder::on(area)
+                .caption(
+                    format!("{} Gaussian (#{})", capitalise(&g.label), g.index),
+                    text(22),
+                )
+                .margin(14)
+                .x_label_area_size(55)
+                .y_label_area_size(80)
+                .build_cartesian_2d(x0..x1, y0..y1)
+                .map_err(e2s)?;
+            chart
+                .configure_mesh()
+                .x_desc("time t")
+                .y_desc("sampling rate f/d (px per unit)")
+                .label_style(text(16))
+                .axis_desc_style(text(17))
+                .light_line_style(WHITE.mix(0.0))
+                .x_labels(6)
+                .y_labels(6)
+                .y_label_formatter(&|y| format!("{y:.0}"))
+                .draw()
+                .map_err(e2s)?;
+            let grey = RGBColor(110, 110, 110);
+            chart
+                .draw_series(
+                    obs.iter()
+                        .map(|&p| Circle::new(p, 3, grey.mix(0.6).filled())),
+                )
+                .map_err(e2s)?
+                .label("observed f/d (training views)")
+                .legend(move |(x, y)| Circle::new((x + 12, y), 4, grey.filled()));
+            let red = PALETTE[2];
+            chart
+                .draw_series(LineSeries::new(nu.clone(), red.stroke_width(3)))
+                .map_err(e2s)?
+                .label("motion-aware nu(t)")
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 24, y)], red.stroke_width(3))
+                });
+            chart
+                .configure_series_labels()
+                .position(SeriesLabelPosition::UpperRight)
+                .background_style(WHITE.mix(0.85))
+                .border_style(BLACK)
+                .label_font(text(15))
+                .draw()
+                .map_err(e2s)?;
+        }
+        Ok(())
+    })
+}
+
+fn capitalise(s: &str) -> String {
+    let mut c = s.chars();
+    match c.next() {
+        Some(f) => f.to_uppercase().collect::<String>() + c.as_str(),
+        None => String::new(),
+    }
+}
