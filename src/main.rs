@@ -14,12 +14,17 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Generate the built-in scene, train with no / static / motion-aware 3D filter,
+    /// evaluate at 1/4x..4x and write a report (the README's main command).
+    Demo(cli::demo::DemoArgs),
     /// Print the build configuration (float types, thread count) and exit.
     Info,
     /// Write a built-in synthetic dynamic scene (D-NeRF format, supersampled, with flow).
     Generate(cli::generate::GenerateArgs),
     /// Summarise a D-NeRF-format data set (views, resolution, times, cameras, bounds).
     Inspect(cli::inspect::InspectArgs),
+    /// Train a 4D Gaussian model (SaRO-GS + 3D filter) on a D-NeRF-format data set.
+    Train(cli::train::TrainArgs),
     /// Render a static 3DGS PLY from a camera JSON to a PNG or float32 NPY image.
     RenderPly(cli::render_ply::RenderPlyArgs),
     /// Evaluate a trained run at several scales (PSNR, SSIM) and write RUN/eval.json.
@@ -32,11 +37,20 @@ enum Command {
     Report(cli::report::ReportArgs),
 }
 
-fn main() -> anyhow::Result<()> {
-    let cli = Cli::parse();
+/// Runs the command; errors print as one line (file, field, reason) and exit with 1.
+fn main() {
+    if let Err(e) = run(Cli::parse()) {
+        eprintln!("maaf: error: {e:#}");
+        std::process::exit(1);
+    }
+}
+
+fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
+        Command::Demo(args) => cli::demo::run(&args)?,
         Command::Generate(args) => cli::generate::run(&args)?,
         Command::Inspect(args) => cli::inspect::run(&args)?,
+        Command::Train(args) => cli::train::run(&args)?,
         Command::RenderPly(args) => cli::render_ply::run(&args)?,
         Command::Eval(args) => cli::eval::run(&args)?,
         Command::Render(args) => cli::render::run(&args)?,

@@ -1,9 +1,9 @@
 //! maaf-train (see DESIGN.md).
 
+pub mod data;
+pub mod eval;
 pub mod loss;
 pub mod metrics;
-pub mod data;
 pub mod models;
-pub mod trainer;
-pub mod eval;
 pub mod report;
+pub mod trainer;

@@ -114,10 +114,10 @@ pub fn plan(
     for i in model.short_lived() {
         prune[i] = true;
     }
-    for i in 0..n {
+    for (i, p) in prune.iter_mut().enumerate() {
         let o = canon.opacity.data()[i] as f64;
         if o < cfg.min_opacity || (big_screen && stats.max_radii[i] as f64 > cfg.max_screen_size) {
-            prune[i] = true;
+            *p = true;
         }
     }
     let max_scale = |i: usize| {

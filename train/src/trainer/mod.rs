@@ -395,10 +395,10 @@ impl Trainer {
             );
         }
         for name in names {
-            if let Some(m) = self.adam.moments_mut(&name) {
-                if m.rows() == n_old {
-                    m.select_rows(&plan.index);
-                }
+            if let Some(m) = self.adam.moments_mut(&name)
+                && m.rows() == n_old
+            {
+                m.select_rows(&plan.index);
             }
         }
         self.filter.select_rows(&plan.index);
