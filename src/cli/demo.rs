@@ -83,7 +83,11 @@ impl Plan {
         // 3DGS interval of 100 iterations rather than compressing it.
         c.densify.every = 100;
         c.densify.max_gaussians = 30_000;
-        c.densify.opacity_reset_every = frac(0.15);
+        // 3DGS resets opacity every 3000 iterations (SaRO-GS: 2000) and prunes screen-large
+        // Gaussians after the first reset. Compressed into a short run, the reset comes
+        // before densification has split the large initial Gaussians, and the pruning
+        // wipes out most of the scene; runs shorter than the first reset have none.
+        c.densify.opacity_reset_every = if iterations >= 4000 { 2000 } else { 0 };
         c.filter.kind = filter;
         c.filter.refresh.start = frac(0.03) as u64;
         c.filter.refresh.every = 100;

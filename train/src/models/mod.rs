@@ -142,7 +142,10 @@ pub trait Representation<T: Float> {
     fn canonical(&self) -> Canonical<T>;
 
     /// Opacity reset: clamps every base opacity to at most `max_opacity` (3DGS uses 0.01).
-    fn reset_opacity(&mut self, max_opacity: f64);
+    /// Returns the names of the parameters it overwrote, whose optimiser moments the
+    /// trainer then zeroes (3DGS `replace_tensor_to_optimizer`): stale momentum would
+    /// otherwise keep pushing the reset opacities down until pruning removes them.
+    fn reset_opacity(&mut self, max_opacity: f64) -> Vec<String>;
 
     /// Indices of Gaussians the representation itself wants removed (SaRO: a temporal
     /// integral below the threshold). Empty by default.

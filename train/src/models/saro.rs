@@ -888,11 +888,12 @@ impl<T: Float> Representation<T> for SaroModel<T> {
     }
 
     /// `o = min(o, logit(max_opacity))` (3DGS `reset_opacity`).
-    fn reset_opacity(&mut self, max_opacity: f64) {
+    fn reset_opacity(&mut self, max_opacity: f64) -> Vec<String> {
         let cap = T::of(logit(max_opacity));
         for v in self.opacity.data_mut() {
             *v = v.min(cap);
         }
+        vec!["opacity".to_string()]
     }
 
     /// Gaussians whose temporal integral is below `min_integral` (SaRO-GS prunes them

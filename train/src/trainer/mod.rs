@@ -369,7 +369,12 @@ impl Trainer {
             changed = plan.cloned + plan.split + plan.pruned > 0;
         }
         if d.opacity_reset_every > 0 && it <= d.until && it.is_multiple_of(d.opacity_reset_every) {
-            self.model.reset_opacity(0.01);
+            for name in self.model.reset_opacity(0.01) {
+                if let Some(m) = self.adam.moments_mut(&name) {
+                    m.m.data_mut().fill(0.0);
+                    m.v.data_mut().fill(0.0);
+                }
+            }
             self.last_reset = Some(it);
         }
         changed
