@@ -55,8 +55,8 @@ impl Plan {
             Plan {
                 size: 400,
                 frames: 60,
-                iterations: 1500,
-                init_points: 4000,
+                iterations: 1000,
+                init_points: 3000,
             }
         }
     }
@@ -82,7 +82,7 @@ impl Plan {
         // Statistics need many views per Gaussian before they mean anything: keep the
         // 3DGS interval of 100 iterations rather than compressing it.
         c.densify.every = 100;
-        c.densify.max_gaussians = 30_000;
+        c.densify.max_gaussians = 12_000;
         // 3DGS resets opacity every 3000 iterations (SaRO-GS: 2000) and prunes screen-large
         // Gaussians after the first reset. Compressed into a short run, the reset comes
         // before densification has split the large initial Gaussians, and the pruning
