@@ -354,6 +354,11 @@ impl Trainer {
     fn maybe_densify(&mut self, it: usize) -> bool {
         let d = self.config.densify.clone();
         let mut changed = false;
+        // Nothing at the last iteration: a run shorter than the schedule must not end
+        // on an opacity reset or an unrefined densification.
+        if it >= self.config.iterations {
+            return false;
+        }
         if it >= d.from && it <= d.until && d.every > 0 && it.is_multiple_of(d.every) {
             let big_screen = self.last_reset.is_some();
             let seed = self.config.seed ^ (it as u64).wrapping_mul(0xD1B5_4A32_D192_ED03);
