@@ -52,7 +52,6 @@ fn model() -> (SaroModel<f64>, Vec<Tensor<f64>>) {
             time_res: 4,
             channels: 3,
             max_mip_level: 1,
-            ..KPlaneConfig::default()
         },
         hidden: 6,
         time_freqs: 1,
