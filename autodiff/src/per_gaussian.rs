@@ -21,19 +21,7 @@ impl<T: Float> PerGaussian for Tensor<T> {
         Tensor::rows(self)
     }
     fn select_rows(&mut self, index: &[usize]) {
-        let w = self.row_len();
-        let mut data = Vec::with_capacity(index.len() * w);
-        for &i in index {
-            assert!(
-                i < Tensor::rows(self),
-                "select_rows: index {i} out of range for {} rows",
-                Tensor::rows(self)
-            );
-            data.extend_from_slice(&self.data()[i * w..(i + 1) * w]);
-        }
-        let mut shape = self.shape().to_vec();
-        shape[0] = index.len();
-        *self = Tensor::from_vec(data, &shape);
+        *self = self.gather_rows(index);
     }
 }
 

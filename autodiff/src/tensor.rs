@@ -121,6 +121,23 @@ impl<T: Float> Tensor<T> {
         self
     }
 
+    /// Rows `index[0], index[1], ...` of the first dimension, repeats allowed (the row
+    /// gather behind the `gather_rows` op and every per-Gaussian resize).
+    pub fn gather_rows(&self, index: &[usize]) -> Self {
+        let (rows, w) = (self.rows(), self.row_len());
+        let mut data = Vec::with_capacity(index.len() * w);
+        for &i in index {
+            assert!(
+                i < rows,
+                "gather_rows: index {i} out of range for {rows} rows"
+            );
+            data.extend_from_slice(&self.data[i * w..(i + 1) * w]);
+        }
+        let mut shape = self.shape.clone();
+        shape[0] = index.len();
+        Tensor { data, shape }
+    }
+
     /// Applies `f` to every element.
     pub fn map(&self, f: impl Fn(T) -> T) -> Self {
         Tensor {

@@ -33,22 +33,6 @@ pub struct ScatterAddRows {
     pub rows: usize,
 }
 
-fn gather<T: Float>(x: &Tensor<T>, index: &[usize]) -> Tensor<T> {
-    let w = x.row_len();
-    let mut data = Vec::with_capacity(index.len() * w);
-    for &i in index {
-        assert!(
-            i < x.rows(),
-            "gather_rows: index {i} out of range for {} rows",
-            x.rows()
-        );
-        data.extend_from_slice(&x.data()[i * w..(i + 1) * w]);
-    }
-    let mut shape = x.shape().to_vec();
-    shape[0] = index.len();
-    Tensor::from_vec(data, &shape)
-}
-
 fn scatter_add<T: Float>(x: &Tensor<T>, index: &[usize], rows: usize) -> Tensor<T> {
     assert_eq!(
         x.rows(),
@@ -80,7 +64,7 @@ impl<T: Float> Op<T> for GatherRows {
         "gather_rows".into()
     }
     fn forward(&self, x: &[&Tensor<T>]) -> (Vec<Tensor<T>>, ()) {
-        (vec![gather(x[0], &self.0)], ())
+        (vec![x[0].gather_rows(&self.0)], ())
     }
     fn backward(&self, c: &BackwardCtx<'_, T, ()>) -> Vec<Option<Tensor<T>>> {
         vec![Some(scatter_add(
@@ -100,7 +84,7 @@ impl<T: Float> Op<T> for ScatterAddRows {
         (vec![scatter_add(x[0], &self.index, self.rows)], ())
     }
     fn backward(&self, c: &BackwardCtx<'_, T, ()>) -> Vec<Option<Tensor<T>>> {
-        vec![Some(gather(&c.grad_outputs[0], &self.index))]
+        vec![Some(c.grad_outputs[0].gather_rows(&self.index))]
     }
 }
 
