@@ -12,7 +12,7 @@ use maaf_filter::FilterState;
 use safetensors::{Dtype, SafeTensors, tensor::TensorView};
 use serde::{Deserialize, Serialize};
 
-use super::{Timings, TrainConfig, TrainError, Trainer};
+use super::{Timings, TrainConfig, TrainError, Trainer, io};
 use crate::data::Dataset;
 
 /// Non-tensor state of a run.
@@ -26,13 +26,6 @@ struct State {
     filter: FilterState,
     timings: Timings,
     adam_steps: HashMap<String, u64>,
-}
-
-fn io(path: &Path) -> impl FnOnce(std::io::Error) -> TrainError + '_ {
-    move |source| TrainError::Io {
-        path: path.display().to_string(),
-        source,
-    }
 }
 
 fn bytes_of(data: &[f32]) -> Vec<u8> {
@@ -156,7 +149,7 @@ pub fn load_checkpoint(data: &Dataset, dir: &Path) -> Result<Trainer, TrainError
     let blob = std::fs::read(&blob_path).map_err(io(&blob_path))?;
     let st = SafeTensors::deserialize(&blob)
         .map_err(|e| TrainError::Input(format!("{}: {e}", blob_path.display())))?;
-    let mut trainer = Trainer::new(data, state.config.clone())?;
+    let mut trainer = Trainer::initial(data, state.config.clone())?;
     let mut names = Vec::new();
     for slot in trainer.model.params_mut() {
         *slot.value = tensor(&st, &format!("param/{}", slot.name), &blob_path)?;

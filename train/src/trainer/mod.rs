@@ -44,6 +44,14 @@ pub enum TrainError {
     },
 }
 
+/// Maps an I/O error on `path` to [`TrainError::Io`] naming the file.
+fn io(path: &std::path::Path) -> impl FnOnce(std::io::Error) -> TrainError + '_ {
+    move |source| TrainError::Io {
+        path: path.display().to_string(),
+        source,
+    }
+}
+
 /// A trainer: the model, its optimiser, the filter and every per-Gaussian container,
 /// resized in lock-step by [`PerGaussian::select_rows`].
 pub struct Trainer {
@@ -100,6 +108,14 @@ impl Trainer {
     /// Deformable-3DGS initialise synthetic D-NeRF scenes), the SaRO model, Adam and
     /// the initial filter.
     pub fn new(data: &Dataset, config: TrainConfig) -> Result<Self, TrainError> {
+        let mut trainer = Self::initial(data, config)?;
+        trainer.refresh_filter(true);
+        Ok(trainer)
+    }
+
+    /// The freshly initialised trainer without its first filter refresh; a checkpoint
+    /// load overwrites the filter and the observations, so it starts from here.
+    fn initial(data: &Dataset, config: TrainConfig) -> Result<Self, TrainError> {
         config
             .filter
             .validate()
@@ -168,7 +184,7 @@ impl Trainer {
         let objective = Objective::photometric(config.lambda_dssim).with(
             crate::loss::Provided::new(crate::loss::L_SR, config.model.lambda_sr),
         );
-        let mut trainer = Trainer {
+        Trainer {
             adam: Adam::new(AdamConfig::default()),
             filter: FilterState::None { rows: n },
             observations: ObservationTable::for_frames(&frames, n),
@@ -187,9 +203,7 @@ impl Trainer {
             cameras,
             frames,
             extent,
-        };
-        trainer.refresh_filter(true);
-        trainer
+        }
     }
 
     /// Number of Gaussians.
@@ -442,11 +456,18 @@ impl Trainer {
             }
             FilterKind::Motion => {
                 if at_start {
-                    let model = &self.model;
+                    // One deformation pass over every distinct training time (the field
+                    // is queried once), then the observation pass looks centres up.
+                    let mut times: Vec<f32> = self.frames.iter().map(|f| f.time).collect();
+                    times.sort_by(f32::total_cmp);
+                    times.dedup();
+                    let at: Vec<f64> = times.iter().map(|&t| f64::from(t)).collect();
+                    let all = self.model.centres_at_times(&at);
                     let result =
                         self.observations
                             .observe_all(&self.frames, &self.cameras, cfg, |t| {
-                                centres(&model.centres_at_times(&[t as f64])[0])
+                                let k = times.partition_point(|&x| x < t).min(all.len() - 1);
+                                centres(&all[k])
                             });
                     if let Err(e) = result {
                         log_line(&format!("observation pass failed: {e}"));

@@ -7,7 +7,7 @@ use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 
-use super::{Timings, TrainConfig, TrainError, Trainer, load_checkpoint, save_checkpoint};
+use super::{Timings, TrainConfig, TrainError, Trainer, io, load_checkpoint, save_checkpoint};
 use crate::data::Dataset;
 
 /// What a finished run reports (also written as `RUN/summary.json`).
@@ -23,13 +23,6 @@ pub struct RunSummary {
     pub skipped_steps: usize,
     /// Time per phase.
     pub timings: Timings,
-}
-
-fn io(path: &Path) -> impl FnOnce(std::io::Error) -> TrainError + '_ {
-    move |source| TrainError::Io {
-        path: path.display().to_string(),
-        source,
-    }
 }
 
 /// Writes `bytes` to `path` through a temporary file and a rename.
