@@ -16,14 +16,13 @@ use std::path::Path;
 
 use super::downsample::box_downsample;
 use super::error::DataError;
-use super::image::Image;
+use super::image::{Image, write_png};
 
 /// Flow quantisation: stored value = `round(flow * FLOW_SCALE) + 2^15`.
 pub const FLOW_SCALE: f32 = 64.0;
 
 /// Writes a `[H, W, 3]` flow image as a KITTI-format 16-bit PNG.
 pub fn write_flow(flow: &Image, path: &Path) -> Result<(), DataError> {
-    use image::ImageEncoder;
     if flow.channels != 3 {
         return Err(DataError::request(
             path,
@@ -39,23 +38,14 @@ pub fn write_flow(flow: &Image, path: &Path) -> Result<(), DataError> {
             bytes.extend_from_slice(&v.to_ne_bytes());
         }
     }
-    let file = std::fs::File::create(path).map_err(|e| DataError::io(path, "cannot create", e))?;
-    let encoder = image::codecs::png::PngEncoder::new_with_quality(
-        std::io::BufWriter::new(file),
-        image::codecs::png::CompressionType::Fast,
-        image::codecs::png::FilterType::Adaptive,
-    );
-    encoder
-        .write_image(
-            &bytes,
-            flow.width,
-            flow.height,
-            image::ExtendedColorType::Rgb16,
-        )
-        .map_err(|e| DataError::Io {
-            path: path.display().to_string(),
-            message: format!("cannot write flow PNG: {e}"),
-        })
+    write_png(
+        path,
+        &bytes,
+        flow.width,
+        flow.height,
+        image::ExtendedColorType::Rgb16,
+        "flow PNG",
+    )
 }
 
 /// Reads a KITTI-format 16-bit flow PNG into a `[H, W, 3]` flow image.

@@ -80,7 +80,6 @@ pub fn image_size(path: &Path) -> Result<(u32, u32), DataError> {
 /// Encodes straight RGBA in `[0, 1]` (`[H, W, 4]`) as an 8-bit RGBA PNG, rounding
 /// `round(255 v)` after clamping to `[0, 1]`. Uses fast compression.
 pub fn encode_rgba_png(img: &Image, path: &Path) -> Result<(), DataError> {
-    use image::ImageEncoder;
     if img.channels != 4 {
         return Err(DataError::request(
             path,
@@ -92,6 +91,27 @@ pub fn encode_rgba_png(img: &Image, path: &Path) -> Result<(), DataError> {
         .iter()
         .map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8)
         .collect();
+    write_png(
+        path,
+        &bytes,
+        img.width,
+        img.height,
+        image::ExtendedColorType::Rgba8,
+        "PNG",
+    )
+}
+
+/// Writes raw pixel bytes as a PNG with fast compression; `what` names the file kind
+/// in the error (e.g. "flow PNG").
+pub(crate) fn write_png(
+    path: &Path,
+    bytes: &[u8],
+    width: u32,
+    height: u32,
+    color: image::ExtendedColorType,
+    what: &str,
+) -> Result<(), DataError> {
+    use image::ImageEncoder;
     let file = std::fs::File::create(path).map_err(|e| DataError::io(path, "cannot create", e))?;
     let encoder = image::codecs::png::PngEncoder::new_with_quality(
         std::io::BufWriter::new(file),
@@ -99,14 +119,9 @@ pub fn encode_rgba_png(img: &Image, path: &Path) -> Result<(), DataError> {
         image::codecs::png::FilterType::Adaptive,
     );
     encoder
-        .write_image(
-            &bytes,
-            img.width,
-            img.height,
-            image::ExtendedColorType::Rgba8,
-        )
+        .write_image(bytes, width, height, color)
         .map_err(|e| DataError::Io {
             path: path.display().to_string(),
-            message: format!("cannot write PNG: {e}"),
+            message: format!("cannot write {what}: {e}"),
         })
 }
