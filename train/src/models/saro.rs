@@ -789,15 +789,8 @@ impl<T: Float> SaroModel<T> {
             PlaneSample::new(&self.field, self.detached().query),
             &planes,
         );
-        let life = self.life_mlp.clone();
         let m = self.config.min_lifespan();
-        let mut z = features;
-        for (i, l) in life.layers.iter().enumerate() {
-            z = z.matmul(tape.constant(l.weight.clone())) + tape.constant(l.bias.clone());
-            if i + 1 < life.layers.len() {
-                z = z.relu();
-            }
-        }
+        let z = self.life_mlp.bind(&tape, "life_mlp").forward(features);
         let s = z.sigmoid();
         let v = s.value();
         v.data()
