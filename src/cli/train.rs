@@ -3,12 +3,11 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, bail};
-use maaf_autodiff::Tensor;
 use maaf_filter::FilterKind;
-use maaf_splat::render_tensors;
 use maaf_train::data::{BLACK, Dataset, DatasetOptions, Split, WHITE};
+use maaf_train::eval::render_image;
 use maaf_train::metrics::psnr;
-use maaf_train::trainer::{TrainConfig, frame_at, load_checkpoint, train_run};
+use maaf_train::trainer::{TrainConfig, load_checkpoint, train_run};
 
 /// Arguments of `maaf train`.
 #[derive(clap::Args, Debug)]
@@ -154,18 +153,8 @@ pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
     let mut total = 0.0;
     let views = data.views(Split::Test, scale)?;
     for v in &views {
-        let [m, s, q, o, sh] = frame_at(
-            trainer.model.as_ref(),
-            &trainer.filter,
-            trainer.config.filter.kind,
-            v.time,
-        );
-        let frame = render_tensors(&m, &s, &q, &o, &sh, &v.camera, &settings);
-        let gt = Tensor::from_vec(
-            v.image.data.clone(),
-            &[v.image.height as usize, v.image.width as usize, 3],
-        );
-        total += psnr(&frame.image, &gt)?;
+        let image = render_image(&trainer, &v.camera, v.time, &settings);
+        total += psnr(&image, &v.image.to_tensor())?;
     }
     if !views.is_empty() {
         println!(

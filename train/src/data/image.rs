@@ -19,6 +19,14 @@ pub struct Image {
 }
 
 impl Image {
+    /// The pixels as a `[H, W, C]` tensor (what the objective and the metrics take).
+    pub fn to_tensor(&self) -> maaf_autodiff::Tensor<f32> {
+        maaf_autodiff::Tensor::from_vec(
+            self.data.clone(),
+            &[self.height as usize, self.width as usize, self.channels],
+        )
+    }
+
     /// An image of the given size filled with `value`.
     pub fn filled(width: u32, height: u32, channels: usize, value: f32) -> Self {
         Image {

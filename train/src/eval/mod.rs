@@ -312,10 +312,7 @@ fn measure_view(
     options: &EvalOptions,
     dir: &Path,
 ) -> Result<ViewResult, EvalError> {
-    let gt = Tensor::from_vec(
-        v.image.data.clone(),
-        &[v.image.height as usize, v.image.width as usize, 3],
-    );
+    let gt = v.image.to_tensor();
     let metrics = image_metrics(image, &gt).map_err(|e| {
         EvalError::Input(format!(
             "view {} at scale {}: {e}",

@@ -172,15 +172,7 @@ impl Trainer {
                 time: v.time as f32,
             })
             .collect();
-        let gts = views
-            .iter()
-            .map(|v| {
-                Tensor::from_vec(
-                    v.image.data.clone(),
-                    &[v.image.height as usize, v.image.width as usize, 3],
-                )
-            })
-            .collect();
+        let gts = views.iter().map(|v| v.image.to_tensor()).collect();
         let objective = Objective::photometric(config.lambda_dssim).with(
             crate::loss::Provided::new(crate::loss::L_SR, config.model.lambda_sr),
         );
