@@ -193,6 +193,9 @@ pub fn load_checkpoint(data: &Dataset, dir: &Path) -> Result<Trainer, TrainError
     }
     trainer.filter = state.filter;
     trainer.iteration = state.iteration;
+    // The stage (e.g. SaRO-GS's static warm-up) follows the iteration; without this a
+    // loaded run would render its canonical, undeformed Gaussians.
+    trainer.model.set_iteration(state.iteration);
     trainer.skipped_steps = state.skipped_steps;
     trainer.last_reset = state.last_reset;
     trainer.timings = state.timings;
