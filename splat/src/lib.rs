@@ -16,9 +16,11 @@
 // Index loops are the clearest way to write the small matrix algebra here.
 #![allow(clippy::needless_range_loop)]
 
+mod blend;
 pub mod camera;
 pub mod filter3d;
 pub mod gaussians;
+pub mod lanes;
 mod math;
 pub mod output;
 pub mod ply;
@@ -31,6 +33,7 @@ pub mod sh;
 pub use camera::{Camera, CameraError};
 pub use filter3d::apply_3d_filter;
 pub use gaussians::{Gaussians, render_gaussians};
+pub use lanes::SplatFloat;
 pub use ply::{PlyError, read_ply, write_baked_ply, write_ply};
 pub use project::Filter2d;
 pub use rasterize::AlphaCutoff;

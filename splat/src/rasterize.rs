@@ -10,6 +10,8 @@
 use maaf_autodiff::{BackwardCtx, Float, Op, Tensor, Var};
 use rayon::prelude::*;
 
+use crate::blend::{Splat, TileGrads, TileOut, TileRect, backward_tile, forward_tile};
+use crate::lanes::SplatFloat;
 use crate::project::pixel_range;
 
 /// Tile edge in pixels.
@@ -46,63 +48,6 @@ pub enum AlphaCutoff {
     Smooth,
 }
 
-/// The C1 taper of [`AlphaCutoff::Smooth`] and its derivative in `power`.
-#[inline(always)]
-fn taper<T: Float>(p: T) -> (T, T) {
-    let p0 = T::of(SMOOTH_TAPER_START);
-    let span = T::of(SUPPORT_POWER - SMOOTH_TAPER_START);
-    let q = (p - p0) / span;
-    if q <= T::zero() {
-        (T::one(), T::zero())
-    } else if q >= T::one() {
-        (T::zero(), T::zero())
-    } else {
-        let s = T::one() - q * q;
-        (s * s, T::of(-4.0) * s * q / span)
-    }
-}
-
-/// One Gaussian as the blend loop reads it.
-#[derive(Clone, Copy, Debug)]
-struct Splat<T> {
-    mx: T,
-    my: T,
-    a: T,
-    b: T,
-    c: T,
-    o: T,
-    col: [T; 3],
-    z: T,
-}
-
-/// Alpha of `s` at offset `(dx, dy)` = pixel centre minus mean, or `None` when the
-/// Gaussian does not count at this pixel. Shared by forward and backward so both make
-/// the same decisions bit for bit.
-#[inline(always)]
-fn alpha_of<T: Float>(cut: AlphaCutoff, s: &Splat<T>, dx: T, dy: T) -> Option<(T, T)> {
-    let half = T::of(0.5);
-    let p = half * (s.a * dx * dx + s.c * dy * dy) + s.b * dx * dy;
-    if !(p >= T::zero() && p <= T::of(SUPPORT_POWER)) {
-        return None;
-    }
-    let g = (-p).exp();
-    match cut {
-        AlphaCutoff::Hard => {
-            let a = s.o * g;
-            if a < T::of(ALPHA_MIN) {
-                None
-            } else {
-                Some((a.min(T::of(ALPHA_MAX)), g))
-            }
-        }
-        AlphaCutoff::Smooth => {
-            let (w, _) = taper(p);
-            let a = s.o * g * w;
-            (a > T::zero()).then_some((a, g))
-        }
-    }
-}
-
 /// Per-tile sorted Gaussian lists: tile `t` holds `ids[offsets[t]..offsets[t+1]]`.
 #[derive(Clone, Debug, Default)]
 pub struct Binning {
@@ -114,6 +59,9 @@ pub struct Binning {
     pub offsets: Vec<usize>,
     /// Gaussian indices, each tile's run sorted front to back by `(depth, index)`.
     pub ids: Vec<u32>,
+    /// Per Gaussian: inclusive pixel box `[x_lo, x_hi, y_lo, y_hi]` of its support
+    /// ellipse in the image (`x_lo > x_hi` when not listed in any tile).
+    pub boxes: Vec<[u32; 4]>,
 }
 
 impl Binning {
@@ -128,24 +76,12 @@ impl Binning {
     }
 }
 
-/// Tile ranges `(x0..=x1, y0..=y1)` touched by a Gaussian's box of half-extents
-/// `(rx, ry)`, or `None`.
-fn tile_rect(
-    mx: f64,
-    my: f64,
-    rx: f64,
-    ry: f64,
-    w: u32,
-    h: u32,
-) -> Option<(usize, usize, usize, usize)> {
+/// Inclusive pixel box `[x_lo, x_hi, y_lo, y_hi]` of the pixel centres within
+/// half-extents `(rx, ry)` of `(mx, my)`, clamped to the image, or `None`.
+fn pixel_box(mx: f64, my: f64, rx: f64, ry: f64, w: u32, h: u32) -> Option<[u32; 4]> {
     let (xl, xh) = pixel_range(mx, rx, w)?;
     let (yl, yh) = pixel_range(my, ry, h)?;
-    Some((
-        xl as usize / TILE,
-        xh as usize / TILE,
-        yl as usize / TILE,
-        yh as usize / TILE,
-    ))
+    Some([xl, xh, yl, yh])
 }
 
 /// Bins visible Gaussians (`radius > 0`) into 16x16 tiles and sorts each tile's list
@@ -168,7 +104,7 @@ pub fn bin_gaussians<T: Float>(
     let tiles_x = (width as usize).div_ceil(TILE);
     let tiles_y = (height as usize).div_ceil(TILE);
     let n = radii.len();
-    let rects: Vec<Option<(usize, usize, usize, usize)>> = (0..n)
+    let boxes: Vec<Option<[u32; 4]>> = (0..n)
         .into_par_iter()
         .map(|i| {
             let r = Float::to_f64(radii[i]);
@@ -187,7 +123,7 @@ pub fn bin_gaussians<T: Float>(
                         r
                     }
                 };
-                tile_rect(
+                pixel_box(
                     Float::to_f64(means2d[2 * i]),
                     Float::to_f64(means2d[2 * i + 1]),
                     ext(c),
@@ -198,6 +134,15 @@ pub fn bin_gaussians<T: Float>(
             } else {
                 None
             }
+        })
+        .collect();
+    let rects: Vec<Option<(usize, usize, usize, usize)>> = boxes
+        .iter()
+        .map(|b| {
+            b.map(|[xl, xh, yl, yh]| {
+                let t = |v: u32| v as usize / TILE;
+                (t(xl), t(xh), t(yl), t(yh))
+            })
         })
         .collect();
     let mut counts = vec![0usize; tiles_x * tiles_y + 1];
@@ -248,6 +193,10 @@ pub fn bin_gaussians<T: Float>(
         tiles_y,
         offsets,
         ids,
+        boxes: boxes
+            .into_iter()
+            .map(|b| b.unwrap_or([1, 0, 1, 0]))
+            .collect(),
     }
 }
 
@@ -298,7 +247,7 @@ impl<T: Float> RasterSaved<T> {
     }
 }
 
-fn gather_splats<T: Float>(list: &[u32], inputs: &[&Tensor<T>]) -> Vec<Splat<T>> {
+fn gather_splats<T: Float>(list: &[u32], inputs: &[&Tensor<T>], bins: &Binning) -> Vec<Splat<T>> {
     let (m, con, col, op, dep) = (
         inputs[0].data(),
         inputs[1].data(),
@@ -318,131 +267,31 @@ fn gather_splats<T: Float>(list: &[u32], inputs: &[&Tensor<T>]) -> Vec<Splat<T>>
                 o: op[g],
                 col: [col[3 * g], col[3 * g + 1], col[3 * g + 2]],
                 z: dep[g],
+                bbox: bins.boxes[g],
             }
         })
         .collect()
 }
 
-/// Pixel rectangle of tile `t`: `(x0, y0, x1, y1)` exclusive ends.
-fn tile_pixels(t: usize, tiles_x: usize, w: u32, h: u32) -> (usize, usize, usize, usize) {
+/// Pixel rectangle of tile `t`.
+fn tile_pixels(t: usize, tiles_x: usize, w: u32, h: u32) -> TileRect {
     let (tx, ty) = (t % tiles_x, t / tiles_x);
     let (x0, y0) = (tx * TILE, ty * TILE);
-    (
+    TileRect {
         x0,
         y0,
-        (x0 + TILE).min(w as usize),
-        (y0 + TILE).min(h as usize),
-    )
-}
-
-/// Forward output of one tile, row-major inside the tile rectangle.
-struct TileOut<T> {
-    rgb: Vec<[T; 3]>,
-    t_final: Vec<T>,
-    depth: Vec<T>,
-    n: Vec<u32>,
-}
-
-impl<T: Float> Rasterize<T> {
-    /// Composites one tile. The loop runs Gaussian-major (each Gaussian, front to
-    /// back, visits only the pixels of its support box inside the tile) with per-pixel
-    /// state, which performs exactly the per-pixel operations of the textbook
-    /// pixel-major loop in the same order, so results are identical; it just never
-    /// touches pixel-Gaussian pairs that cannot overlap.
-    fn render_tile(&self, splats: &[Splat<T>], rect: (usize, usize, usize, usize)) -> TileOut<T> {
-        let (x0, y0, x1, y1) = rect;
-        let tw = x1 - x0;
-        let np = tw * (y1 - y0);
-        let half = T::of(0.5);
-        let t_min = T::of(T_MIN);
-        let hard = self.cutoff == AlphaCutoff::Hard;
-        let mut tr = vec![T::one(); np];
-        let mut rgb = vec![[T::zero(); 3]; np];
-        let mut depth = vec![T::zero(); np];
-        let mut n = vec![0u32; np];
-        let mut done = vec![false; np];
-        let mut n_done = 0;
-        for (j, s) in splats.iter().enumerate() {
-            if n_done == np {
-                break;
-            }
-            let Some((bx0, bx1, by0, by1)) = splat_box(s, rect) else {
-                continue;
-            };
-            for y in by0..=by1 {
-                let py = T::of(y as f64) + half;
-                let dy = py - s.my;
-                for x in bx0..=bx1 {
-                    let k = (y - y0) * tw + (x - x0);
-                    if done[k] {
-                        continue;
-                    }
-                    let px = T::of(x as f64) + half;
-                    let Some((alpha, _)) = alpha_of(self.cutoff, s, px - s.mx, dy) else {
-                        continue;
-                    };
-                    let next = tr[k] * (T::one() - alpha);
-                    if hard && next < t_min {
-                        done[k] = true;
-                        n_done += 1;
-                        continue;
-                    }
-                    let w = alpha * tr[k];
-                    let c = &mut rgb[k];
-                    c[0] += s.col[0] * w;
-                    c[1] += s.col[1] * w;
-                    c[2] += s.col[2] * w;
-                    depth[k] += s.z * w;
-                    tr[k] = next;
-                    n[k] = j as u32 + 1;
-                }
-            }
-        }
-        for (c, &t) in rgb.iter_mut().zip(&tr) {
-            for (v, bg) in c.iter_mut().zip(self.background) {
-                *v += t * bg;
-            }
-        }
-        TileOut {
-            rgb,
-            t_final: tr,
-            depth,
-            n,
-        }
+        x1: (x0 + TILE).min(w as usize),
+        y1: (y0 + TILE).min(h as usize),
     }
 }
 
-/// Pixel box `(x0, x1, y0, y1)` (inclusive, image indices) of the support ellipse
-/// `power <= 4.5` of `s` inside the tile `rect`, or `None` when they do not meet.
-/// Half-extents are `3 sqrt(Sigma_xx)`, `3 sqrt(Sigma_yy)` of `Sigma = conic^-1` with
-/// a 1e-4 relative margin against rounding; a non-positive-definite conic gets the
-/// whole tile (the per-pixel test then decides).
-fn splat_box<T: Float>(
-    s: &Splat<T>,
-    rect: (usize, usize, usize, usize),
-) -> Option<(usize, usize, usize, usize)> {
-    let (x0, y0, x1, y1) = rect;
-    let (a, b, c) = (Float::to_f64(s.a), Float::to_f64(s.b), Float::to_f64(s.c));
-    let det = a * c - b * b;
-    let ext = |v: f64| (9.0 * v / det).sqrt() * (1.0 + 1e-4) + 1e-4;
-    let (ex, ey) = (ext(c), ext(a));
-    if !(det > 0.0 && ex.is_finite() && ey.is_finite()) {
-        return Some((x0, x1 - 1, y0, y1 - 1));
-    }
-    let (mx, my) = (Float::to_f64(s.mx), Float::to_f64(s.my));
-    let lo_x = (mx - ex - 0.5).ceil().max(x0 as f64);
-    let hi_x = (mx + ex - 0.5).floor().min((x1 - 1) as f64);
-    let lo_y = (my - ey - 0.5).ceil().max(y0 as f64);
-    let hi_y = (my + ey - 0.5).floor().min((y1 - 1) as f64);
-    (lo_x <= hi_x && lo_y <= hi_y).then_some((
-        lo_x as usize,
-        hi_x as usize,
-        lo_y as usize,
-        hi_y as usize,
-    ))
+/// Image pixel of tile-local pixel `k` (stride [`TILE`]) when it is inside the tile.
+fn image_pixel(rect: TileRect, k: usize, w: usize) -> Option<usize> {
+    let (x, y) = (rect.x0 + k % TILE, rect.y0 + k / TILE);
+    (x < rect.x1 && y < rect.y1).then_some(y * w + x)
 }
 
-impl<T: Float> Op<T> for Rasterize<T> {
+impl<T: SplatFloat> Op<T> for Rasterize<T> {
     type Saved = RasterSaved<T>;
 
     fn name(&self) -> String {
@@ -490,9 +339,9 @@ impl<T: Float> Op<T> for Rasterize<T> {
         let tiles: Vec<TileOut<T>> = (0..ntiles)
             .into_par_iter()
             .map(|t| {
-                let splats = gather_splats(bins.tile(t), inputs);
+                let splats = gather_splats(bins.tile(t), inputs, &bins);
                 let rect = tile_pixels(t, bins.tiles_x, self.width, self.height);
-                self.render_tile(&splats, rect)
+                forward_tile(&splats, rect, self.cutoff, self.background)
             })
             .collect();
         let mut image = vec![T::zero(); h * w * 3];
@@ -501,18 +350,18 @@ impl<T: Float> Op<T> for Rasterize<T> {
         let mut final_t = vec![T::one(); h * w];
         let mut n_contrib = vec![0u32; h * w];
         for (t, out) in tiles.iter().enumerate() {
-            let (x0, y0, x1, y1) = tile_pixels(t, bins.tiles_x, self.width, self.height);
-            let mut k = 0;
-            for y in y0..y1 {
-                for x in x0..x1 {
-                    let p = y * w + x;
-                    image[3 * p..3 * p + 3].copy_from_slice(&out.rgb[k]);
-                    alpha[p] = T::one() - out.t_final[k];
-                    depth[p] = out.depth[k];
-                    final_t[p] = out.t_final[k];
-                    n_contrib[p] = out.n[k];
-                    k += 1;
+            let rect = tile_pixels(t, bins.tiles_x, self.width, self.height);
+            for k in 0..TILE * TILE {
+                let Some(p) = image_pixel(rect, k, w) else {
+                    continue;
+                };
+                for ch in 0..3 {
+                    image[3 * p + ch] = out.rgb[ch][k];
                 }
+                alpha[p] = T::one() - out.t_final[k];
+                depth[p] = out.depth[k];
+                final_t[p] = out.t_final[k];
+                n_contrib[p] = out.n[k];
             }
         }
         (
@@ -550,105 +399,38 @@ impl<T: Float> Op<T> for Rasterize<T> {
             ctx.grad_outputs[2].data(),
         );
         let w = self.width as usize;
-        let half = T::of(0.5);
-        let one = T::one();
         // Per tile: one gradient row per list entry,
         // (mx, my, A, B, C, o, r, g, b, z).
         let per_tile: Vec<Vec<[T; 10]>> = (0..ntiles)
             .into_par_iter()
             .map(|t| {
-                let list = bins.tile(t);
-                let splats = gather_splats(list, ctx.inputs);
-                let mut grads = vec![[T::zero(); 10]; list.len()];
+                let splats = gather_splats(bins.tile(t), ctx.inputs, bins);
                 let rect = tile_pixels(t, bins.tiles_x, self.width, self.height);
-                let (x0, y0, x1, y1) = rect;
-                let tw = x1 - x0;
-                let np = tw * (y1 - y0);
-                // Per-pixel state of the back-to-front walk.
-                let mut tr = vec![T::zero(); np];
-                let mut behind = vec![[T::zero(); 4]; np];
-                let mut n_last = vec![0usize; np];
-                let mut jmax = 0;
-                for y in y0..y1 {
-                    for x in x0..x1 {
-                        let (k, p) = ((y - y0) * tw + (x - x0), y * w + x);
-                        let tf = saved.final_t[p];
-                        tr[k] = tf;
-                        behind[k] = [
-                            self.background[0] * tf,
-                            self.background[1] * tf,
-                            self.background[2] * tf,
-                            T::zero(),
-                        ];
-                        n_last[k] = saved.n_contrib[p] as usize;
-                        jmax = jmax.max(n_last[k]);
-                    }
-                }
-                for j in (0..jmax).rev() {
-                    let s = &splats[j];
-                    let Some((bx0, bx1, by0, by1)) = splat_box(s, rect) else {
+                let np = TILE * TILE;
+                let mut inp = TileGrads {
+                    g_rgb: [
+                        vec![T::zero(); np],
+                        vec![T::zero(); np],
+                        vec![T::zero(); np],
+                    ],
+                    g_alpha: vec![T::zero(); np],
+                    g_depth: vec![T::zero(); np],
+                    t_final: vec![T::zero(); np],
+                    n_last: vec![0; np],
+                };
+                for k in 0..np {
+                    let Some(p) = image_pixel(rect, k, w) else {
                         continue;
                     };
-                    let mut acc = [T::zero(); 10];
-                    for y in by0..=by1 {
-                        let py = T::of(y as f64) + half;
-                        let dy = py - s.my;
-                        for x in bx0..=bx1 {
-                            let k = (y - y0) * tw + (x - x0);
-                            if j >= n_last[k] {
-                                continue;
-                            }
-                            let px = T::of(x as f64) + half;
-                            let dx = px - s.mx;
-                            let Some((alpha, g)) = alpha_of(self.cutoff, s, dx, dy) else {
-                                continue;
-                            };
-                            let p = y * w + x;
-                            let t_final = saved.final_t[p];
-                            let gc = [g_img[3 * p], g_img[3 * p + 1], g_img[3 * p + 2]];
-                            let (ga, gd) = (g_alpha[p], g_depth[p]);
-                            let inv = one / (one - alpha);
-                            tr[k] *= inv;
-                            let trk = tr[k];
-                            let wgt = alpha * trk;
-                            acc[6] += gc[0] * wgt;
-                            acc[7] += gc[1] * wgt;
-                            acc[8] += gc[2] * wgt;
-                            acc[9] += gd * wgt;
-                            let bh = &mut behind[k];
-                            let mut g_al = ga * t_final * inv;
-                            for ch in 0..3 {
-                                g_al += gc[ch] * (s.col[ch] * trk - bh[ch] * inv);
-                                bh[ch] += s.col[ch] * wgt;
-                            }
-                            g_al += gd * (s.z * trk - bh[3] * inv);
-                            bh[3] += s.z * wgt;
-                            // alpha(o, power)
-                            let (g_o, g_p) = match self.cutoff {
-                                AlphaCutoff::Hard => {
-                                    if s.o * g > T::of(ALPHA_MAX) {
-                                        (T::zero(), T::zero())
-                                    } else {
-                                        (g_al * g, -g_al * s.o * g)
-                                    }
-                                }
-                                AlphaCutoff::Smooth => {
-                                    let pw = half * (s.a * dx * dx + s.c * dy * dy) + s.b * dx * dy;
-                                    let (wt, dtw) = taper(pw);
-                                    (g_al * g * wt, g_al * s.o * g * (dtw - wt))
-                                }
-                            };
-                            acc[5] += g_o;
-                            acc[2] += g_p * half * dx * dx;
-                            acc[3] += g_p * dx * dy;
-                            acc[4] += g_p * half * dy * dy;
-                            acc[0] -= g_p * (s.a * dx + s.b * dy);
-                            acc[1] -= g_p * (s.b * dx + s.c * dy);
-                        }
+                    for ch in 0..3 {
+                        inp.g_rgb[ch][k] = g_img[3 * p + ch];
                     }
-                    grads[j] = acc;
+                    inp.g_alpha[k] = g_alpha[p];
+                    inp.g_depth[k] = g_depth[p];
+                    inp.t_final[k] = saved.final_t[p];
+                    inp.n_last[k] = saved.n_contrib[p];
                 }
-                grads
+                backward_tile(&splats, rect, self.cutoff, self.background, &inp)
             })
             .collect();
         let mut dm = vec![T::zero(); 2 * n];
@@ -695,7 +477,7 @@ pub struct Rasterized<'t, T: Float> {
 
 /// Rasterizes on the tape, see [`Rasterize`].
 #[allow(clippy::too_many_arguments)]
-pub fn rasterize<'t, T: Float>(
+pub fn rasterize<'t, T: SplatFloat>(
     means2d: Var<'t, T>,
     conics: Var<'t, T>,
     colors: Var<'t, T>,

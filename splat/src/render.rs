@@ -4,6 +4,7 @@
 use maaf_autodiff::{Float, Tape, Tensor, Var};
 
 use crate::Camera;
+use crate::lanes::SplatFloat;
 use crate::project::{Filter2d, NEAR_PLANE, project_ewa, quat_scale_to_cov};
 use crate::rasterize::{AlphaCutoff, rasterize};
 use crate::sh::sh_color;
@@ -82,7 +83,7 @@ impl<T: Float> RenderOutput<'_, T> {
 /// ([`crate::rasterize::Rasterize`]), each an op with a hand-written backward.
 ///
 /// Panics (naming the parameter) if shapes disagree.
-pub fn render<'t, T: Float>(
+pub fn render<'t, T: SplatFloat>(
     tape: &'t Tape<T>,
     g: &GaussianVars<'t, T>,
     camera: &Camera,
@@ -178,7 +179,7 @@ pub struct Frame<T> {
 }
 
 /// Renders activated parameters given as plain tensors (constants on a throw-away tape).
-pub fn render_tensors<T: Float>(
+pub fn render_tensors<T: SplatFloat>(
     means: &Tensor<T>,
     scales: &Tensor<T>,
     quats: &Tensor<T>,

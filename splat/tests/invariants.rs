@@ -1,17 +1,24 @@
-//! Invariants: determinism across thread counts, out-of-view Gaussians change
-//! nothing, non-finite inputs are reported with the op name and never rendered.
+//! Invariants: determinism across thread counts, the f32 (8-pixel lanes) gradients
+//! agree with the f64 (one-lane, finite-difference-checked) ones, out-of-view
+//! Gaussians change nothing, non-finite inputs are reported with the op name and
+//! never rendered.
 #![allow(clippy::unwrap_used)]
 
 mod common;
 
 use maaf_autodiff::{Tape, TapeError, Tensor};
-use maaf_splat::{AlphaCutoff, Filter2d, GaussianVars, RenderSettings, render};
+use maaf_splat::{AlphaCutoff, Filter2d, GaussianVars, RenderSettings, SplatFloat, render};
 
 /// Renders `scene` and backpropagates a fixed weighted loss; returns the image and
 /// every parameter gradient.
-fn forward_backward(scene: &common::Scene<f32>, w: u32, h: u32) -> Vec<Tensor<f32>> {
+fn forward_backward<T: SplatFloat>(
+    scene: &common::Scene<T>,
+    w: u32,
+    h: u32,
+    alpha_cutoff: AlphaCutoff,
+) -> Vec<Tensor<T>> {
     let cam = common::camera(w, h);
-    let t = Tape::<f32>::new();
+    let t = Tape::<T>::new();
     let g = GaussianVars {
         means: t.param("means", scene.means.clone()),
         scales: t.param("scales", scene.scales.clone()),
@@ -21,12 +28,13 @@ fn forward_backward(scene: &common::Scene<f32>, w: u32, h: u32) -> Vec<Tensor<f3
     };
     let s = RenderSettings {
         background: [1.0, 1.0, 1.0],
+        alpha_cutoff,
         ..RenderSettings::default()
     };
     let out = render(&t, &g, &cam, &s);
     let weights = Tensor::from_vec(
         (0..(w * h * 3) as usize)
-            .map(|i| ((i * 7919) % 13) as f32 / 13.0 - 0.4)
+            .map(|i| T::of(((i * 7919) % 13) as f64 / 13.0 - 0.4))
             .collect(),
         &[h as usize, w as usize, 3],
     );
@@ -50,7 +58,7 @@ fn bit_identical_across_thread_counts() {
             .num_threads(threads)
             .build()
             .unwrap()
-            .install(|| forward_backward(&scene, 97, 75))
+            .install(|| forward_backward(&scene, 97, 75, AlphaCutoff::Hard))
     };
     let one = run(1);
     let two = run(2);
@@ -70,6 +78,34 @@ fn bit_identical_across_thread_counts() {
     }
 }
 
+/// The f32 path composites 8 pixels per step (`wide::f32x8`), the f64 path one
+/// (the path the gradchecks cover). On the same scene, both cutoffs, an image with
+/// partial edge tiles, the image and every gradient agree to f32 accuracy: each
+/// output within `1e-4 max|f64|` (the f32 sums carry ~1e-6 relative rounding; a lane
+/// that drops or doubles a term is off by O(1)).
+#[test]
+fn f32_lanes_match_f64_one_lane() {
+    let scene = common::random_scene::<f64>(300, 3, 17);
+    for cut in [AlphaCutoff::Smooth, AlphaCutoff::Hard] {
+        let wide = forward_backward(&scene.cast::<f32>(), 53, 41, cut);
+        let one = forward_backward(&scene, 53, 41, cut);
+        for (k, (a, b)) in wide.iter().zip(&one).enumerate() {
+            let scale = b.data().iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            assert!(scale > 0.0, "output {k} is all zero");
+            let worst = a
+                .data()
+                .iter()
+                .zip(b.data())
+                .map(|(x, y)| (f64::from(*x) - y).abs())
+                .fold(0.0, f64::max);
+            assert!(
+                worst <= 1e-4 * scale,
+                "{cut:?} output {k}: max |f32 - f64| = {worst:e}, max |f64| = {scale:e}"
+            );
+        }
+    }
+}
+
 #[test]
 fn out_of_view_gaussians_change_nothing() {
     let base = common::random_scene::<f32>(50, 2, 8);
@@ -86,8 +122,8 @@ fn out_of_view_gaussians_change_nothing() {
     for (i, p) in places.iter().enumerate() {
         out.means.data_mut()[3 * i..3 * i + 3].copy_from_slice(p);
     }
-    let a = forward_backward(&base, 64, 48);
-    let b = forward_backward(&base.extend(&out), 64, 48);
+    let a = forward_backward(&base, 64, 48, AlphaCutoff::Hard);
+    let b = forward_backward(&base.extend(&out), 64, 48, AlphaCutoff::Hard);
     assert_eq!(a[0], b[0], "image changed");
     let n = base.n();
     // Gradients of the in-view Gaussians are identical; the others get zero.

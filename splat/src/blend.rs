@@ -1,0 +1,368 @@
+//! The blend loop of one 16x16 tile, forward and backward, over pixel lanes
+//! ([`Lanes`]: 8 pixels of a tile row for f32, one for f64).
+//!
+//! Each Gaussian of the tile's sorted list visits only the rows of its pixel box and,
+//! in each row, the lane groups the box touches; lanes outside the support ellipse
+//! (`power > 4.5`), already saturated or outside the image are masked. The per-pixel
+//! operations and their order along the list are those of the textbook per-pixel loop
+//! ([`crate::rasterize::Rasterize`]), so the forward and the backward make the same
+//! decisions lane for lane: both evaluate alpha through [`lane_alpha`] on identical
+//! inputs.
+
+use crate::lanes::{Lanes, SplatFloat};
+use crate::rasterize::{
+    ALPHA_MAX, ALPHA_MIN, AlphaCutoff, SMOOTH_TAPER_START, SUPPORT_POWER, T_MIN, TILE,
+};
+
+/// Pixels of a tile; per-pixel state is stored row-major with stride [`TILE`].
+const NP: usize = TILE * TILE;
+
+/// One Gaussian as the blend loop reads it, with its inclusive pixel box
+/// `[x_lo, x_hi] x [y_lo, y_hi]` in image coordinates.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Splat<T> {
+    pub mx: T,
+    pub my: T,
+    pub a: T,
+    pub b: T,
+    pub c: T,
+    pub o: T,
+    pub col: [T; 3],
+    pub z: T,
+    pub bbox: [u32; 4],
+}
+
+/// A tile: its pixel rectangle `(x0, y0, x1, y1)` (exclusive ends) in the image.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct TileRect {
+    pub x0: usize,
+    pub y0: usize,
+    pub x1: usize,
+    pub y1: usize,
+}
+
+impl TileRect {
+    /// The part of `s`'s pixel box inside the tile as tile-local
+    /// `(row range, lane-group range)`, or `None`.
+    fn span<T, L: Lanes<T>>(&self, s: &Splat<T>) -> Option<(usize, usize, usize, usize)> {
+        let [xl, xh, yl, yh] = s.bbox.map(|v| v as usize);
+        let (lx0, lx1) = (xl.max(self.x0), xh.min(self.x1 - 1));
+        let (ly0, ly1) = (yl.max(self.y0), yh.min(self.y1 - 1));
+        (lx0 <= lx1 && ly0 <= ly1).then(|| {
+            (
+                ly0 - self.y0,
+                ly1 - self.y0,
+                (lx0 - self.x0) / L::N,
+                (lx1 - self.x0) / L::N,
+            )
+        })
+    }
+
+    /// Whether tile-local pixel `k` lies inside the image.
+    fn holds(&self, k: usize) -> bool {
+        self.x0 + k % TILE < self.x1 && self.y0 + k / TILE < self.y1
+    }
+}
+
+/// A Gaussian's parameters broadcast to every lane.
+struct Wide<L> {
+    mx: L,
+    a: L,
+    b: L,
+    c: L,
+    o: L,
+    col: [L; 3],
+    z: L,
+}
+
+impl<L> Wide<L> {
+    fn of<T: Copy>(s: &Splat<T>) -> Self
+    where
+        L: Lanes<T>,
+    {
+        Wide {
+            mx: L::splat(s.mx),
+            a: L::splat(s.a),
+            b: L::splat(s.b),
+            c: L::splat(s.c),
+            o: L::splat(s.o),
+            col: s.col.map(L::splat),
+            z: L::splat(s.z),
+        }
+    }
+}
+
+/// Lane offsets `dx` of the pixel centres `x + 0.5` of lane group `group` of a tile
+/// starting at column `x0` from the mean: computed the same way in forward and
+/// backward so that both see identical bits.
+#[inline(always)]
+fn lane_dx<T: SplatFloat>(x0: usize, group: usize, w: &Wide<T::L>) -> T::L {
+    let first = T::of((x0 + group * T::L::N) as f64);
+    T::L::splat(first) + T::L::ramp() + T::L::splat(T::of(0.5)) - w.mx
+}
+
+/// What [`lane_alpha`] returns per lane.
+struct Alpha<L: Lanes<T>, T> {
+    /// Whether the Gaussian counts at the pixel.
+    ok: L::Mask,
+    /// Its alpha there (meaningful where `ok`).
+    alpha: L,
+    /// `exp(-power)`.
+    g: L,
+    /// `power`.
+    p: L,
+}
+
+/// `power = (A dx^2 + C dy^2)/2 + B dx dy`, `g = exp(-power)` and alpha with the
+/// [`AlphaCutoff`] rules: hard `alpha = min(0.99, o g)`, counted when
+/// `0 <= power <= 4.5` and `o g >= 1/255`; smooth `alpha = o g w(power)`, counted when
+/// positive.
+#[inline(always)]
+fn lane_alpha<T: SplatFloat>(
+    cut: AlphaCutoff,
+    w: &Wide<T::L>,
+    dx: T::L,
+    dy: T::L,
+) -> Alpha<T::L, T> {
+    let l = T::L::splat;
+    let p = l(T::of(0.5)) * (w.a * dx * dx + w.c * dy * dy) + w.b * dx * dy;
+    let in_support = p.ge(l(T::zero())) & p.le(l(T::of(SUPPORT_POWER)));
+    let g = (-p).exp();
+    match cut {
+        AlphaCutoff::Hard => {
+            let a = w.o * g;
+            Alpha {
+                ok: in_support & a.ge(l(T::of(ALPHA_MIN))),
+                alpha: a.min(l(T::of(ALPHA_MAX))),
+                g,
+                p,
+            }
+        }
+        AlphaCutoff::Smooth => {
+            let (wt, _) = taper::<T>(p);
+            let a = w.o * g * wt;
+            Alpha {
+                ok: in_support & a.gt(l(T::zero())),
+                alpha: a,
+                g,
+                p,
+            }
+        }
+    }
+}
+
+/// The C1 taper of [`AlphaCutoff::Smooth`], `w = (1 - q^2)^2` for
+/// `q = (power - 2)/(4.5 - 2)` in `[0, 1]` (1 below, 0 above), and `dw/dpower`.
+#[inline(always)]
+fn taper<T: SplatFloat>(p: T::L) -> (T::L, T::L) {
+    let l = T::L::splat;
+    let span = T::of(SUPPORT_POWER - SMOOTH_TAPER_START);
+    let q = (p - l(T::of(SMOOTH_TAPER_START))) / l(span);
+    let s = l(T::one()) - q * q;
+    let below = q.le(l(T::zero()));
+    let above = q.ge(l(T::one()));
+    let w = T::L::select(below, l(T::one()), T::L::select(above, l(T::zero()), s * s));
+    let dw = T::L::select(
+        below | above,
+        l(T::zero()),
+        l(T::of(-4.0)) * s * q / l(span),
+    );
+    (w, dw)
+}
+
+/// Forward result of one tile, per tile pixel (stride [`TILE`]).
+pub(crate) struct TileOut<T> {
+    pub rgb: [Vec<T>; 3],
+    pub t_final: Vec<T>,
+    pub depth: Vec<T>,
+    /// Index (in the tile list) of the last contributor, plus one.
+    pub n: Vec<u32>,
+}
+
+/// Composites `splats` (sorted front to back) over one tile, background included.
+pub(crate) fn forward_tile<T: SplatFloat>(
+    splats: &[Splat<T>],
+    rect: TileRect,
+    cut: AlphaCutoff,
+    background: [T; 3],
+) -> TileOut<T> {
+    let l = T::L::splat;
+    let (zero, one) = (T::zero(), T::one());
+    let hard = cut == AlphaCutoff::Hard;
+    let mut tr = vec![one; NP];
+    let mut rgb = [vec![zero; NP], vec![zero; NP], vec![zero; NP]];
+    let mut depth = vec![zero; NP];
+    let mut n = vec![0u32; NP];
+    // 1 while a pixel still takes contributions, 0 once saturated or off-image.
+    let mut live: Vec<T> = (0..NP)
+        .map(|k| if rect.holds(k) { one } else { zero })
+        .collect();
+    let mut n_live = live.iter().filter(|&&v| v > zero).count();
+    for (j, s) in splats.iter().enumerate() {
+        if n_live == 0 {
+            break;
+        }
+        let Some((r0, r1, g0, g1)) = rect.span::<T, T::L>(s) else {
+            continue;
+        };
+        let w = Wide::<T::L>::of(s);
+        for row in r0..=r1 {
+            let dy = l(T::of((rect.y0 + row) as f64) + T::of(0.5) - s.my);
+            for group in g0..=g1 {
+                let k = row * TILE + group * T::L::N;
+                let dx = lane_dx::<T>(rect.x0, group, &w);
+                let al = lane_alpha::<T>(cut, &w, dx, dy);
+                let ok = al.ok & T::L::load(&live[k..]).gt(l(zero));
+                if T::L::bits(ok) == 0 {
+                    continue;
+                }
+                let t = T::L::load(&tr[k..]);
+                let next = t * (l(one) - al.alpha);
+                let blend = if hard {
+                    let stop = ok & next.lt(l(T::of(T_MIN)));
+                    let stopped = T::L::bits(stop);
+                    if stopped != 0 {
+                        T::L::select(stop, l(zero), T::L::load(&live[k..])).store(&mut live[k..]);
+                        n_live -= stopped.count_ones() as usize;
+                    }
+                    ok & !stop
+                } else {
+                    ok
+                };
+                let wgt = T::L::select(blend, al.alpha * t, l(zero));
+                for ch in 0..3 {
+                    (T::L::load(&rgb[ch][k..]) + w.col[ch] * wgt).store(&mut rgb[ch][k..]);
+                }
+                (T::L::load(&depth[k..]) + w.z * wgt).store(&mut depth[k..]);
+                T::L::select(blend, next, t).store(&mut tr[k..]);
+                let mut bits = T::L::bits(blend);
+                while bits != 0 {
+                    n[k + bits.trailing_zeros() as usize] = j as u32 + 1;
+                    bits &= bits - 1;
+                }
+            }
+        }
+    }
+    for ch in 0..3 {
+        for (v, &t) in rgb[ch].iter_mut().zip(&tr) {
+            *v += t * background[ch];
+        }
+    }
+    TileOut {
+        rgb,
+        t_final: tr,
+        depth,
+        n,
+    }
+}
+
+/// Per-pixel inputs of the backward of one tile (stride [`TILE`]; off-image pixels
+/// have `n_last = 0`).
+pub(crate) struct TileGrads<T> {
+    /// Cotangent of the colour.
+    pub g_rgb: [Vec<T>; 3],
+    /// Cotangent of the accumulated alpha.
+    pub g_alpha: Vec<T>,
+    /// Cotangent of the depth.
+    pub g_depth: Vec<T>,
+    /// Final transmittance from the forward.
+    pub t_final: Vec<T>,
+    /// Last contributor plus one, from the forward.
+    pub n_last: Vec<u32>,
+}
+
+/// Backward of [`forward_tile`]: walks each pixel back to front from its last
+/// contributor, recovering `T_i = T_{i+1} / (1 - alpha_i)`, and returns one gradient
+/// row per list entry: `d/d(mx, my, A, B, C, o, r, g, b, z)`.
+pub(crate) fn backward_tile<T: SplatFloat>(
+    splats: &[Splat<T>],
+    rect: TileRect,
+    cut: AlphaCutoff,
+    background: [T; 3],
+    inp: &TileGrads<T>,
+) -> Vec<[T; 10]> {
+    let l = T::L::splat;
+    let (zero, one, half) = (T::zero(), T::one(), T::of(0.5));
+    let mut grads = vec![[zero; 10]; splats.len()];
+    let mut tr = inp.t_final.clone();
+    let mut behind: [Vec<T>; 4] = [
+        tr.iter().map(|&t| background[0] * t).collect(),
+        tr.iter().map(|&t| background[1] * t).collect(),
+        tr.iter().map(|&t| background[2] * t).collect(),
+        vec![zero; NP],
+    ];
+    // Pixels join the walk at their last contributor: `active` turns 1 when
+    // `j < n_last`. `order` lists pixels by decreasing `n_last`.
+    let mut order: Vec<usize> = (0..NP).filter(|&k| inp.n_last[k] > 0).collect();
+    order.sort_by_key(|&k| std::cmp::Reverse(inp.n_last[k]));
+    let mut active = [zero; NP];
+    let mut next_in = 0;
+    let jmax = order.first().map_or(0, |&k| inp.n_last[k] as usize);
+    for j in (0..jmax).rev() {
+        while next_in < order.len() && inp.n_last[order[next_in]] as usize > j {
+            active[order[next_in]] = one;
+            next_in += 1;
+        }
+        let s = &splats[j];
+        let Some((r0, r1, g0, g1)) = rect.span::<T, T::L>(s) else {
+            continue;
+        };
+        let w = Wide::<T::L>::of(s);
+        let mut acc = [l(zero); 10];
+        for row in r0..=r1 {
+            let dy = l(T::of((rect.y0 + row) as f64) + half - s.my);
+            for group in g0..=g1 {
+                let k = row * TILE + group * T::L::N;
+                let dx = lane_dx::<T>(rect.x0, group, &w);
+                let al = lane_alpha::<T>(cut, &w, dx, dy);
+                let m = al.ok & T::L::load(&active[k..]).gt(l(zero));
+                if T::L::bits(m) == 0 {
+                    continue;
+                }
+                let pick = |v: T::L| T::L::select(m, v, l(zero));
+                let alpha = al.alpha;
+                let inv = l(one) / (l(one) - alpha);
+                let t = T::L::select(m, T::L::load(&tr[k..]) * inv, T::L::load(&tr[k..]));
+                t.store(&mut tr[k..]);
+                let wgt = alpha * t;
+                let gc = [0, 1, 2].map(|ch| T::L::load(&inp.g_rgb[ch][k..]));
+                let gd = T::L::load(&inp.g_depth[k..]);
+                let mut g_al = T::L::load(&inp.g_alpha[k..]) * T::L::load(&inp.t_final[k..]) * inv;
+                for ch in 0..3 {
+                    acc[6 + ch] = acc[6 + ch] + pick(gc[ch] * wgt);
+                    let bh = T::L::load(&behind[ch][k..]);
+                    g_al = g_al + gc[ch] * (w.col[ch] * t - bh * inv);
+                    T::L::select(m, bh + w.col[ch] * wgt, bh).store(&mut behind[ch][k..]);
+                }
+                acc[9] = acc[9] + pick(gd * wgt);
+                let bh = T::L::load(&behind[3][k..]);
+                g_al = g_al + gd * (w.z * t - bh * inv);
+                T::L::select(m, bh + w.z * wgt, bh).store(&mut behind[3][k..]);
+                let og = w.o * al.g;
+                let (g_o, g_p) = match cut {
+                    AlphaCutoff::Hard => {
+                        // The 0.99 clamp is active: alpha does not depend on o or power.
+                        let free = !og.gt(l(T::of(ALPHA_MAX)));
+                        (
+                            T::L::select(free, g_al * al.g, l(zero)),
+                            T::L::select(free, -(g_al * og), l(zero)),
+                        )
+                    }
+                    AlphaCutoff::Smooth => {
+                        let (wt, dwt) = taper::<T>(al.p);
+                        (g_al * al.g * wt, g_al * og * (dwt - wt))
+                    }
+                };
+                let g_p = pick(g_p);
+                acc[5] = acc[5] + pick(g_o);
+                acc[2] = acc[2] + g_p * l(half) * dx * dx;
+                acc[3] = acc[3] + g_p * dx * dy;
+                acc[4] = acc[4] + g_p * l(half) * dy * dy;
+                acc[0] = acc[0] - g_p * (w.a * dx + w.b * dy);
+                acc[1] = acc[1] - g_p * (w.b * dx + w.c * dy);
+            }
+        }
+        grads[j] = acc.map(|v| v.sum());
+    }
+    grads
+}
