@@ -1,12 +1,13 @@
 //! Training smoke tests on the real D-NeRF mutant scene at a tiny scale: the loss
-//! falls, resume is bit-identical, a NaN is caught and never checkpointed.
+//! falls, resume is bit-identical, a NaN is caught and never checkpointed, and one
+//! densification plan resizes every per-Gaussian container in lock-step.
 
 use std::path::PathBuf;
 
-use maaf_autodiff::Tensor;
+use maaf_autodiff::{PerGaussian, Tensor};
 use maaf_filter::FilterKind;
 use maaf_train::data::{Dataset, DatasetOptions};
-use maaf_train::trainer::{TrainConfig, Trainer, load_checkpoint, save_checkpoint};
+use maaf_train::trainer::{DensifyPlan, TrainConfig, Trainer, load_checkpoint, save_checkpoint};
 
 fn mutant() -> Option<Dataset> {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/dnerf/mutant");
@@ -146,4 +147,126 @@ fn a_nan_is_caught_and_never_checkpointed() {
         let bad = p.data().iter().filter(|v| !v.is_finite()).count();
         assert_eq!(bad, usize::from(n == name), "{n}");
     }
+}
+
+/// After clone, split and prune through `Trainer::apply_plan`, the parameters, their
+/// Adam moments, the motion filter's curves, the observation table and the
+/// densification statistics all have the new length, survivors keep their values
+/// bit for bit, the overwritten rows carry the planned centres and scales, and
+/// training goes on at the new size.
+#[test]
+fn one_plan_resizes_every_container_in_lock_step() {
+    let Some(data) = mutant() else { return };
+    let mut t = Trainer::new(&data, tiny_config(FilterKind::Motion)).expect("trainer");
+    for _ in 0..45 {
+        t.step();
+    }
+    let n = t.num_gaussians();
+    assert!(n > 20, "{n} Gaussians");
+    let before = params(&mut t);
+    let per_gaussian: Vec<String> = t
+        .model
+        .params_mut()
+        .into_iter()
+        .filter(|s| s.per_gaussian)
+        .map(|s| s.name)
+        .collect();
+    let moments: Vec<_> = per_gaussian
+        .iter()
+        .map(|p| t.adam.moments(p).expect("moments after 45 steps").clone())
+        .collect();
+    let nu_before = t.filter.variance_at(0.4);
+    assert!(nu_before.iter().any(|&v| v > 0.0), "the filter has state");
+    let obs_before: Vec<Vec<f32>> = (0..n).map(|i| t.observations.row(i).to_vec()).collect();
+
+    // Prune rows 0 and 5, keep the rest, clone row 3, split row 7 (two halves, the
+    // original dropped).
+    let mut index: Vec<usize> = (0..n).filter(|&i| i != 0 && i != 5 && i != 7).collect();
+    let survivors = index.len();
+    index.extend([3, 7, 7]);
+    let new_rows = vec![survivors + 1, survivors + 2];
+    let new_means = vec![0.1, 0.2, 0.3, -0.1, -0.2, -0.3];
+    let new_scales = vec![0.01, 0.02, 0.03, 0.04, 0.05, 0.06];
+    let plan = DensifyPlan {
+        index: index.clone(),
+        new_rows: new_rows.clone(),
+        new_means: new_means.clone(),
+        new_scales: new_scales.clone(),
+        cloned: 1,
+        split: 1,
+        pruned: 2,
+    };
+    t.apply_plan(&plan);
+
+    let m = index.len();
+    assert_eq!(t.num_gaussians(), m);
+    assert_eq!(t.filter.rows(), m);
+    assert_eq!(t.observations.rows(), m);
+    assert_eq!(t.stats.grad_accum.len(), m);
+    assert_eq!(t.stats.denom.len(), m);
+    assert_eq!(t.stats.max_radii.len(), m);
+    let after = params(&mut t);
+    for ((name, old), (_, new)) in before.iter().zip(&after) {
+        if !per_gaussian.contains(name) {
+            assert_eq!(old.data(), new.data(), "{name}: shared parameter changed");
+            continue;
+        }
+        assert_eq!(new.rows(), m, "{name}");
+        let w = old.len() / n;
+        for (r, &i) in index.iter().enumerate() {
+            if new_rows.contains(&r) && (name == "xyz" || name == "log_scale") {
+                continue;
+            }
+            assert_eq!(
+                &new.data()[r * w..(r + 1) * w],
+                &old.data()[i * w..(i + 1) * w],
+                "{name}: row {r} (old {i})"
+            );
+        }
+    }
+    for (p, old) in per_gaussian.iter().zip(&moments) {
+        let new = t.adam.moments(p).expect("moments kept");
+        assert_eq!(new.rows(), m, "{p} moments");
+        let w = old.m.len() / n;
+        for (r, &i) in index.iter().enumerate() {
+            assert_eq!(
+                &new.m.data()[r * w..(r + 1) * w],
+                &old.m.data()[i * w..(i + 1) * w]
+            );
+            assert_eq!(
+                &new.v.data()[r * w..(r + 1) * w],
+                &old.v.data()[i * w..(i + 1) * w]
+            );
+        }
+    }
+    let nu_after = t.filter.variance_at(0.4);
+    for (r, &i) in index.iter().enumerate() {
+        assert_eq!(
+            nu_after[r].to_bits(),
+            nu_before[i].to_bits(),
+            "filter row {r}"
+        );
+        assert_eq!(
+            t.observations.row(r),
+            obs_before[i].as_slice(),
+            "observations row {r}"
+        );
+    }
+    // The planned centres and scales landed in the new rows.
+    let canon = t.model.canonical();
+    for (j, &r) in new_rows.iter().enumerate() {
+        assert_eq!(
+            &canon.means.data()[3 * r..3 * r + 3],
+            &new_means[3 * j..3 * j + 3]
+        );
+        let s = &canon.scales.data()[3 * r..3 * r + 3];
+        for (a, b) in s.iter().zip(&new_scales[3 * j..3 * j + 3]) {
+            assert!((a - b).abs() <= 1e-6 * b, "scale of row {r}: {a} vs {b}");
+        }
+    }
+    for _ in 0..3 {
+        t.step();
+    }
+    assert_eq!(t.skipped_steps, 0);
+    assert_eq!(t.num_gaussians(), m);
 }
