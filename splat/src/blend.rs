@@ -101,6 +101,20 @@ fn lane_dx<T: SplatFloat>(x0: usize, group: usize, w: &Wide<T::L>) -> T::L {
     T::L::splat(first) + T::L::ramp() + T::L::splat(T::of(0.5)) - w.mx
 }
 
+/// `power = (A dx^2 + C dy^2)/2 + B dx dy` per lane and whether it lies in the
+/// support `[0, 4.5]`; groups where no live lane is in the support are skipped
+/// before the exponential.
+#[inline(always)]
+fn lane_power<T: SplatFloat>(
+    w: &Wide<T::L>,
+    dx: T::L,
+    dy: T::L,
+) -> (T::L, <T::L as Lanes<T>>::Mask) {
+    let l = T::L::splat;
+    let p = l(T::of(0.5)) * (w.a * dx * dx + w.c * dy * dy) + w.b * dx * dy;
+    (p, p.ge(l(T::zero())) & p.le(l(T::of(SUPPORT_POWER))))
+}
+
 /// What [`lane_alpha`] returns per lane.
 struct Alpha<L: Lanes<T>, T> {
     /// Whether the Gaussian counts at the pixel.
@@ -113,20 +127,17 @@ struct Alpha<L: Lanes<T>, T> {
     p: L,
 }
 
-/// `power = (A dx^2 + C dy^2)/2 + B dx dy`, `g = exp(-power)` and alpha with the
-/// [`AlphaCutoff`] rules: hard `alpha = min(0.99, o g)`, counted when
-/// `0 <= power <= 4.5` and `o g >= 1/255`; smooth `alpha = o g w(power)`, counted when
-/// positive.
+/// `g = exp(-power)` and alpha with the [`AlphaCutoff`] rules: hard
+/// `alpha = min(0.99, o g)`, counted when `0 <= power <= 4.5` and `o g >= 1/255`;
+/// smooth `alpha = o g w(power)`, counted when positive.
 #[inline(always)]
 fn lane_alpha<T: SplatFloat>(
     cut: AlphaCutoff,
     w: &Wide<T::L>,
-    dx: T::L,
-    dy: T::L,
+    p: T::L,
+    in_support: <T::L as Lanes<T>>::Mask,
 ) -> Alpha<T::L, T> {
     let l = T::L::splat;
-    let p = l(T::of(0.5)) * (w.a * dx * dx + w.c * dy * dy) + w.b * dx * dy;
-    let in_support = p.ge(l(T::zero())) & p.le(l(T::of(SUPPORT_POWER)));
     let g = (-p).exp();
     match cut {
         AlphaCutoff::Hard => {
@@ -211,8 +222,13 @@ pub(crate) fn forward_tile<T: SplatFloat>(
             for group in g0..=g1 {
                 let k = row * TILE + group * T::L::N;
                 let dx = lane_dx::<T>(rect.x0, group, &w);
-                let al = lane_alpha::<T>(cut, &w, dx, dy);
-                let ok = al.ok & T::L::load(&live[k..]).gt(l(zero));
+                let (p, in_support) = lane_power::<T>(&w, dx, dy);
+                let in_support = in_support & T::L::load(&live[k..]).gt(l(zero));
+                if T::L::bits(in_support) == 0 {
+                    continue;
+                }
+                let al = lane_alpha::<T>(cut, &w, p, in_support);
+                let ok = al.ok;
                 if T::L::bits(ok) == 0 {
                     continue;
                 }
@@ -314,8 +330,13 @@ pub(crate) fn backward_tile<T: SplatFloat>(
             for group in g0..=g1 {
                 let k = row * TILE + group * T::L::N;
                 let dx = lane_dx::<T>(rect.x0, group, &w);
-                let al = lane_alpha::<T>(cut, &w, dx, dy);
-                let m = al.ok & T::L::load(&active[k..]).gt(l(zero));
+                let (p, in_support) = lane_power::<T>(&w, dx, dy);
+                let in_support = in_support & T::L::load(&active[k..]).gt(l(zero));
+                if T::L::bits(in_support) == 0 {
+                    continue;
+                }
+                let al = lane_alpha::<T>(cut, &w, p, in_support);
+                let m = al.ok;
                 if T::L::bits(m) == 0 {
                     continue;
                 }
