@@ -58,9 +58,11 @@ impl TileRect {
         })
     }
 
-    /// Whether tile-local pixel `k` lies inside the image.
-    fn holds(&self, k: usize) -> bool {
-        self.x0 + k % TILE < self.x1 && self.y0 + k / TILE < self.y1
+    /// Image index `y * width + x` of tile-local pixel `k` (stride [`TILE`]), or
+    /// `None` when `k` lies outside the image.
+    pub fn image_pixel(&self, k: usize, width: usize) -> Option<usize> {
+        let (x, y) = (self.x0 + k % TILE, self.y0 + k / TILE);
+        (x < self.x1 && y < self.y1).then_some(y * width + x)
     }
 }
 
@@ -181,6 +183,50 @@ fn taper<T: SplatFloat>(p: T::L) -> (T::L, T::L) {
     (w, dw)
 }
 
+/// One lane group where the Gaussian counts at some lane: tile-local index `k` of
+/// its first pixel, the offsets from the mean and alpha.
+struct Group<L: Lanes<T>, T> {
+    k: usize,
+    dx: L,
+    dy: L,
+    al: Alpha<L, T>,
+}
+
+/// Walks the lane groups of `s`'s pixel box inside `rect` and calls `f` for each
+/// group where some lane is in the support, open in `gate` (1 open, 0 closed) and
+/// counted under `cut`; `f` gets the gate back to close lanes. Forward and backward
+/// both walk through here, so they make the same decisions lane for lane.
+#[inline(always)]
+fn for_each_group<T: SplatFloat>(
+    rect: TileRect,
+    s: &Splat<T>,
+    cut: AlphaCutoff,
+    gate: &mut [T],
+    mut f: impl FnMut(&Wide<T::L>, Group<T::L, T>, &mut [T]),
+) {
+    let l = T::L::splat;
+    let Some((r0, r1, g0, g1)) = rect.span::<T, T::L>(s) else {
+        return;
+    };
+    let w = Wide::<T::L>::of(s);
+    for row in r0..=r1 {
+        let dy = l(T::of((rect.y0 + row) as f64) + T::of(0.5) - s.my);
+        for group in g0..=g1 {
+            let k = row * TILE + group * T::L::N;
+            let dx = lane_dx::<T>(rect.x0, group, &w);
+            let (p, in_support) = lane_power::<T>(&w, dx, dy);
+            let in_support = in_support & T::L::load(&gate[k..]).gt(l(T::zero()));
+            if T::L::bits(in_support) == 0 {
+                continue;
+            }
+            let al = lane_alpha::<T>(cut, &w, p, in_support);
+            if T::L::bits(al.ok) != 0 {
+                f(&w, Group { k, dx, dy, al }, gate);
+            }
+        }
+    }
+}
+
 /// Forward result of one tile, per tile pixel (stride [`TILE`]).
 pub(crate) struct TileOut<T> {
     pub rgb: [Vec<T>; 3],
@@ -206,58 +252,46 @@ pub(crate) fn forward_tile<T: SplatFloat>(
     let mut n = vec![0u32; NP];
     // 1 while a pixel still takes contributions, 0 once saturated or off-image.
     let mut live: Vec<T> = (0..NP)
-        .map(|k| if rect.holds(k) { one } else { zero })
+        .map(|k| {
+            if rect.image_pixel(k, 0).is_some() {
+                one
+            } else {
+                zero
+            }
+        })
         .collect();
-    let mut n_live = live.iter().filter(|&&v| v > zero).count();
+    let mut n_live = (rect.x1 - rect.x0) * (rect.y1 - rect.y0);
     for (j, s) in splats.iter().enumerate() {
         if n_live == 0 {
             break;
         }
-        let Some((r0, r1, g0, g1)) = rect.span::<T, T::L>(s) else {
-            continue;
-        };
-        let w = Wide::<T::L>::of(s);
-        for row in r0..=r1 {
-            let dy = l(T::of((rect.y0 + row) as f64) + T::of(0.5) - s.my);
-            for group in g0..=g1 {
-                let k = row * TILE + group * T::L::N;
-                let dx = lane_dx::<T>(rect.x0, group, &w);
-                let (p, in_support) = lane_power::<T>(&w, dx, dy);
-                let in_support = in_support & T::L::load(&live[k..]).gt(l(zero));
-                if T::L::bits(in_support) == 0 {
-                    continue;
+        for_each_group(rect, s, cut, &mut live, |w, g, live| {
+            let (k, ok) = (g.k, g.al.ok);
+            let t = T::L::load(&tr[k..]);
+            let next = t * (l(one) - g.al.alpha);
+            let blend = if hard {
+                let stop = ok & next.lt(l(T::of(T_MIN)));
+                let stopped = T::L::bits(stop);
+                if stopped != 0 {
+                    T::L::select(stop, l(zero), T::L::load(&live[k..])).store(&mut live[k..]);
+                    n_live -= stopped.count_ones() as usize;
                 }
-                let al = lane_alpha::<T>(cut, &w, p, in_support);
-                let ok = al.ok;
-                if T::L::bits(ok) == 0 {
-                    continue;
-                }
-                let t = T::L::load(&tr[k..]);
-                let next = t * (l(one) - al.alpha);
-                let blend = if hard {
-                    let stop = ok & next.lt(l(T::of(T_MIN)));
-                    let stopped = T::L::bits(stop);
-                    if stopped != 0 {
-                        T::L::select(stop, l(zero), T::L::load(&live[k..])).store(&mut live[k..]);
-                        n_live -= stopped.count_ones() as usize;
-                    }
-                    ok & !stop
-                } else {
-                    ok
-                };
-                let wgt = T::L::select(blend, al.alpha * t, l(zero));
-                for ch in 0..3 {
-                    (T::L::load(&rgb[ch][k..]) + w.col[ch] * wgt).store(&mut rgb[ch][k..]);
-                }
-                (T::L::load(&depth[k..]) + w.z * wgt).store(&mut depth[k..]);
-                T::L::select(blend, next, t).store(&mut tr[k..]);
-                let mut bits = T::L::bits(blend);
-                while bits != 0 {
-                    n[k + bits.trailing_zeros() as usize] = j as u32 + 1;
-                    bits &= bits - 1;
-                }
+                ok & !stop
+            } else {
+                ok
+            };
+            let wgt = T::L::select(blend, g.al.alpha * t, l(zero));
+            for ch in 0..3 {
+                (T::L::load(&rgb[ch][k..]) + w.col[ch] * wgt).store(&mut rgb[ch][k..]);
             }
-        }
+            (T::L::load(&depth[k..]) + w.z * wgt).store(&mut depth[k..]);
+            T::L::select(blend, next, t).store(&mut tr[k..]);
+            let mut bits = T::L::bits(blend);
+            while bits != 0 {
+                n[k + bits.trailing_zeros() as usize] = j as u32 + 1;
+                bits &= bits - 1;
+            }
+        });
     }
     for ch in 0..3 {
         for (v, &t) in rgb[ch].iter_mut().zip(&tr) {
@@ -319,70 +353,53 @@ pub(crate) fn backward_tile<T: SplatFloat>(
             active[order[next_in]] = one;
             next_in += 1;
         }
-        let s = &splats[j];
-        let Some((r0, r1, g0, g1)) = rect.span::<T, T::L>(s) else {
-            continue;
-        };
-        let w = Wide::<T::L>::of(s);
         let mut acc = [l(zero); 10];
-        for row in r0..=r1 {
-            let dy = l(T::of((rect.y0 + row) as f64) + half - s.my);
-            for group in g0..=g1 {
-                let k = row * TILE + group * T::L::N;
-                let dx = lane_dx::<T>(rect.x0, group, &w);
-                let (p, in_support) = lane_power::<T>(&w, dx, dy);
-                let in_support = in_support & T::L::load(&active[k..]).gt(l(zero));
-                if T::L::bits(in_support) == 0 {
-                    continue;
-                }
-                let al = lane_alpha::<T>(cut, &w, p, in_support);
-                let m = al.ok;
-                if T::L::bits(m) == 0 {
-                    continue;
-                }
-                let pick = |v: T::L| T::L::select(m, v, l(zero));
-                let alpha = al.alpha;
-                let inv = l(one) / (l(one) - alpha);
-                let t = T::L::select(m, T::L::load(&tr[k..]) * inv, T::L::load(&tr[k..]));
-                t.store(&mut tr[k..]);
-                let wgt = alpha * t;
-                let gc = [0, 1, 2].map(|ch| T::L::load(&inp.g_rgb[ch][k..]));
-                let gd = T::L::load(&inp.g_depth[k..]);
-                let mut g_al = T::L::load(&inp.g_alpha[k..]) * T::L::load(&inp.t_final[k..]) * inv;
-                for ch in 0..3 {
-                    acc[6 + ch] = acc[6 + ch] + pick(gc[ch] * wgt);
-                    let bh = T::L::load(&behind[ch][k..]);
-                    g_al = g_al + gc[ch] * (w.col[ch] * t - bh * inv);
-                    T::L::select(m, bh + w.col[ch] * wgt, bh).store(&mut behind[ch][k..]);
-                }
-                acc[9] = acc[9] + pick(gd * wgt);
-                let bh = T::L::load(&behind[3][k..]);
-                g_al = g_al + gd * (w.z * t - bh * inv);
-                T::L::select(m, bh + w.z * wgt, bh).store(&mut behind[3][k..]);
-                let og = w.o * al.g;
-                let (g_o, g_p) = match cut {
-                    AlphaCutoff::Hard => {
-                        // The 0.99 clamp is active: alpha does not depend on o or power.
-                        let free = !og.gt(l(T::of(ALPHA_MAX)));
-                        (
-                            T::L::select(free, g_al * al.g, l(zero)),
-                            T::L::select(free, -(g_al * og), l(zero)),
-                        )
-                    }
-                    AlphaCutoff::Smooth => {
-                        let (wt, dwt) = taper::<T>(al.p);
-                        (g_al * al.g * wt, g_al * og * (dwt - wt))
-                    }
-                };
-                let g_p = pick(g_p);
-                acc[5] = acc[5] + pick(g_o);
-                acc[2] = acc[2] + g_p * l(half) * dx * dx;
-                acc[3] = acc[3] + g_p * dx * dy;
-                acc[4] = acc[4] + g_p * l(half) * dy * dy;
-                acc[0] = acc[0] - g_p * (w.a * dx + w.b * dy);
-                acc[1] = acc[1] - g_p * (w.b * dx + w.c * dy);
+        for_each_group(rect, &splats[j], cut, &mut active, |w, g, _| {
+            let Group { k, dx, dy, al } = g;
+            let m = al.ok;
+            let pick = |v: T::L| T::L::select(m, v, l(zero));
+            let alpha = al.alpha;
+            let inv = l(one) / (l(one) - alpha);
+            let t_behind = T::L::load(&tr[k..]);
+            let t = T::L::select(m, t_behind * inv, t_behind);
+            t.store(&mut tr[k..]);
+            let wgt = alpha * t;
+            let gc = [0, 1, 2].map(|ch| T::L::load(&inp.g_rgb[ch][k..]));
+            let gd = T::L::load(&inp.g_depth[k..]);
+            let mut g_al = T::L::load(&inp.g_alpha[k..]) * T::L::load(&inp.t_final[k..]) * inv;
+            for ch in 0..3 {
+                acc[6 + ch] = acc[6 + ch] + pick(gc[ch] * wgt);
+                let bh = T::L::load(&behind[ch][k..]);
+                g_al = g_al + gc[ch] * (w.col[ch] * t - bh * inv);
+                T::L::select(m, bh + w.col[ch] * wgt, bh).store(&mut behind[ch][k..]);
             }
-        }
+            acc[9] = acc[9] + pick(gd * wgt);
+            let bh = T::L::load(&behind[3][k..]);
+            g_al = g_al + gd * (w.z * t - bh * inv);
+            T::L::select(m, bh + w.z * wgt, bh).store(&mut behind[3][k..]);
+            let og = w.o * al.g;
+            let (g_o, g_p) = match cut {
+                AlphaCutoff::Hard => {
+                    // The 0.99 clamp is active: alpha does not depend on o or power.
+                    let free = !og.gt(l(T::of(ALPHA_MAX)));
+                    (
+                        T::L::select(free, g_al * al.g, l(zero)),
+                        T::L::select(free, -(g_al * og), l(zero)),
+                    )
+                }
+                AlphaCutoff::Smooth => {
+                    let (wt, dwt) = taper::<T>(al.p);
+                    (g_al * al.g * wt, g_al * og * (dwt - wt))
+                }
+            };
+            let g_p = pick(g_p);
+            acc[5] = acc[5] + pick(g_o);
+            acc[2] = acc[2] + g_p * l(half) * dx * dx;
+            acc[3] = acc[3] + g_p * dx * dy;
+            acc[4] = acc[4] + g_p * l(half) * dy * dy;
+            acc[0] = acc[0] - g_p * (w.a * dx + w.b * dy);
+            acc[1] = acc[1] - g_p * (w.b * dx + w.c * dy);
+        });
         grads[j] = acc.map(|v| v.sum());
     }
     grads

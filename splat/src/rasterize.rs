@@ -285,12 +285,6 @@ fn tile_pixels(t: usize, tiles_x: usize, w: u32, h: u32) -> TileRect {
     }
 }
 
-/// Image pixel of tile-local pixel `k` (stride [`TILE`]) when it is inside the tile.
-fn image_pixel(rect: TileRect, k: usize, w: usize) -> Option<usize> {
-    let (x, y) = (rect.x0 + k % TILE, rect.y0 + k / TILE);
-    (x < rect.x1 && y < rect.y1).then_some(y * w + x)
-}
-
 impl<T: SplatFloat> Op<T> for Rasterize<T> {
     type Saved = RasterSaved<T>;
 
@@ -352,7 +346,7 @@ impl<T: SplatFloat> Op<T> for Rasterize<T> {
         for (t, out) in tiles.iter().enumerate() {
             let rect = tile_pixels(t, bins.tiles_x, self.width, self.height);
             for k in 0..TILE * TILE {
-                let Some(p) = image_pixel(rect, k, w) else {
+                let Some(p) = rect.image_pixel(k, w) else {
                     continue;
                 };
                 for ch in 0..3 {
@@ -419,7 +413,7 @@ impl<T: SplatFloat> Op<T> for Rasterize<T> {
                     n_last: vec![0; np],
                 };
                 for k in 0..np {
-                    let Some(p) = image_pixel(rect, k, w) else {
+                    let Some(p) = rect.image_pixel(k, w) else {
                         continue;
                     };
                     for ch in 0..3 {

@@ -1,4 +1,4 @@
-//! Invariants: determinism across thread counts, the f32 (8-pixel lanes) gradients
+//! Invariants: determinism across thread counts, the f32 (4-pixel lanes) gradients
 //! agree with the f64 (one-lane, finite-difference-checked) ones, out-of-view
 //! Gaussians change nothing, non-finite inputs are reported with the op name and
 //! never rendered.
@@ -78,7 +78,7 @@ fn bit_identical_across_thread_counts() {
     }
 }
 
-/// The f32 path composites 8 pixels per step (`wide::f32x8`), the f64 path one
+/// The f32 path composites 4 pixels per step (`wide::f32x4`), the f64 path one
 /// (the path the gradchecks cover). On the same scene, both cutoffs, an image with
 /// partial edge tiles, the image and every gradient agree to f32 accuracy: each
 /// output within `1e-4 max|f64|` (the f32 sums carry ~1e-6 relative rounding; a lane
