@@ -310,7 +310,7 @@ impl<T: Float> Tape<T> {
                 });
             }
             if node.requires_grad {
-                accumulate(&mut grads[var.id], seed);
+                accumulate(&mut grads[var.id], seed.clone());
             }
         }
         for record in inner.records.iter().rev() {
@@ -358,7 +358,7 @@ impl<T: Float> Tape<T> {
                 input_grads.len(),
                 inputs.len()
             );
-            for (k, (g, &input)) in input_grads.iter().zip(&record.inputs).enumerate() {
+            for (k, (g, &input)) in input_grads.into_iter().zip(&record.inputs).enumerate() {
                 let Some(g) = g else { continue };
                 if !needs_grad[k] {
                     continue;
@@ -389,10 +389,11 @@ impl<T: Float> Tape<T> {
     }
 }
 
-fn accumulate<T: Float>(slot: &mut Option<Tensor<T>>, g: &Tensor<T>) {
+/// Adds `g` into `slot`; the first cotangent of a value is moved in, not copied.
+fn accumulate<T: Float>(slot: &mut Option<Tensor<T>>, g: Tensor<T>) {
     match slot {
-        Some(acc) => acc.add_assign(g),
-        None => *slot = Some(g.clone()),
+        Some(acc) => acc.add_assign(&g),
+        None => *slot = Some(g),
     }
 }
 
