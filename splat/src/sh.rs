@@ -180,24 +180,35 @@ impl<T: Float> Op<T> for ShColor<T> {
         let mut dsh = vec![T::zero(); sh.len()];
         dm.par_chunks_mut(3)
             .zip(dsh.par_chunks_mut(3 * k))
+            .zip(sh.data().par_chunks(3 * k))
             .enumerate()
-            .for_each(|(i, (dm, dsh))| {
+            .for_each(|(i, ((dm, dsh), coeffs))| {
                 let (d, len) = self.dir(&means.data()[3 * i..3 * i + 3]);
                 let b = sh_basis(d);
                 let db = sh_basis_grad(d);
-                let coeffs = &sh.data()[3 * k * i..3 * k * (i + 1)];
-                let mut gd = [T::zero(); 3];
-                for ch in 0..3 {
-                    // The clamp max(v, 0) passes no gradient where it is active (v <= 0).
-                    if out.data()[3 * i + ch] <= T::zero() {
-                        continue;
+                // The clamp max(v, 0) passes no gradient where it is active (v <= 0).
+                let gc: [T; 3] = std::array::from_fn(|ch| {
+                    if out.data()[3 * i + ch] > T::zero() {
+                        g.data()[3 * i + ch]
+                    } else {
+                        T::zero()
                     }
-                    let gc = g.data()[3 * i + ch];
-                    for j in 0..nk {
-                        dsh[3 * j + ch] = b[j] * gc;
-                        for a in 0..3 {
-                            gd[a] += gc * coeffs[3 * j + ch] * db[j][a];
-                        }
+                });
+                // d colour_c / d sh[j][c] = b_j; d colour / d dir = sum_j (sh[j] . gc) db_j.
+                let mut gd = [T::zero(); 3];
+                for (j, (ds, c)) in dsh
+                    .chunks_exact_mut(3)
+                    .zip(coeffs.chunks_exact(3))
+                    .take(nk)
+                    .enumerate()
+                {
+                    let mut wj = T::zero();
+                    for ch in 0..3 {
+                        ds[ch] = b[j] * gc[ch];
+                        wj += c[ch] * gc[ch];
+                    }
+                    for a in 0..3 {
+                        gd[a] += wj * db[j][a];
                     }
                 }
                 // d = v / |v|: dv = (gd - d (d . gd)) / |v|
