@@ -16,6 +16,7 @@
 // Index loops are the clearest way to write the small matrix algebra here.
 #![allow(clippy::needless_range_loop)]
 
+pub mod binning;
 mod blend;
 pub mod camera;
 pub mod filter3d;

@@ -1,18 +1,17 @@
-//! Tile binning, per-tile depth sort and alpha compositing, forward and backward
+//! The rasterizer op: alpha compositing over 16x16 tiles, forward and backward
 //! (DESIGN.md section 3; Inria `renderCUDA`, gsplat `RasterizeToPixels3DGS*`).
 //!
-//! The image is cut into 16x16 tiles. Every visible Gaussian is listed in each tile
-//! its pixel box `[mean - r, mean + r]` touches; each tile's list is sorted front to
-//! back by `(depth, index)`. Tiles are rendered in parallel (rayon); the backward
+//! Binning and the per-tile depth sort are in [`crate::binning`], the blend loop of
+//! one tile in `blend.rs`. Tiles are rendered in parallel (rayon); the backward
 //! writes per-tile gradient buffers that are summed serially in tile order, so the
 //! result is bit-identical on any number of threads.
 
 use maaf_autodiff::{BackwardCtx, Float, Op, Tensor, Var};
 use rayon::prelude::*;
 
-use crate::blend::{Splat, TileGrads, TileOut, TileRect, backward_tile, forward_tile};
+use crate::binning::{Binning, bin_gaussians};
+use crate::blend::{NP, Splat, TileGrads, TileOut, TileRect, backward_tile, forward_tile};
 use crate::lanes::SplatFloat;
-use crate::project::pixel_range;
 
 /// Tile edge in pixels.
 pub const TILE: usize = 16;
@@ -48,158 +47,6 @@ pub enum AlphaCutoff {
     Smooth,
 }
 
-/// Per-tile sorted Gaussian lists: tile `t` holds `ids[offsets[t]..offsets[t+1]]`.
-#[derive(Clone, Debug, Default)]
-pub struct Binning {
-    /// Tiles along x.
-    pub tiles_x: usize,
-    /// Tiles along y.
-    pub tiles_y: usize,
-    /// Start of each tile's list in `ids` (length `tiles + 1`).
-    pub offsets: Vec<usize>,
-    /// Gaussian indices, each tile's run sorted front to back by `(depth, index)`.
-    pub ids: Vec<u32>,
-    /// Per Gaussian: inclusive pixel box `[x_lo, x_hi, y_lo, y_hi]` of its support
-    /// ellipse in the image (`x_lo > x_hi` when not listed in any tile).
-    pub boxes: Vec<[u32; 4]>,
-}
-
-impl Binning {
-    /// Number of tile-Gaussian pairs.
-    pub fn intersections(&self) -> usize {
-        self.ids.len()
-    }
-
-    /// The sorted list of tile `t`.
-    pub fn tile(&self, t: usize) -> &[u32] {
-        &self.ids[self.offsets[t]..self.offsets[t + 1]]
-    }
-}
-
-/// Inclusive pixel box `[x_lo, x_hi, y_lo, y_hi]` of the pixel centres within
-/// half-extents `(rx, ry)` of `(mx, my)`, clamped to the image, or `None`.
-fn pixel_box(mx: f64, my: f64, rx: f64, ry: f64, w: u32, h: u32) -> Option<[u32; 4]> {
-    let (xl, xh) = pixel_range(mx, rx, w)?;
-    let (yl, yh) = pixel_range(my, ry, h)?;
-    Some([xl, xh, yl, yh])
-}
-
-/// Bins visible Gaussians (`radius > 0`) into 16x16 tiles and sorts each tile's list
-/// by `(depth as f32, index)`; not differentiable.
-///
-/// The box of a Gaussian is the bounding box of its support ellipse `power <= 4.5`,
-/// i.e. half-extents `3 sqrt(Sigma_xx)` and `3 sqrt(Sigma_yy)` of the dilated 2D
-/// covariance `Sigma = conic^-1` (like gsplat's per-axis radius), capped by the
-/// isotropic 3DGS `radius`; a 1e-4 relative margin absorbs rounding so that no pixel
-/// with `power <= 4.5` is ever left out. Flat splats seen edge-on touch far fewer
-/// tiles than with the isotropic radius.
-pub fn bin_gaussians<T: Float>(
-    means2d: &[T],
-    conics: &[T],
-    radii: &[T],
-    depths: &[T],
-    width: u32,
-    height: u32,
-) -> Binning {
-    let tiles_x = (width as usize).div_ceil(TILE);
-    let tiles_y = (height as usize).div_ceil(TILE);
-    let n = radii.len();
-    let boxes: Vec<Option<[u32; 4]>> = (0..n)
-        .into_par_iter()
-        .map(|i| {
-            let r = Float::to_f64(radii[i]);
-            if r > 0.0 {
-                let (a, b, c) = (
-                    Float::to_f64(conics[3 * i]),
-                    Float::to_f64(conics[3 * i + 1]),
-                    Float::to_f64(conics[3 * i + 2]),
-                );
-                let det = a * c - b * b;
-                let ext = |v: f64| {
-                    let e = (9.0 * v / det).sqrt() * (1.0 + 1e-4) + 1e-4;
-                    if e.is_finite() && det > 0.0 {
-                        e.min(r)
-                    } else {
-                        r
-                    }
-                };
-                pixel_box(
-                    Float::to_f64(means2d[2 * i]),
-                    Float::to_f64(means2d[2 * i + 1]),
-                    ext(c),
-                    ext(a),
-                    width,
-                    height,
-                )
-            } else {
-                None
-            }
-        })
-        .collect();
-    let rects: Vec<Option<(usize, usize, usize, usize)>> = boxes
-        .iter()
-        .map(|b| {
-            b.map(|[xl, xh, yl, yh]| {
-                let t = |v: u32| v as usize / TILE;
-                (t(xl), t(xh), t(yl), t(yh))
-            })
-        })
-        .collect();
-    let mut counts = vec![0usize; tiles_x * tiles_y + 1];
-    for (x0, x1, y0, y1) in rects.iter().flatten() {
-        for ty in *y0..=*y1 {
-            for c in &mut counts[ty * tiles_x + x0..=ty * tiles_x + x1] {
-                *c += 1;
-            }
-        }
-    }
-    let mut offsets = vec![0usize; tiles_x * tiles_y + 1];
-    for t in 0..tiles_x * tiles_y {
-        offsets[t + 1] = offsets[t] + counts[t];
-    }
-    let mut cursor = offsets.clone();
-    let mut ids = vec![0u32; offsets[tiles_x * tiles_y]];
-    for (i, rect) in rects.iter().enumerate() {
-        if let Some((x0, x1, y0, y1)) = *rect {
-            for ty in y0..=y1 {
-                for tx in x0..=x1 {
-                    let t = ty * tiles_x + tx;
-                    ids[cursor[t]] = i as u32;
-                    cursor[t] += 1;
-                }
-            }
-        }
-    }
-    // Depths of visible Gaussians are > near > 0, so their f32 bit patterns order
-    // like the values; the index in the low bits breaks ties and makes keys unique.
-    let key =
-        |g: u32| ((Float::to_f64(depths[g as usize]) as f32).to_bits() as u64) << 32 | g as u64;
-    let mut slices: Vec<&mut [u32]> = Vec::with_capacity(tiles_x * tiles_y);
-    let mut rest = ids.as_mut_slice();
-    for t in 0..tiles_x * tiles_y {
-        let (head, tail) = rest.split_at_mut(counts[t]);
-        slices.push(head);
-        rest = tail;
-    }
-    slices.par_iter_mut().for_each(|s| {
-        let mut keyed: Vec<u64> = s.iter().map(|&g| key(g)).collect();
-        keyed.sort_unstable();
-        for (d, k) in s.iter_mut().zip(keyed) {
-            *d = k as u32;
-        }
-    });
-    Binning {
-        tiles_x,
-        tiles_y,
-        offsets,
-        ids,
-        boxes: boxes
-            .into_iter()
-            .map(|b| b.unwrap_or([1, 0, 1, 0]))
-            .collect(),
-    }
-}
-
 /// The rasterizer op: alpha compositing of projected Gaussians, front to back.
 ///
 /// For each pixel with centre `q = (x + 0.5, y + 0.5)` and its Gaussians `i` in depth
@@ -233,10 +80,9 @@ pub struct Rasterize<T: Float> {
 /// What the rasterizer forward keeps for its backward.
 pub struct RasterSaved<T> {
     bins: Binning,
-    /// Final transmittance per pixel.
-    final_t: Vec<T>,
-    /// Per pixel: index (in its tile list) of the last contributor, plus one.
-    n_contrib: Vec<u32>,
+    /// Per tile, in the tile's own pixel layout: the final transmittance and the
+    /// index (in the tile list) of the last contributor plus one.
+    tiles: Vec<(Vec<T>, Vec<u32>)>,
     finite: bool,
 }
 
@@ -247,7 +93,11 @@ impl<T: Float> RasterSaved<T> {
     }
 }
 
-fn gather_splats<T: Float>(list: &[u32], inputs: &[&Tensor<T>], bins: &Binning) -> Vec<Splat<T>> {
+fn gather_splats<'a, T: Float>(
+    list: &[u32],
+    inputs: &[&Tensor<T>],
+    bins: &'a Binning,
+) -> Vec<Splat<'a, T>> {
     let (m, con, col, op, dep) = (
         inputs[0].data(),
         inputs[1].data(),
@@ -268,6 +118,7 @@ fn gather_splats<T: Float>(list: &[u32], inputs: &[&Tensor<T>], bins: &Binning) 
                 col: [col[3 * g], col[3 * g + 1], col[3 * g + 2]],
                 z: dep[g],
                 bbox: bins.boxes[g],
+                spans: bins.spans(g),
             }
         })
         .collect()
@@ -315,8 +166,7 @@ impl<T: SplatFloat> Op<T> for Rasterize<T> {
                 ],
                 RasterSaved {
                     bins: Binning::default(),
-                    final_t: Vec::new(),
-                    n_contrib: Vec::new(),
+                    tiles: Vec::new(),
                     finite,
                 },
             );
@@ -341,11 +191,9 @@ impl<T: SplatFloat> Op<T> for Rasterize<T> {
         let mut image = vec![T::zero(); h * w * 3];
         let mut alpha = vec![T::zero(); h * w];
         let mut depth = vec![T::zero(); h * w];
-        let mut final_t = vec![T::one(); h * w];
-        let mut n_contrib = vec![0u32; h * w];
         for (t, out) in tiles.iter().enumerate() {
             let rect = tile_pixels(t, bins.tiles_x, self.width, self.height);
-            for k in 0..TILE * TILE {
+            for k in 0..NP {
                 let Some(p) = rect.image_pixel(k, w) else {
                     continue;
                 };
@@ -354,8 +202,6 @@ impl<T: SplatFloat> Op<T> for Rasterize<T> {
                 }
                 alpha[p] = T::one() - out.t_final[k];
                 depth[p] = out.depth[k];
-                final_t[p] = out.t_final[k];
-                n_contrib[p] = out.n[k];
             }
         }
         (
@@ -366,8 +212,7 @@ impl<T: SplatFloat> Op<T> for Rasterize<T> {
             ],
             RasterSaved {
                 bins,
-                final_t,
-                n_contrib,
+                tiles: tiles.into_iter().map(|o| (o.t_final, o.n)).collect(),
                 finite,
             },
         )
@@ -400,19 +245,19 @@ impl<T: SplatFloat> Op<T> for Rasterize<T> {
             .map(|t| {
                 let splats = gather_splats(bins.tile(t), ctx.inputs, bins);
                 let rect = tile_pixels(t, bins.tiles_x, self.width, self.height);
-                let np = TILE * TILE;
+                let (t_final, n_last) = &saved.tiles[t];
                 let mut inp = TileGrads {
                     g_rgb: [
-                        vec![T::zero(); np],
-                        vec![T::zero(); np],
-                        vec![T::zero(); np],
+                        vec![T::zero(); NP],
+                        vec![T::zero(); NP],
+                        vec![T::zero(); NP],
                     ],
-                    g_alpha: vec![T::zero(); np],
-                    g_depth: vec![T::zero(); np],
-                    t_final: vec![T::zero(); np],
-                    n_last: vec![0; np],
+                    g_alpha: vec![T::zero(); NP],
+                    g_depth: vec![T::zero(); NP],
+                    t_final,
+                    n_last,
                 };
-                for k in 0..np {
+                for k in 0..NP {
                     let Some(p) = rect.image_pixel(k, w) else {
                         continue;
                     };
@@ -421,8 +266,6 @@ impl<T: SplatFloat> Op<T> for Rasterize<T> {
                     }
                     inp.g_alpha[k] = g_alpha[p];
                     inp.g_depth[k] = g_depth[p];
-                    inp.t_final[k] = saved.final_t[p];
-                    inp.n_last[k] = saved.n_contrib[p];
                 }
                 backward_tile(&splats, rect, self.cutoff, self.background, &inp)
             })
