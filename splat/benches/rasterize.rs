@@ -7,6 +7,9 @@
 //! Throughput is reported as tile-pixel-Gaussian pairs (each Gaussian listed in a
 //! tile counts once per tile pixel; pixels that stop at T < 1e-4 skip some of them).
 //!
+//! The benchmark allocates through mimalloc, as the `maaf` binary does: glibc's
+//! malloc returns each frame's freed buffers to the kernel and faults them in again.
+//!
 //! Run (short, the machine is shared):
 //! `cargo bench -p maaf-splat --bench rasterize -- --warm-up-time 1 --measurement-time 3`
 //! Filter with a name, e.g. `-- 'fwd\+bwd 200x200 50k'`.
@@ -22,6 +25,9 @@ use maaf_splat::sh::sh_color;
 use maaf_splat::{Camera, GaussianVars, RenderSettings, render};
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
+
+#[global_allocator]
+static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 struct Scene {
     means: Tensor<f32>,

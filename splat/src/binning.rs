@@ -2,15 +2,13 @@
 //!
 //! The image is cut into 16x16 tiles. Every visible Gaussian is listed in each tile
 //! its pixel box (the bounding box of its support ellipse) touches; each tile's list
-//! is sorted front to back by `(depth, index)`. Per row of each box, the columns the
-//! ellipse can cover are solved once here and shared by the forward and backward
-//! blend loops of every tile.
+//! is sorted front to back by `(depth, index)`.
 
 use maaf_autodiff::Float;
 use rayon::prelude::*;
 
 use crate::project::pixel_range;
-use crate::rasterize::{SUPPORT_POWER, TILE};
+use crate::rasterize::TILE;
 
 /// Per-tile sorted Gaussian lists: tile `t` holds `ids[offsets[t]..offsets[t+1]]`.
 #[derive(Clone, Debug, Default)]
@@ -26,12 +24,6 @@ pub struct Binning {
     /// Per Gaussian: inclusive pixel box `[x_lo, x_hi, y_lo, y_hi]` of its support
     /// ellipse in the image (`x_lo > x_hi` when not listed in any tile).
     pub boxes: Vec<[u32; 4]>,
-    /// Per Gaussian: where its rows start in `row_spans` (one entry per box row).
-    pub span_offsets: Vec<usize>,
-    /// Per box row of each Gaussian: the inclusive columns `[lo, hi]` whose pixel
-    /// centres can lie in the support ellipse (`lo > hi` when none), see
-    /// [`RowSpans`].
-    pub row_spans: Vec<[u32; 2]>,
 }
 
 impl Binning {
@@ -43,88 +35,6 @@ impl Binning {
     /// The sorted list of tile `t`.
     pub fn tile(&self, t: usize) -> &[u32] {
         &self.ids[self.offsets[t]..self.offsets[t + 1]]
-    }
-
-    /// The row spans of Gaussian `g`, one per row of its box.
-    pub fn spans(&self, g: usize) -> &[[u32; 2]] {
-        let [_, _, yl, yh] = self.boxes[g];
-        let rows = (yh + 1).saturating_sub(yl) as usize;
-        &self.row_spans[self.span_offsets[g]..self.span_offsets[g] + rows]
-    }
-}
-
-/// Per row of a Gaussian's box, the columns whose pixel centres can lie in the
-/// support ellipse `power = (A dx^2 + C dy^2)/2 + B dx dy <= P`. For a fixed `dy`
-/// this is the interval `dx = (-B dy +- sqrt(D)) / A` with
-/// `D = (B^2 - A C) dy^2 + 2 A P`, empty when `D < 0`. Solved in f64 with
-/// `P =` [`support_limit`] slightly above 4.5, so each interval is a superset of the
-/// pixels the f32 lane test accepts, and the lane test still decides. Walking these
-/// intervals instead of whole box rows skips the box corners, and most of the box
-/// of a thin tilted splat.
-struct RowSpans {
-    mx: f64,
-    my: f64,
-    /// `B / A`.
-    b_a: f64,
-    /// `1 / A`.
-    inv_a: f64,
-    /// `B^2 - A C`.
-    disc: f64,
-    /// `2 A P`.
-    lim: f64,
-}
-
-/// `4.5` plus a bound on the f32 rounding of `power` in the blend lanes, for mean
-/// `(mx, my)`, conic `(a, b, c)` and pixel box `bbox`. The lanes compute
-/// `dx = (x + 0.5) - mx` (exact up to one rounding of the small result) and then
-/// `power` in six operations, so the error is a few ulps of the sum of the absolute
-/// terms `S = (A dx^2 + C dy^2)/2 + |B dx dy|`, bounded over the box; the bound
-/// used is `4e-6 (1 + S)`, about ten times that. `S` is large only for splats that
-/// are thin and tilted (terms that cancel).
-pub(crate) fn support_limit(mx: f64, my: f64, [a, b, c]: [f64; 3], bbox: [u32; 4]) -> f64 {
-    let [xl, xh, yl, yh] = bbox.map(f64::from);
-    let rx = (xl + 0.5 - mx).abs().max((xh + 0.5 - mx).abs());
-    let ry = (yl + 0.5 - my).abs().max((yh + 0.5 - my).abs());
-    let terms = 0.5 * (a.abs() * rx * rx + c.abs() * ry * ry) + b.abs() * rx * ry;
-    SUPPORT_POWER + 4e-6 * (1.0 + terms)
-}
-
-impl RowSpans {
-    /// For mean `(mx, my)`, conic `(a, b, c)` and pixel box `bbox`; `None` when the
-    /// conic is not positive in `x` (no ellipse: whole box rows are walked).
-    fn new(mx: f64, my: f64, [a, b, c]: [f64; 3], bbox: [u32; 4]) -> Option<Self> {
-        if a.is_nan() || a <= 0.0 {
-            return None;
-        }
-        let p = support_limit(mx, my, [a, b, c], bbox);
-        Some(RowSpans {
-            mx,
-            my,
-            b_a: b / a,
-            inv_a: 1.0 / a,
-            disc: b * b - a * c,
-            lim: 2.0 * a * p,
-        })
-    }
-
-    /// Columns `[lo, hi]` of row `y` whose centres `x + 0.5` can be in the support,
-    /// intersected with `[x_lo, x_hi]` (`lo > hi` when empty).
-    fn cols(&self, y: u32, x_lo: u32, x_hi: u32) -> [u32; 2] {
-        let dy = f64::from(y) + 0.5 - self.my;
-        let d = self.disc * dy * dy + self.lim;
-        if d.is_nan() || d < 0.0 {
-            return [1, 0];
-        }
-        let (centre, half) = (self.mx - self.b_a * dy - 0.5, d.sqrt() * self.inv_a);
-        let lo = (centre - half).max(f64::from(x_lo));
-        let hi = (centre + half).min(f64::from(x_hi));
-        if lo > hi {
-            return [1, 0];
-        }
-        // ceil and floor of non-negative values by truncation (libm's are calls on
-        // baseline x86-64).
-        let (tl, th) = (lo as u32, hi as u32);
-        [tl + u32::from(f64::from(tl) < lo), th]
     }
 }
 
@@ -188,7 +98,6 @@ pub fn bin_gaussians<T: Float>(
             }
         })
         .collect();
-    let (span_offsets, row_spans) = row_spans(means2d, conics, &boxes);
     let rects: Vec<Option<(usize, usize, usize, usize)>> = boxes
         .iter()
         .map(|b| {
@@ -250,42 +159,5 @@ pub fn bin_gaussians<T: Float>(
             .into_iter()
             .map(|b| b.unwrap_or([1, 0, 1, 0]))
             .collect(),
-        span_offsets,
-        row_spans,
     }
-}
-
-/// [`Binning::span_offsets`] and [`Binning::row_spans`] for the boxes.
-fn row_spans<T: Float>(
-    means2d: &[T],
-    conics: &[T],
-    boxes: &[Option<[u32; 4]>],
-) -> (Vec<usize>, Vec<[u32; 2]>) {
-    let rows = |b: &Option<[u32; 4]>| b.map_or(0, |[_, _, yl, yh]| (yh - yl + 1) as usize);
-    let mut offsets = Vec::with_capacity(boxes.len());
-    let mut total = 0;
-    for b in boxes {
-        offsets.push(total);
-        total += rows(b);
-    }
-    let mut spans = vec![[1u32, 0]; total];
-    let mut chunks: Vec<(usize, &mut [[u32; 2]])> = Vec::with_capacity(boxes.len());
-    let mut rest = spans.as_mut_slice();
-    for (i, b) in boxes.iter().enumerate() {
-        let (head, tail) = rest.split_at_mut(rows(b));
-        chunks.push((i, head));
-        rest = tail;
-    }
-    chunks.into_par_iter().for_each(|(i, out)| {
-        let Some(bbox) = boxes[i] else { return };
-        let [xl, xh, yl, _] = bbox;
-        let f = |v: T| Float::to_f64(v);
-        let conic = [f(conics[3 * i]), f(conics[3 * i + 1]), f(conics[3 * i + 2])];
-        let spans = RowSpans::new(f(means2d[2 * i]), f(means2d[2 * i + 1]), conic, bbox);
-        for (r, s) in out.iter_mut().enumerate() {
-            let y = yl + r as u32;
-            *s = spans.as_ref().map_or([xl, xh], |sp| sp.cols(y, xl, xh));
-        }
-    });
-    (offsets, spans)
 }

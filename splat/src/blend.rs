@@ -1,11 +1,9 @@
 //! The blend loop of one 16x16 tile, forward and backward, over pixel lanes
-//! ([`Lanes`]: 4 consecutive pixels of a tile row for f32, one for f64).
+//! ([`Lanes`]: 4 pixels of a tile row for f32, one for f64).
 //!
 //! Each Gaussian of the tile's sorted list visits only the rows of its pixel box and,
-//! in each row, only the columns where its support ellipse (`power <= 4.5`) can lie
-//! ([`RowSpans`]); lane groups start at the first such column, so a splat 4 pixels
-//! wide costs one group per row wherever it sits. Lanes outside the support, already
-//! saturated or outside the image are masked. The per-pixel
+//! in each row, the lane groups the box touches; lanes outside the support ellipse
+//! (`power > 4.5`), already saturated or outside the image are masked. The per-pixel
 //! operations and their order along the list are those of the textbook per-pixel loop
 //! ([`crate::rasterize::Rasterize`]), so the forward and the backward make the same
 //! decisions lane for lane: both evaluate alpha through [`lane_alpha`] on identical
@@ -16,18 +14,13 @@ use crate::rasterize::{
     ALPHA_MAX, ALPHA_MIN, AlphaCutoff, SMOOTH_TAPER_START, SUPPORT_POWER, T_MIN, TILE,
 };
 
-/// Row stride of per-pixel tile state: a tile row plus room for a lane group that
-/// starts at the last column (the extra columns are never live).
-pub(crate) const ROW: usize = TILE + 4;
-
-/// Per-pixel state slots of a tile, row-major with stride [`ROW`].
-pub(crate) const NP: usize = TILE * ROW;
+/// Pixels of a tile; per-pixel state is stored row-major with stride [`TILE`].
+pub(crate) const NP: usize = TILE * TILE;
 
 /// One Gaussian as the blend loop reads it, with its inclusive pixel box
-/// `[x_lo, x_hi] x [y_lo, y_hi]` in image coordinates and, per box row, the columns
-/// its support can cover ([`crate::binning::Binning::row_spans`]).
+/// `[x_lo, x_hi] x [y_lo, y_hi]` in image coordinates.
 #[derive(Clone, Copy, Debug)]
-pub(crate) struct Splat<'a, T> {
+pub(crate) struct Splat<T> {
     pub mx: T,
     pub my: T,
     pub a: T,
@@ -37,7 +30,6 @@ pub(crate) struct Splat<'a, T> {
     pub col: [T; 3],
     pub z: T,
     pub bbox: [u32; 4],
-    pub spans: &'a [[u32; 2]],
 }
 
 /// A tile: its pixel rectangle `(x0, y0, x1, y1)` (exclusive ends) in the image.
@@ -50,20 +42,26 @@ pub(crate) struct TileRect {
 }
 
 impl TileRect {
-    /// The part of `s`'s pixel box inside the tile as tile-local inclusive
-    /// `(first row, last row, first column, last column)`, or `None`.
-    fn span<T>(&self, s: &Splat<'_, T>) -> Option<(usize, usize, usize, usize)> {
+    /// The part of `s`'s pixel box inside the tile as tile-local
+    /// `(row range, lane-group range)`, or `None`.
+    fn span<T, L: Lanes<T>>(&self, s: &Splat<T>) -> Option<(usize, usize, usize, usize)> {
         let [xl, xh, yl, yh] = s.bbox.map(|v| v as usize);
         let (lx0, lx1) = (xl.max(self.x0), xh.min(self.x1 - 1));
         let (ly0, ly1) = (yl.max(self.y0), yh.min(self.y1 - 1));
-        (lx0 <= lx1 && ly0 <= ly1)
-            .then(|| (ly0 - self.y0, ly1 - self.y0, lx0 - self.x0, lx1 - self.x0))
+        (lx0 <= lx1 && ly0 <= ly1).then(|| {
+            (
+                ly0 - self.y0,
+                ly1 - self.y0,
+                (lx0 - self.x0) / L::N,
+                (lx1 - self.x0) / L::N,
+            )
+        })
     }
 
-    /// Image index `y * width + x` of tile-local pixel `k` (stride [`ROW`]), or
-    /// `None` when `k` lies outside the image or in a row's padding.
+    /// Image index `y * width + x` of tile-local pixel `k` (stride [`TILE`]), or
+    /// `None` when `k` lies outside the image.
     pub fn image_pixel(&self, k: usize, width: usize) -> Option<usize> {
-        let (x, y) = (self.x0 + k % ROW, self.y0 + k / ROW);
+        let (x, y) = (self.x0 + k % TILE, self.y0 + k / TILE);
         (x < self.x1 && y < self.y1).then_some(y * width + x)
     }
 }
@@ -80,7 +78,7 @@ struct Wide<L> {
 }
 
 impl<L> Wide<L> {
-    fn of<T: Copy>(s: &Splat<'_, T>) -> Self
+    fn of<T: Copy>(s: &Splat<T>) -> Self
     where
         L: Lanes<T>,
     {
@@ -96,12 +94,13 @@ impl<L> Wide<L> {
     }
 }
 
-/// Lane offsets `dx` of the pixel centres `x + 0.5` of the lane group whose first
-/// pixel is image column `x`, from the mean: computed the same way in forward and
+/// Lane offsets `dx` of the pixel centres `x + 0.5` of lane group `group` of a tile
+/// starting at column `x0` from the mean: computed the same way in forward and
 /// backward so that both see identical bits.
 #[inline(always)]
-fn lane_dx<T: SplatFloat>(x: usize, w: &Wide<T::L>) -> T::L {
-    T::L::splat(T::of(x as f64)) + T::L::ramp() + T::L::splat(T::of(0.5)) - w.mx
+fn lane_dx<T: SplatFloat>(x0: usize, group: usize, w: &Wide<T::L>) -> T::L {
+    let first = T::of((x0 + group * T::L::N) as f64);
+    T::L::splat(first) + T::L::ramp() + T::L::splat(T::of(0.5)) - w.mx
 }
 
 /// `power = (A dx^2 + C dy^2)/2 + B dx dy` per lane and whether it lies in the
@@ -193,38 +192,28 @@ struct Group<L: Lanes<T>, T> {
     al: Alpha<L, T>,
 }
 
-/// Walks the lane groups of `s`'s support inside `rect` (per row the columns of
-/// [`Splat::spans`], lane groups from the first one) and calls `f` for each group
-/// where some lane is in the support, open in `gate` (1 open, 0 closed) and counted
-/// under `cut`; `f` gets the gate back to close lanes. Forward and backward both
-/// walk through here, so they make the same decisions lane for lane.
+/// Walks the lane groups of `s`'s pixel box inside `rect` and calls `f` for each
+/// group where some lane is in the support, open in `gate` (1 open, 0 closed) and
+/// counted under `cut`; `f` gets the gate back to close lanes. Forward and backward
+/// both walk through here, so they make the same decisions lane for lane.
 #[inline(always)]
 fn for_each_group<T: SplatFloat>(
     rect: TileRect,
-    s: &Splat<'_, T>,
+    s: &Splat<T>,
     cut: AlphaCutoff,
     gate: &mut [T],
     mut f: impl FnMut(&Wide<T::L>, Group<T::L, T>, &mut [T]),
 ) {
     let l = T::L::splat;
-    let Some((r0, r1, c0, c1)) = rect.span(s) else {
+    let Some((r0, r1, g0, g1)) = rect.span::<T, T::L>(s) else {
         return;
     };
     let w = Wide::<T::L>::of(s);
-    let first_row = rect.y0 + r0 - s.bbox[2] as usize;
-    for (row, &[lo, hi]) in (r0..=r1).zip(&s.spans[first_row..]) {
-        let lo = (lo as usize).max(rect.x0 + c0);
-        let hi = (hi as usize).min(rect.x0 + c1);
-        if lo > hi {
-            continue;
-        }
-        let y = rect.y0 + row;
-        let dy = l(T::of(y as f64) + T::of(0.5) - s.my);
-        let mut x = lo;
-        while x <= hi {
-            let k = row * ROW + x - rect.x0;
-            let dx = lane_dx::<T>(x, &w);
-            x += T::L::N;
+    for row in r0..=r1 {
+        let dy = l(T::of((rect.y0 + row) as f64) + T::of(0.5) - s.my);
+        for group in g0..=g1 {
+            let k = row * TILE + group * T::L::N;
+            let dx = lane_dx::<T>(rect.x0, group, &w);
             let (p, in_support) = lane_power::<T>(&w, dx, dy);
             let in_support = in_support & T::L::load(&gate[k..]).gt(l(T::zero()));
             if T::L::bits(in_support) == 0 {
@@ -238,7 +227,7 @@ fn for_each_group<T: SplatFloat>(
     }
 }
 
-/// Forward result of one tile, per tile pixel (stride [`ROW`]).
+/// Forward result of one tile, per tile pixel (stride [`TILE`]).
 pub(crate) struct TileOut<T> {
     pub rgb: [Vec<T>; 3],
     pub t_final: Vec<T>,
@@ -249,7 +238,7 @@ pub(crate) struct TileOut<T> {
 
 /// Composites `splats` (sorted front to back) over one tile, background included.
 pub(crate) fn forward_tile<T: SplatFloat>(
-    splats: &[Splat<'_, T>],
+    splats: &[Splat<T>],
     rect: TileRect,
     cut: AlphaCutoff,
     background: [T; 3],
@@ -317,7 +306,7 @@ pub(crate) fn forward_tile<T: SplatFloat>(
     }
 }
 
-/// Per-pixel inputs of the backward of one tile (stride [`ROW`]; off-image pixels
+/// Per-pixel inputs of the backward of one tile (stride [`TILE`]; off-image pixels
 /// have `n_last = 0`).
 pub(crate) struct TileGrads<'a, T> {
     /// Cotangent of the colour.
@@ -336,7 +325,7 @@ pub(crate) struct TileGrads<'a, T> {
 /// contributor, recovering `T_i = T_{i+1} / (1 - alpha_i)`, and returns one gradient
 /// row per list entry: `d/d(mx, my, A, B, C, o, r, g, b, z)`.
 pub(crate) fn backward_tile<T: SplatFloat>(
-    splats: &[Splat<'_, T>],
+    splats: &[Splat<T>],
     rect: TileRect,
     cut: AlphaCutoff,
     background: [T; 3],
@@ -414,122 +403,4 @@ pub(crate) fn backward_tile<T: SplatFloat>(
         grads[j] = acc.map(|v| v.sum());
     }
     grads
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::binning::{bin_gaussians, support_limit};
-    use rand::{RngExt, SeedableRng};
-    use rand_pcg::Pcg64;
-
-    /// Conic of the covariance with standard deviations `(s1, s2)` along angle `th`.
-    fn conic(s1: f64, s2: f64, th: f64) -> [f32; 3] {
-        let (c, s) = (th.cos(), th.sin());
-        let (v1, v2) = (s1 * s1, s2 * s2);
-        let (xx, xy, yy) = (
-            c * c * v1 + s * s * v2,
-            c * s * (v1 - v2),
-            s * s * v1 + c * c * v2,
-        );
-        let det = xx * yy - xy * xy;
-        [(yy / det) as f32, (-xy / det) as f32, (xx / det) as f32]
-    }
-
-    /// Every pixel whose lane power (f32, computed by the blend loop's own
-    /// `lane_dx`/`lane_power`) lies in `[0, 4.5]` is inside its row span, for round,
-    /// thin, tilted and huge splats at pixel coordinates up to 8000; and the spans are
-    /// tight: their end pixels have power at most the limit they were solved for
-    /// ([`support_limit`], within 1e-3 of 4.5 unless the axis ratio is below 0.3), and
-    /// a thin diagonal splat walks under a third of its box.
-    #[test]
-    fn row_spans_cover_the_support_and_are_tight() {
-        let mut rng = Pcg64::seed_from_u64(5);
-        let (w, h) = (8192u32, 64u32);
-        let n = 400;
-        let (mut m2, mut con) = (Vec::new(), Vec::new());
-        for i in 0..n {
-            let s1: f64 = [0.3, 1.0, 4.0, 40.0][i % 4] * rng.random_range(0.8..1.2);
-            let s2: f64 = s1 * [1.0, 0.3, 0.02, 0.005][(i / 4) % 4];
-            let th = rng.random_range(0.0..std::f64::consts::PI);
-            m2.extend([
-                rng.random_range(0.0..8000.0f32),
-                rng.random_range(0.0..64.0f32),
-            ]);
-            con.extend(conic(s1.max(0.3), s2.max(0.3), th));
-        }
-        let radii = vec![10_000.0f32; n];
-        let depths: Vec<f32> = (0..n).map(|i| 1.0 + i as f32).collect();
-        let bins = bin_gaussians(&m2, &con, &radii, &depths, w, h);
-        let (mut checked, mut ends, mut loose_limits) = (0usize, 0usize, 0usize);
-        for g in 0..n {
-            let [xl, xh, yl, yh] = bins.boxes[g];
-            if xl > xh {
-                continue;
-            }
-            let s = Splat {
-                mx: m2[2 * g],
-                my: m2[2 * g + 1],
-                a: con[3 * g],
-                b: con[3 * g + 1],
-                c: con[3 * g + 2],
-                o: 1.0f32,
-                col: [0.0; 3],
-                z: 1.0,
-                bbox: bins.boxes[g],
-                spans: bins.spans(g),
-            };
-            let f = f64::from;
-            let limit = support_limit(f(s.mx), f(s.my), [f(s.a), f(s.b), f(s.c)], s.bbox);
-            // Round and mildly elongated splats (axis ratio >= 0.3).
-            if (g / 4) % 4 < 2 {
-                loose_limits += usize::from(limit > SUPPORT_POWER + 1e-3);
-            }
-            let wide = Wide::<<f32 as SplatFloat>::L>::of(&s);
-            let power = |x: u32, y: u32| {
-                let dy = <f32 as SplatFloat>::L::splat(y as f32 + 0.5 - s.my);
-                let (p, _) = lane_power::<f32>(&wide, lane_dx::<f32>(x as usize, &wide), dy);
-                p.to_array()[0]
-            };
-            for (y, &[lo, hi]) in (yl..=yh).zip(s.spans) {
-                for x in xl..=xh {
-                    let p = power(x, y);
-                    if (0.0..=4.5).contains(&p) {
-                        checked += 1;
-                        assert!(
-                            lo <= x && x <= hi,
-                            "splat {g}: pixel ({x}, {y}) has power {p} but the row span is [{lo}, {hi}]"
-                        );
-                    }
-                }
-                if lo <= hi {
-                    ends += 2;
-                    for x in [lo, hi] {
-                        let p = power(x, y);
-                        assert!(
-                            f64::from(p) <= limit + 1e-4,
-                            "splat {g}: span end ({x}, {y}) at power {p}, limit {limit}"
-                        );
-                    }
-                }
-            }
-        }
-        assert!(checked > 100_000, "only {checked} pixels checked");
-        assert!(ends > 10_000, "only {ends} span ends checked");
-        assert_eq!(loose_limits, 0, "limits above 4.501 for non-thin splats");
-        // A thin splat along the diagonal: its box is square, its spans a band.
-        let c = conic(20.0, 0.5, std::f64::consts::FRAC_PI_4);
-        let bins = bin_gaussians(&[100.3, 100.7], &c, &[1000.0], &[1.0], 200, 200);
-        let [xl, xh, yl, yh] = bins.boxes[0];
-        let walked: u32 = bins
-            .spans(0)
-            .iter()
-            .map(|&[lo, hi]| (hi + 1).saturating_sub(lo))
-            .sum();
-        let boxed = (xh - xl + 1) * (yh - yl + 1);
-        assert!(
-            walked * 3 < boxed,
-            "spans cover {walked} of {boxed} box pixels"
-        );
-    }
 }

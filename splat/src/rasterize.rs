@@ -93,11 +93,7 @@ impl<T: Float> RasterSaved<T> {
     }
 }
 
-fn gather_splats<'a, T: Float>(
-    list: &[u32],
-    inputs: &[&Tensor<T>],
-    bins: &'a Binning,
-) -> Vec<Splat<'a, T>> {
+fn gather_splats<T: Float>(list: &[u32], inputs: &[&Tensor<T>], bins: &Binning) -> Vec<Splat<T>> {
     let (m, con, col, op, dep) = (
         inputs[0].data(),
         inputs[1].data(),
@@ -118,7 +114,6 @@ fn gather_splats<'a, T: Float>(
                 col: [col[3 * g], col[3 * g + 1], col[3 * g + 2]],
                 z: dep[g],
                 bbox: bins.boxes[g],
-                spans: bins.spans(g),
             }
         })
         .collect()
