@@ -9,6 +9,8 @@
 //! decisions lane for lane: both evaluate alpha through [`lane_alpha`] on identical
 //! inputs.
 
+use maaf_autodiff::Float;
+
 use crate::lanes::{Lanes, SplatFloat};
 use crate::rasterize::{
     ALPHA_MAX, ALPHA_MIN, AlphaCutoff, SMOOTH_TAPER_START, SUPPORT_POWER, T_MIN, TILE,
@@ -249,7 +251,10 @@ pub(crate) fn forward_tile<T: SplatFloat>(
     let mut tr = vec![one; NP];
     let mut rgb = [vec![zero; NP], vec![zero; NP], vec![zero; NP]];
     let mut depth = vec![zero; NP];
-    let mut n = vec![0u32; NP];
+    // Last contributor plus one, as a float per lane so that it updates with one
+    // select (exact: lists are shorter than 2^24).
+    assert!(splats.len() < 1 << 24, "forward_tile: tile list too long");
+    let mut n_lanes = vec![zero; NP];
     // 1 while a pixel still takes contributions, 0 once saturated or off-image.
     let mut live: Vec<T> = (0..NP)
         .map(|k| {
@@ -265,6 +270,7 @@ pub(crate) fn forward_tile<T: SplatFloat>(
         if n_live == 0 {
             break;
         }
+        let index = l(T::of((j + 1) as f64));
         for_each_group(rect, s, cut, &mut live, |w, g, live| {
             let (k, ok) = (g.k, g.al.ok);
             let t = T::L::load(&tr[k..]);
@@ -286,11 +292,7 @@ pub(crate) fn forward_tile<T: SplatFloat>(
             }
             (T::L::load(&depth[k..]) + w.z * wgt).store(&mut depth[k..]);
             T::L::select(blend, next, t).store(&mut tr[k..]);
-            let mut bits = T::L::bits(blend);
-            while bits != 0 {
-                n[k + bits.trailing_zeros() as usize] = j as u32 + 1;
-                bits &= bits - 1;
-            }
+            T::L::select(blend, index, T::L::load(&n_lanes[k..])).store(&mut n_lanes[k..]);
         });
     }
     for ch in 0..3 {
@@ -299,10 +301,10 @@ pub(crate) fn forward_tile<T: SplatFloat>(
         }
     }
     TileOut {
+        n: n_lanes.iter().map(|&v| Float::to_f64(v) as u32).collect(),
         rgb,
         t_final: tr,
         depth,
-        n,
     }
 }
 
