@@ -254,7 +254,7 @@ pub(crate) fn forward_tile<T: SplatFloat>(
     // Last contributor plus one, as a float per lane so that it updates with one
     // select (exact: lists are shorter than 2^24).
     assert!(splats.len() < 1 << 24, "forward_tile: tile list too long");
-    let mut n_lanes = vec![zero; NP];
+    let mut n_lanes = [zero; NP];
     // 1 while a pixel still takes contributions, 0 once saturated or off-image.
     let mut live: Vec<T> = (0..NP)
         .map(|k| {
