@@ -60,11 +60,12 @@ impl TileRect {
         })
     }
 
-    /// Image index `y * width + x` of tile-local pixel `k` (stride [`TILE`]), or
-    /// `None` when `k` lies outside the image.
-    pub fn image_pixel(&self, k: usize, width: usize) -> Option<usize> {
-        let (x, y) = (self.x0 + k % TILE, self.y0 + k / TILE);
-        (x < self.x1 && y < self.y1).then_some(y * width + x)
+    /// The tile's pixels inside the image as `(k, p)`: tile-local index `k` (stride
+    /// [`TILE`]) and image index `p = y * width + x`.
+    pub fn pixels(self, width: usize) -> impl Iterator<Item = (usize, usize)> {
+        (self.y0..self.y1).flat_map(move |y| {
+            (self.x0..self.x1).map(move |x| ((y - self.y0) * TILE + x - self.x0, y * width + x))
+        })
     }
 }
 
@@ -229,13 +230,20 @@ fn for_each_group<T: SplatFloat>(
     }
 }
 
+/// What the backward of a tile needs from its forward, per tile pixel (stride
+/// [`TILE`]; off-image pixels have `n_last = 0`).
+pub(crate) struct TileEnd<T> {
+    /// Final transmittance.
+    pub t_final: Vec<T>,
+    /// Index (in the tile list) of the last contributor, plus one.
+    pub n_last: Vec<u32>,
+}
+
 /// Forward result of one tile, per tile pixel (stride [`TILE`]).
 pub(crate) struct TileOut<T> {
     pub rgb: [Vec<T>; 3],
-    pub t_final: Vec<T>,
     pub depth: Vec<T>,
-    /// Index (in the tile list) of the last contributor, plus one.
-    pub n: Vec<u32>,
+    pub end: TileEnd<T>,
 }
 
 /// Composites `splats` (sorted front to back) over one tile, background included.
@@ -256,15 +264,10 @@ pub(crate) fn forward_tile<T: SplatFloat>(
     assert!(splats.len() < 1 << 24, "forward_tile: tile list too long");
     let mut n_lanes = [zero; NP];
     // 1 while a pixel still takes contributions, 0 once saturated or off-image.
-    let mut live: Vec<T> = (0..NP)
-        .map(|k| {
-            if rect.image_pixel(k, 0).is_some() {
-                one
-            } else {
-                zero
-            }
-        })
-        .collect();
+    let mut live = vec![zero; NP];
+    for (k, _) in rect.pixels(0) {
+        live[k] = one;
+    }
     let mut n_live = (rect.x1 - rect.x0) * (rect.y1 - rect.y0);
     for (j, s) in splats.iter().enumerate() {
         if n_live == 0 {
@@ -301,15 +304,16 @@ pub(crate) fn forward_tile<T: SplatFloat>(
         }
     }
     TileOut {
-        n: n_lanes.iter().map(|&v| Float::to_f64(v) as u32).collect(),
         rgb,
-        t_final: tr,
         depth,
+        end: TileEnd {
+            t_final: tr,
+            n_last: n_lanes.iter().map(|&v| Float::to_f64(v) as u32).collect(),
+        },
     }
 }
 
-/// Per-pixel inputs of the backward of one tile (stride [`TILE`]; off-image pixels
-/// have `n_last = 0`).
+/// Per-pixel inputs of the backward of one tile (stride [`TILE`]).
 pub(crate) struct TileGrads<'a, T> {
     /// Cotangent of the colour.
     pub g_rgb: [Vec<T>; 3],
@@ -317,10 +321,8 @@ pub(crate) struct TileGrads<'a, T> {
     pub g_alpha: Vec<T>,
     /// Cotangent of the depth.
     pub g_depth: Vec<T>,
-    /// Final transmittance from the forward.
-    pub t_final: &'a [T],
-    /// Last contributor plus one, from the forward.
-    pub n_last: &'a [u32],
+    /// What the forward left.
+    pub end: &'a TileEnd<T>,
 }
 
 /// Backward of [`forward_tile`]: walks each pixel back to front from its last
@@ -336,7 +338,8 @@ pub(crate) fn backward_tile<T: SplatFloat>(
     let l = T::L::splat;
     let (zero, one, half) = (T::zero(), T::one(), T::of(0.5));
     let mut grads = vec![[zero; 10]; splats.len()];
-    let mut tr = inp.t_final.to_vec();
+    let (t_final, n_last) = (&inp.end.t_final, &inp.end.n_last);
+    let mut tr = t_final.clone();
     let mut behind: [Vec<T>; 4] = [
         tr.iter().map(|&t| background[0] * t).collect(),
         tr.iter().map(|&t| background[1] * t).collect(),
@@ -345,13 +348,13 @@ pub(crate) fn backward_tile<T: SplatFloat>(
     ];
     // Pixels join the walk at their last contributor: `active` turns 1 when
     // `j < n_last`. `order` lists pixels by decreasing `n_last`.
-    let mut order: Vec<usize> = (0..NP).filter(|&k| inp.n_last[k] > 0).collect();
-    order.sort_by_key(|&k| std::cmp::Reverse(inp.n_last[k]));
+    let mut order: Vec<usize> = (0..NP).filter(|&k| n_last[k] > 0).collect();
+    order.sort_by_key(|&k| std::cmp::Reverse(n_last[k]));
     let mut active = [zero; NP];
     let mut next_in = 0;
-    let jmax = order.first().map_or(0, |&k| inp.n_last[k] as usize);
+    let jmax = order.first().map_or(0, |&k| n_last[k] as usize);
     for j in (0..jmax).rev() {
-        while next_in < order.len() && inp.n_last[order[next_in]] as usize > j {
+        while next_in < order.len() && n_last[order[next_in]] as usize > j {
             active[order[next_in]] = one;
             next_in += 1;
         }
@@ -368,7 +371,7 @@ pub(crate) fn backward_tile<T: SplatFloat>(
             let wgt = alpha * t;
             let gc = [0, 1, 2].map(|ch| T::L::load(&inp.g_rgb[ch][k..]));
             let gd = T::L::load(&inp.g_depth[k..]);
-            let mut g_al = T::L::load(&inp.g_alpha[k..]) * T::L::load(&inp.t_final[k..]) * inv;
+            let mut g_al = T::L::load(&inp.g_alpha[k..]) * T::L::load(&t_final[k..]) * inv;
             for ch in 0..3 {
                 acc[6 + ch] = acc[6 + ch] + pick(gc[ch] * wgt);
                 let bh = T::L::load(&behind[ch][k..]);

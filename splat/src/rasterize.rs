@@ -10,7 +10,7 @@ use maaf_autodiff::{BackwardCtx, Float, Op, Tensor, Var};
 use rayon::prelude::*;
 
 use crate::binning::{Binning, bin_gaussians};
-use crate::blend::{NP, Splat, TileGrads, TileOut, TileRect, backward_tile, forward_tile};
+use crate::blend::{NP, Splat, TileEnd, TileGrads, TileOut, TileRect, backward_tile, forward_tile};
 use crate::lanes::SplatFloat;
 
 /// Tile edge in pixels.
@@ -81,8 +81,8 @@ pub struct Rasterize<T: Float> {
 pub struct RasterSaved<T> {
     bins: Binning,
     /// Per tile, in the tile's own pixel layout: the final transmittance and the
-    /// index (in the tile list) of the last contributor plus one.
-    tiles: Vec<(Vec<T>, Vec<u32>)>,
+    /// last contributor.
+    tiles: Vec<TileEnd<T>>,
     finite: bool,
 }
 
@@ -188,14 +188,11 @@ impl<T: SplatFloat> Op<T> for Rasterize<T> {
         let mut depth = vec![T::zero(); h * w];
         for (t, out) in tiles.iter().enumerate() {
             let rect = tile_pixels(t, bins.tiles_x, self.width, self.height);
-            for k in 0..NP {
-                let Some(p) = rect.image_pixel(k, w) else {
-                    continue;
-                };
+            for (k, p) in rect.pixels(w) {
                 for ch in 0..3 {
                     image[3 * p + ch] = out.rgb[ch][k];
                 }
-                alpha[p] = T::one() - out.t_final[k];
+                alpha[p] = T::one() - out.end.t_final[k];
                 depth[p] = out.depth[k];
             }
         }
@@ -207,7 +204,7 @@ impl<T: SplatFloat> Op<T> for Rasterize<T> {
             ],
             RasterSaved {
                 bins,
-                tiles: tiles.into_iter().map(|o| (o.t_final, o.n)).collect(),
+                tiles: tiles.into_iter().map(|o| o.end).collect(),
                 finite,
             },
         )
@@ -240,7 +237,6 @@ impl<T: SplatFloat> Op<T> for Rasterize<T> {
             .map(|t| {
                 let splats = gather_splats(bins.tile(t), ctx.inputs, bins);
                 let rect = tile_pixels(t, bins.tiles_x, self.width, self.height);
-                let (t_final, n_last) = &saved.tiles[t];
                 let mut inp = TileGrads {
                     g_rgb: [
                         vec![T::zero(); NP],
@@ -249,13 +245,9 @@ impl<T: SplatFloat> Op<T> for Rasterize<T> {
                     ],
                     g_alpha: vec![T::zero(); NP],
                     g_depth: vec![T::zero(); NP],
-                    t_final,
-                    n_last,
+                    end: &saved.tiles[t],
                 };
-                for k in 0..NP {
-                    let Some(p) = rect.image_pixel(k, w) else {
-                        continue;
-                    };
+                for (k, p) in rect.pixels(w) {
                     for ch in 0..3 {
                         inp.g_rgb[ch][k] = g_img[3 * p + ch];
                     }
