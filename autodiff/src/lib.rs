@@ -24,6 +24,7 @@ pub mod op;
 pub mod ops;
 pub mod optim;
 mod per_gaussian;
+pub mod scalar;
 mod tape;
 mod tensor;
 

@@ -1,6 +1,7 @@
 //! Elementwise unary ops: `y_i = f(x_i)`, backward `dx_i = dy_i f'(x_i)`.
 
 use crate::op::{BackwardCtx, Op};
+use crate::scalar::sigmoid;
 use crate::{Float, Tensor, Var};
 
 /// Which elementwise function a [`Unary`] op applies.
@@ -40,15 +41,6 @@ pub enum UnaryKind {
 
 /// An elementwise op (see [`UnaryKind`]).
 pub struct Unary(pub UnaryKind);
-
-fn sigmoid<T: Float>(x: T) -> T {
-    if x >= T::zero() {
-        T::one() / (T::one() + (-x).exp())
-    } else {
-        let e = x.exp();
-        e / (T::one() + e)
-    }
-}
 
 impl UnaryKind {
     fn eval<T: Float>(self, x: T) -> T {
