@@ -126,6 +126,20 @@ impl<T: Float> Adam<T> {
     /// One Adam update of `param` with gradient `grad`. Panics if `name` has no
     /// schedule (every trained parameter must be in a group) or shapes differ.
     pub fn step(&mut self, name: &str, param: &mut Tensor<T>, grad: &Tensor<T>, iteration: usize) {
+        self.step_l2(name, param, grad, iteration, 0.0);
+    }
+
+    /// [`Adam::step`] with L2 weight decay folded into the gradient first,
+    /// `g' = g + weight_decay * p` (PyTorch `Adam(weight_decay=...)`, which SaRO-GS
+    /// uses for its MLPs and planes; not AdamW's decoupled decay).
+    pub fn step_l2(
+        &mut self,
+        name: &str,
+        param: &mut Tensor<T>,
+        grad: &Tensor<T>,
+        iteration: usize,
+        weight_decay: f64,
+    ) {
         let lr = self
             .lr(name, iteration)
             .unwrap_or_else(|| panic!("Adam: parameter `{name}` has no schedule"));
@@ -154,6 +168,8 @@ impl<T: Float> Adam<T> {
         let (b1, b2) = (T::of(beta1), T::of(beta2));
         let (one, step, eps) = (T::one(), T::of(lr / c1), T::of(eps));
         let inv_c2 = T::of(1.0 / c2);
+        let wd = T::of(weight_decay);
+        let decay = weight_decay != 0.0;
         let (m, v) = (state.m.data_mut(), state.v.data_mut());
         for (((p, &g), m), v) in param
             .data_mut()
@@ -162,6 +178,7 @@ impl<T: Float> Adam<T> {
             .zip(m.iter_mut())
             .zip(v.iter_mut())
         {
+            let g = if decay { g + wd * *p } else { g };
             *m = b1 * *m + (one - b1) * g;
             *v = b2 * *v + (one - b2) * g * g;
             *p -= step * *m / ((*v * inv_c2).sqrt() + eps);
@@ -219,6 +236,32 @@ mod tests {
             "{} vs {want}",
             p.data()[0]
         );
+    }
+
+    #[test]
+    fn l2_decay_is_added_to_the_gradient_before_the_moments() {
+        let cfg = AdamConfig {
+            beta1: 0.9,
+            beta2: 0.999,
+            eps: 1e-8,
+        };
+        let (mut a, mut b) = (Adam::<f64>::new(cfg.clone()), Adam::<f64>::new(cfg));
+        a.set_group("p", LrSchedule::Constant(0.1));
+        b.set_group("p", LrSchedule::Constant(0.1));
+        let (mut p, mut q) = (
+            Tensor::from_vec(vec![2.0, -1.0], &[2]),
+            Tensor::from_vec(vec![2.0, -1.0], &[2]),
+        );
+        for i in 0..3 {
+            let g = Tensor::from_vec(vec![0.3, 0.2], &[2]);
+            a.step_l2("p", &mut p, &g, i, 0.5);
+            // The same update by hand: the decayed gradient through plain Adam.
+            let g2 = g.zip_map(&q, |g, p| g + 0.5 * p);
+            b.step("p", &mut q, &g2, i);
+        }
+        assert_eq!(p, q);
+        let m = a.moments("p").expect("moments");
+        assert_ne!(m.m, Tensor::from_vec(vec![0.0; 2], &[2]));
     }
 
     #[test]

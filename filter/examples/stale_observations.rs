@@ -11,7 +11,9 @@
 
 use std::path::Path;
 
-use maaf_filter::{AnalysisExport, FilterConfig, Frame, MotionCurves, ObservationTable, static_nu};
+use maaf_filter::{
+    AnalysisExport, CameraTime, FilterConfig, MotionCurves, ObservationTable, static_nu,
+};
 use maaf_splat::Camera;
 use rand::seq::SliceRandom;
 use rand::{RngExt, SeedableRng};
@@ -158,8 +160,8 @@ fn run(
             look_at([r * a.cos(), r * a.sin(), h], 400.0, 400)
         })
         .collect();
-    let frames: Vec<Frame> = (0..times * cams_per_time)
-        .map(|i| Frame {
+    let frames: Vec<CameraTime> = (0..times * cams_per_time)
+        .map(|i| CameraTime {
             camera: if cams_per_time == 1 {
                 i
             } else {

@@ -47,7 +47,9 @@ pub enum FilterKind {
     Motion,
 }
 
-/// When the filter is recomputed, outside the tape.
+/// When the filter is recomputed, outside the tape. It is always computed once
+/// before the first iteration (the trainer's first step does it, as Mip-Splatting
+/// does); this schedule says when it is recomputed.
 ///
 /// Mip-Splatting (`train.py`) recomputes once before training, after every
 /// densification, and every 100 iterations after densification ends while
@@ -59,8 +61,6 @@ pub enum FilterKind {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct RefreshSchedule {
-    /// Compute once before the first iteration.
-    pub at_start: bool,
     /// First periodic refresh iteration (600).
     pub start: u64,
     /// Interval in iterations (100; paper supp. ablation 100/200/300).
@@ -72,7 +72,6 @@ pub struct RefreshSchedule {
 impl Default for RefreshSchedule {
     fn default() -> Self {
         RefreshSchedule {
-            at_start: true,
             start: 600,
             every: 100,
             after_densify: true,

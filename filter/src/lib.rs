@@ -65,5 +65,5 @@ pub use export::{AnalysisExport, GaussianTrace};
 pub use kernels::Kernels;
 pub use mip::{Viewer, static_nu, variance_from_nu};
 pub use motion::{FALLBACK, MotionCurves};
-pub use observations::{Frame, ObservationTable};
+pub use observations::{CameraTime, ObservationTable};
 pub use state::FilterState;

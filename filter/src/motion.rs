@@ -62,7 +62,7 @@ pub struct MotionCurves {
 
 /// Time grouping and time-kernel weights shared by every Gaussian of a refresh.
 struct Plan {
-    /// Frame indices sorted by time; group `g` is `frames[group_start[g]..group_start[g+1]]`.
+    /// CameraTime indices sorted by time; group `g` is `frames[group_start[g]..group_start[g+1]]`.
     frames: Vec<u32>,
     group_start: Vec<usize>,
     /// Dense `T x G` time weights `w[s, g] = K_g((g_t[s] - t_g)/h_t) / (2 h_x h_t)`

@@ -28,12 +28,12 @@ use serde::{Deserialize, Serialize};
 use crate::config::{FilterConfig, FilterError};
 use crate::mip::Viewer;
 
-/// One training frame: which camera, at which time.
+/// One training view as the filter sees it: which camera, at which time.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-pub struct Frame {
+pub struct CameraTime {
     /// Index into the trainer's training cameras.
     pub camera: usize,
-    /// Frame time (in the config's `time_range`).
+    /// CameraTime time (in the config's `time_range`).
     pub time: f32,
 }
 
@@ -59,7 +59,7 @@ impl ObservationTable {
     }
 
     /// An empty table for `rows` Gaussians and the given training frames.
-    pub fn for_frames(frames: &[Frame], rows: usize) -> ObservationTable {
+    pub fn for_frames(frames: &[CameraTime], rows: usize) -> ObservationTable {
         Self::new(frames.iter().map(|f| f.time).collect(), rows)
     }
 
@@ -68,7 +68,7 @@ impl ObservationTable {
         self.times.len()
     }
 
-    /// Frame times.
+    /// CameraTime times.
     pub fn times(&self) -> &[f32] {
         &self.times
     }
@@ -106,7 +106,7 @@ impl ObservationTable {
     /// visibility). Overwrites every slot. `cameras[frame.camera]` must exist.
     pub fn observe_all<C>(
         &mut self,
-        frames: &[Frame],
+        frames: &[CameraTime],
         cameras: &[Camera],
         cfg: &FilterConfig,
         mut centres_at: C,
@@ -217,7 +217,7 @@ impl ObservationTable {
 }
 
 fn frame_viewers(
-    frames: &[Frame],
+    frames: &[CameraTime],
     cameras: &[Camera],
     cfg: &FilterConfig,
 ) -> Result<Vec<Viewer>, FilterError> {

@@ -4,7 +4,8 @@
 use maaf_autodiff::PerGaussian;
 use maaf_filter::reference::algorithm1;
 use maaf_filter::{
-    FALLBACK, FilterConfig, FilterState, Frame, Kernels, MotionCurves, ObservationTable, static_nu,
+    CameraTime, FALLBACK, FilterConfig, FilterState, Kernels, MotionCurves, ObservationTable,
+    static_nu,
 };
 use maaf_splat::Camera;
 use rand::{RngExt, SeedableRng};
@@ -206,9 +207,9 @@ fn static_gaussian_at_constant_f_over_d_gives_constant_nu() {
         cam(3.0, 100.0, 0.1),
         cam(5.0, 150.0, -0.2),
     ];
-    let frames: Vec<Frame> = (0..50)
+    let frames: Vec<CameraTime> = (0..50)
         .flat_map(|i| {
-            (0..3).map(move |c| Frame {
+            (0..3).map(move |c| CameraTime {
                 camera: c,
                 time: i as f32 / 49.0,
             })
@@ -241,8 +242,8 @@ fn static_gaussian_at_constant_f_over_d_gives_constant_nu() {
 fn gaussian_moving_toward_the_camera_gets_increasing_nu() {
     let cfg = FilterConfig::default();
     let cameras = [cam(0.0, 100.0, 0.0)];
-    let frames: Vec<Frame> = (0..150)
-        .map(|i| Frame {
+    let frames: Vec<CameraTime> = (0..150)
+        .map(|i| CameraTime {
             camera: 0,
             time: i as f32 / 149.0,
         })
@@ -308,8 +309,8 @@ fn static_scene_static_nu_equals_motion_x_max() {
         cam(2.5, 90.0, -0.3),
     ];
     // D-NeRF layout: one camera per time.
-    let frames: Vec<Frame> = (0..30)
-        .map(|i| Frame {
+    let frames: Vec<CameraTime> = (0..30)
+        .map(|i| CameraTime {
             camera: i % 3,
             time: i as f32 / 29.0,
         })
@@ -348,8 +349,8 @@ fn static_scene_static_nu_equals_motion_x_max() {
 fn incremental_recorder_equals_full_pass_when_fresh() {
     let cfg = FilterConfig::default();
     let cameras = [cam(3.0, 120.0, 0.0), cam(4.0, 200.0, 0.5)];
-    let frames: Vec<Frame> = (0..20)
-        .map(|i| Frame {
+    let frames: Vec<CameraTime> = (0..20)
+        .map(|i| CameraTime {
             camera: i % 2,
             time: i as f32 / 19.0,
         })

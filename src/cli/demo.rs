@@ -11,6 +11,7 @@ use maaf_filter::FilterKind;
 use maaf_train::data::synthetic::{self, GenerateOptions};
 use maaf_train::data::{Dataset, DatasetOptions, Split};
 use maaf_train::eval::{EvalOptions, evaluate_run};
+use maaf_train::models::ModelConfig;
 use maaf_train::trainer::{TrainConfig, train_run};
 
 /// Arguments of `maaf demo`.
@@ -76,7 +77,9 @@ impl Plan {
             ..TrainConfig::default()
         };
         let frac = |f: f64| ((iterations as f64 * f) as usize).max(1);
-        c.model.static_iterations = frac(0.05);
+        match &mut c.model {
+            ModelConfig::Saro(m) => m.static_iterations = frac(0.05),
+        }
         c.densify.from = frac(0.025);
         c.densify.until = frac(0.75);
         // Statistics need many views per Gaussian before they mean anything: keep the

@@ -3,8 +3,10 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::bail;
-use maaf_train::data::{BLACK, Dataset, DatasetOptions, Split, WHITE};
+use maaf_train::data::{Dataset, DatasetOptions, Split, WHITE};
 use maaf_train::eval::render::recorded_data;
+
+use super::BackgroundArg;
 use maaf_train::eval::{DEFAULT_SCALES, EvalOptions, evaluate_run, scale_label};
 
 /// Arguments of `maaf eval`.
@@ -54,15 +56,6 @@ impl From<SplitArg> for Split {
     }
 }
 
-/// `--background` values.
-#[derive(clap::ValueEnum, Clone, Copy, Debug)]
-pub enum BackgroundArg {
-    /// White.
-    White,
-    /// Black.
-    Black,
-}
-
 /// Opens the data set of `run`: `data` if given, else the folder in `RUN/data.json`;
 /// the background from `background`, else the recorded one, else white.
 pub fn open_run_data(
@@ -80,8 +73,7 @@ pub fn open_run_data(
         ),
     };
     let background = match (background, &recorded) {
-        (Some(BackgroundArg::White), _) => WHITE,
-        (Some(BackgroundArg::Black), _) => BLACK,
+        (Some(b), _) => b.rgb(),
         (None, Some(r)) => r.background,
         (None, None) => WHITE,
     };

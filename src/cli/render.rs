@@ -6,12 +6,13 @@ use std::path::PathBuf;
 use anyhow::{Context, bail};
 use maaf_splat::Camera;
 use maaf_train::data::{Dataset, Split};
-use maaf_train::eval::images::{save_png_atomic, to_rgb8};
+use maaf_train::eval::images::{save_png, to_rgb8};
 use maaf_train::eval::render::render_video;
 use maaf_train::eval::{load_run, render_image, run_camera};
 use maaf_train::trainer::Trainer;
 
-use super::eval::{BackgroundArg, open_run_data};
+use super::BackgroundArg;
+use super::eval::open_run_data;
 
 /// Where the camera comes from (shared by `render` and `render-video`).
 #[derive(clap::Args, Debug)]
@@ -113,7 +114,7 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     let time = args.time.or(view_time).unwrap_or(0.0);
     let settings = trainer.render_settings(trainer.iteration);
     let image = render_image(&trainer, &camera, time, &settings);
-    save_png_atomic(&to_rgb8(&image)?, &args.out)?;
+    save_png(&to_rgb8(&image)?, &args.out)?;
     println!(
         "rendered {}x{} at t = {time} to {}",
         camera.width,

@@ -4,10 +4,13 @@ use std::path::PathBuf;
 
 use anyhow::{Context, bail};
 use maaf_filter::FilterKind;
-use maaf_train::data::{BLACK, Dataset, DatasetOptions, Split, WHITE};
+use maaf_train::data::{Dataset, DatasetOptions, Split};
 use maaf_train::eval::render_image;
 use maaf_train::metrics::psnr;
+use maaf_train::models::ModelConfig;
 use maaf_train::trainer::{TrainConfig, load_checkpoint, train_run};
+
+use super::BackgroundArg;
 
 /// Arguments of `maaf train`.
 #[derive(clap::Args, Debug)]
@@ -18,9 +21,9 @@ pub struct TrainArgs {
     /// Run directory to create (config.json, log.csv, checkpoints/, model/).
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// 4D representation.
-    #[arg(long, default_value = "saro", value_parser = ["saro"])]
-    pub model: String,
+    /// 4D representation (its settings: the `model` section of --config).
+    #[arg(long, value_parser = ModelConfig::KINDS)]
+    pub model: Option<String>,
     /// 3D smoothing filter.
     #[arg(long, value_enum)]
     pub filter: Option<FilterArg>,
@@ -55,25 +58,6 @@ pub enum FilterArg {
     Motion,
 }
 
-/// `--background` values.
-#[derive(clap::ValueEnum, Clone, Copy, Debug)]
-pub enum BackgroundArg {
-    /// White, as D-NeRF's `white_bkgd`.
-    White,
-    /// Black, as SaRO-GS's D-NeRF configs.
-    Black,
-}
-
-impl BackgroundArg {
-    /// The colour.
-    pub fn rgb(self) -> [f32; 3] {
-        match self {
-            BackgroundArg::White => WHITE,
-            BackgroundArg::Black => BLACK,
-        }
-    }
-}
-
 impl From<FilterArg> for FilterKind {
     fn from(f: FilterArg) -> Self {
         match f {
@@ -95,6 +79,11 @@ pub fn config_from(args: &TrainArgs) -> anyhow::Result<TrainConfig> {
         }
         None => TrainConfig::default(),
     };
+    if let Some(kind) = &args.model
+        && kind != config.model.kind()
+    {
+        config.model = ModelConfig::default_of(kind).map_err(anyhow::Error::msg)?;
+    }
     if let Some(f) = args.filter {
         config.filter.kind = f.into();
     }
@@ -107,10 +96,7 @@ pub fn config_from(args: &TrainArgs) -> anyhow::Result<TrainConfig> {
     if let Some(s) = args.seed {
         config.seed = s;
     }
-    config
-        .filter
-        .validate()
-        .map_err(|e| anyhow::anyhow!("filter config: {e}"))?;
+    config.validate()?;
     Ok(config)
 }
 

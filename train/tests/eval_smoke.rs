@@ -8,6 +8,7 @@ use maaf_filter::FilterKind;
 use maaf_train::data::{Dataset, DatasetOptions};
 use maaf_train::eval::render::record_data;
 use maaf_train::eval::{EvalOptions, evaluate_run};
+use maaf_train::models::ModelConfig;
 use maaf_train::trainer::{TrainConfig, train_run};
 
 fn mutant_root() -> Option<PathBuf> {
@@ -33,7 +34,9 @@ fn tiny_config() -> TrainConfig {
     c.densify.from = 10;
     c.densify.every = 10;
     c.densify.opacity_reset_every = 0;
-    c.model.static_iterations = 10;
+    match &mut c.model {
+        ModelConfig::Saro(m) => m.static_iterations = 10,
+    }
     c
 }
 

@@ -2,7 +2,19 @@
 
 use maaf_autodiff::check::{GradcheckConfig, gradcheck, tests_support::random_tensor};
 use maaf_autodiff::{Tape, Tensor, Var};
-use maaf_train::loss::{L_SR, LAMBDA_SR, Objective, Term, TermCtx, ssim};
+use maaf_train::loss::{Objective, Provided, Term, TermCtx, ssim};
+use maaf_train::models::SaroConfig;
+
+/// SaRO's regulariser name and weight, as the model declares them.
+const L_SR: &str = "l_sr";
+fn lambda_sr() -> f64 {
+    SaroConfig::default().lambda_sr
+}
+
+/// The SaRO objective as the trainer builds it from the model's declaration.
+fn saro_objective<T: maaf_autodiff::Float>() -> Objective<T> {
+    Objective::photometric(0.2).with(Provided::new(L_SR, lambda_sr()))
+}
 
 fn image(seed: u64) -> Tensor<f64> {
     random_tensor(&[12, 10, 3], 0.0, 1.0, seed)
@@ -58,7 +70,7 @@ fn photometric_objective_passes_gradcheck() {
 #[test]
 fn provided_regulariser_is_zero_when_absent_and_weighted_when_present() {
     let (x, y) = (image(5), image(6));
-    let obj = Objective::<f64>::saro();
+    let obj = saro_objective::<f64>();
     assert_eq!(obj.names(), ["l1", "dssim", L_SR]);
 
     // Static stage: the model provides no L_SR.
@@ -75,12 +87,12 @@ fn provided_regulariser_is_zero_when_absent_and_weighted_when_present() {
     let out = obj.evaluate(&TermCtx::new(render, &y).with(L_SR, l_sr));
     assert_eq!(out.get(L_SR), Some(5.0));
     let diff = out.total_value() - base.total_value();
-    assert!((diff - LAMBDA_SR * 5.0).abs() < 1e-15, "{diff}");
+    assert!((diff - lambda_sr() * 5.0).abs() < 1e-15, "{diff}");
     let g = tape.backward(out.total).expect("finite");
     // d(w ||d||)/dd = w d / ||d||.
     let gd = g.param("dlog_s").expect("gradient reaches the regulariser");
-    assert!((gd.data()[0] - LAMBDA_SR * 0.6).abs() < 1e-18);
-    assert!((gd.data()[1] - LAMBDA_SR * 0.8).abs() < 1e-18);
+    assert!((gd.data()[0] - lambda_sr() * 0.6).abs() < 1e-18);
+    assert!((gd.data()[1] - lambda_sr() * 0.8).abs() < 1e-18);
 }
 
 /// Mean squared error, a user term written outside the crate.
@@ -138,9 +150,33 @@ fn f32_objective_runs_and_backpropagates() {
     let y: Tensor<f32> = random_tensor(&[16, 16, 3], 0.0, 1.0, 12);
     let tape = Tape::new();
     let render = tape.param("render", x);
-    let out = Objective::saro().evaluate(&TermCtx::new(render, &y).at_iteration(3));
+    let out = saro_objective::<f32>().evaluate(&TermCtx::new(render, &y).at_iteration(3));
     let g = tape.backward(out.total).expect("finite");
     let g = g.param("render").expect("gradient");
     assert!(g.first_non_finite().is_none());
     assert!(g.data().iter().any(|&v| v != 0.0));
+}
+
+#[test]
+fn closure_terms_read_alpha_and_are_logged_by_name() {
+    let tape = Tape::<f64>::new();
+    let render = tape.var(image(7));
+    let alpha = tape.param("alpha", Tensor::full(&[12, 10], 0.25));
+    let depth = tape.constant(Tensor::zeros(&[12, 10]));
+    let ctx = TermCtx::new(render, &image(8)).with_render(alpha, depth);
+    let obj = Objective::<f64>::new().with_fn("alpha_l1", 2.0, |c| c.alpha().abs().mean());
+    let out = obj.evaluate(&ctx);
+    assert_eq!(out.get("alpha_l1"), Some(0.25));
+    assert!((out.total_value() - 0.5).abs() < 1e-15);
+    let g = tape.backward(out.total).expect("finite");
+    let ga = g.param("alpha").expect("gradient");
+    assert!(ga.data().iter().all(|&v| (v - 2.0 / 120.0).abs() < 1e-15));
+}
+
+#[test]
+#[should_panic(expected = "no alpha")]
+fn a_hand_built_context_names_what_it_lacks() {
+    let tape = Tape::<f64>::new();
+    let ctx = TermCtx::new(tape.var(image(1)), &image(2));
+    let _ = ctx.alpha();
 }

@@ -7,6 +7,8 @@ use std::path::PathBuf;
 use maaf_autodiff::{PerGaussian, Tensor};
 use maaf_filter::FilterKind;
 use maaf_train::data::{Dataset, DatasetOptions};
+use maaf_train::models::ModelConfig;
+use maaf_train::params::Rows;
 use maaf_train::trainer::{DensifyPlan, TrainConfig, Trainer, load_checkpoint, save_checkpoint};
 
 fn mutant() -> Option<Dataset> {
@@ -33,15 +35,17 @@ fn tiny_config(filter: FilterKind) -> TrainConfig {
     c.densify.from = 20;
     c.densify.every = 20;
     c.densify.opacity_reset_every = 0;
-    c.model.static_iterations = 20;
+    match &mut c.model {
+        ModelConfig::Saro(m) => m.static_iterations = 20,
+    }
     c
 }
 
 fn params(t: &mut Trainer) -> Vec<(String, Tensor<f32>)> {
     t.model
-        .params_mut()
-        .into_iter()
-        .map(|s| (s.name, s.value.clone()))
+        .params()
+        .named_tensors()
+        .map(|(n, v)| (n.to_string(), v.clone()))
         .collect()
 }
 
@@ -93,7 +97,7 @@ fn resume_is_bit_identical() {
         first.step();
     }
     let dir = std::env::temp_dir().join(format!("maaf_resume_{}", std::process::id()));
-    save_checkpoint(&mut first, &dir).expect("checkpoint");
+    save_checkpoint(&first, &dir).expect("checkpoint");
     let mut resumed = load_checkpoint(&data, &dir).expect("resume");
     assert_eq!(resumed.iteration, 25);
     // A loaded run renders what the saved one did: the model is in the same stage
@@ -128,14 +132,14 @@ fn a_nan_is_caught_and_never_checkpointed() {
     let Some(data) = mutant() else { return };
     let mut t = Trainer::new(&data, tiny_config(FilterKind::Mip3d)).expect("trainer");
     t.step();
-    let mut slots = t.model.params_mut();
-    let slot = slots
+    let slot = t
+        .model
+        .params_mut()
         .iter_mut()
-        .find(|s| s.per_gaussian)
+        .find(|s| s.rows == Rows::PerGaussian)
         .expect("a per-Gaussian parameter");
     slot.value.data_mut()[0] = f32::NAN;
     let name = slot.name.clone();
-    drop(slots);
     t.step();
     assert_eq!(
         t.skipped_steps, 1,
@@ -164,13 +168,7 @@ fn one_plan_resizes_every_container_in_lock_step() {
     let n = t.num_gaussians();
     assert!(n > 20, "{n} Gaussians");
     let before = params(&mut t);
-    let per_gaussian: Vec<String> = t
-        .model
-        .params_mut()
-        .into_iter()
-        .filter(|s| s.per_gaussian)
-        .map(|s| s.name)
-        .collect();
+    let per_gaussian: Vec<String> = t.model.params().per_gaussian_names();
     let moments: Vec<_> = per_gaussian
         .iter()
         .map(|p| t.adam.moments(p).expect("moments after 45 steps").clone())

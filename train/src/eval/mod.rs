@@ -17,7 +17,7 @@
 pub mod images;
 pub mod render;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Instant;
 
 use maaf_autodiff::{PerGaussian, Tensor};
@@ -28,38 +28,13 @@ use serde::{Deserialize, Serialize};
 use crate::data::{Dataset, Split};
 use crate::metrics::{ImageMetrics, error_map, image_metrics, mean_metrics};
 use crate::trainer::Trainer;
+use crate::{Error, write_atomic};
 
 pub use render::{load_run, render_image, run_camera};
 
 /// The paper's evaluation scales relative to the training scale: 1/4x, 1/2x (zoom-out),
 /// 1x, 2x and 4x (zoom-in).
 pub const DEFAULT_SCALES: [f64; 5] = [0.25, 0.5, 1.0, 2.0, 4.0];
-
-/// Why an evaluation (or a render of a run) failed. Messages are one line.
-#[derive(Debug, thiserror::Error)]
-pub enum EvalError {
-    /// Bad run, data, scale or option.
-    #[error("{0}")]
-    Input(String),
-    /// A file could not be read or written.
-    #[error("{path}: {source}")]
-    Io {
-        /// File or folder.
-        path: String,
-        /// Underlying error.
-        source: std::io::Error,
-    },
-}
-
-impl EvalError {
-    /// An I/O error on `path`.
-    pub fn io(path: &Path, source: std::io::Error) -> Self {
-        EvalError::Io {
-            path: path.display().to_string(),
-            source,
-        }
-    }
-}
 
 /// Options of [`evaluate_run`].
 #[derive(Clone, Debug)]
@@ -150,11 +125,11 @@ impl EvalReport {
     }
 
     /// Reads `RUN/eval.json`.
-    pub fn read(run: &Path) -> Result<Self, EvalError> {
+    pub fn read(run: &Path) -> Result<Self, Error> {
         let path = run.join("eval.json");
-        let text = std::fs::read_to_string(&path).map_err(|e| EvalError::io(&path, e))?;
+        let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
         serde_json::from_str(&text)
-            .map_err(|e| EvalError::Input(format!("{}: not an eval.json: {e}", path.display())))
+            .map_err(|e| Error::Input(format!("{}: not an eval.json: {e}", path.display())))
     }
 }
 
@@ -175,25 +150,6 @@ pub fn trim_float(v: f64) -> String {
     s.to_string()
 }
 
-/// A temporary sibling of `path` (same folder, so a rename is atomic).
-pub(crate) fn tmp_sibling(path: &Path) -> PathBuf {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "out".into());
-    path.with_file_name(format!(".{name}.tmp{}", std::process::id()))
-}
-
-/// Writes `bytes` to `path` through a temporary sibling file and a rename.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), EvalError> {
-    let tmp = tmp_sibling(path);
-    std::fs::write(&tmp, bytes).map_err(|e| EvalError::io(&tmp, e))?;
-    std::fs::rename(&tmp, path).map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        EvalError::io(path, e)
-    })
-}
-
 /// One resolved evaluation scale: relative, source-relative, output size.
 #[derive(Clone, Copy, Debug)]
 struct ResolvedScale {
@@ -211,23 +167,21 @@ fn resolve_scales(
     split: Split,
     train_scale: f64,
     scales: &[f64],
-) -> Result<Vec<ResolvedScale>, EvalError> {
+) -> Result<Vec<ResolvedScale>, Error> {
     if scales.is_empty() {
-        return Err(EvalError::Input("no evaluation scale given".into()));
+        return Err(Error::Input("no evaluation scale given".into()));
     }
-    let meta = data
-        .split(split)
-        .map_err(|e| EvalError::Input(e.to_string()))?;
+    let meta = data.split(split).map_err(|e| Error::Input(e.to_string()))?;
     let (sw, sh) = (meta.width, meta.height);
     let mut out: Vec<ResolvedScale> = Vec::new();
     for &s in scales {
         if !(s.is_finite() && s > 0.0) {
-            return Err(EvalError::Input(format!(
+            return Err(Error::Input(format!(
                 "scale {s}: must be a positive number (relative to the training scale, e.g. 0.25,0.5,1,2,4)"
             )));
         }
         if out.iter().any(|r| (r.relative - s).abs() < 1e-9) {
-            return Err(EvalError::Input(format!("scale {s} is given twice")));
+            return Err(Error::Input(format!("scale {s} is given twice")));
         }
         let source = train_scale * s;
         let want = (
@@ -235,7 +189,7 @@ fn resolve_scales(
             (sh as f64 * source).round() as u64,
         );
         if source > 1.0 + 1e-9 {
-            return Err(EvalError::Input(format!(
+            return Err(Error::Input(format!(
                 "scale {}x needs {}x{} ground truth but the source images are {sw}x{sh} (training scale {}: at most {}x)",
                 trim_float(s),
                 want.0,
@@ -245,7 +199,7 @@ fn resolve_scales(
             )));
         }
         let (width, height) = data.size(split, source).map_err(|e| {
-            EvalError::Input(format!(
+            Error::Input(format!(
                 "scale {}x (source scale {}): {e}",
                 trim_float(s),
                 trim_float(source)
@@ -277,10 +231,10 @@ fn evaluate_scale(
     scale: &ResolvedScale,
     options: &EvalOptions,
     dir: &Path,
-) -> Result<Vec<ViewResult>, EvalError> {
+) -> Result<Vec<ViewResult>, Error> {
     let mut views = data
         .views(split, scale.source)
-        .map_err(|e| EvalError::Input(e.to_string()))?;
+        .map_err(|e| Error::Input(e.to_string()))?;
     if let Some(n) = options.max_views {
         views.truncate(n);
     }
@@ -311,17 +265,17 @@ fn measure_view(
     scale: &ResolvedScale,
     options: &EvalOptions,
     dir: &Path,
-) -> Result<ViewResult, EvalError> {
+) -> Result<ViewResult, Error> {
     let gt = v.image.to_tensor();
     let metrics = image_metrics(image, &gt).map_err(|e| {
-        EvalError::Input(format!(
+        Error::Input(format!(
             "view {} at scale {}: {e}",
             v.index,
             scale_label(scale.relative)
         ))
     })?;
     if options.save_images {
-        let err = error_map(image, &gt).map_err(|e| EvalError::Input(e.to_string()))?;
+        let err = error_map(image, &gt).map_err(|e| Error::Input(e.to_string()))?;
         images::save_png(
             &images::to_rgb8(image)?,
             &dir.join(format!("render_{:03}.png", v.index)),
@@ -429,7 +383,7 @@ pub fn evaluate_run(
     run: &Path,
     data: &Dataset,
     options: &EvalOptions,
-) -> Result<EvalReport, EvalError> {
+) -> Result<EvalReport, Error> {
     let trainer = load_run(run, data)?;
     evaluate_trainer(&trainer, run, data, options)
 }
@@ -441,37 +395,37 @@ pub fn evaluate_trainer(
     run: &Path,
     data: &Dataset,
     options: &EvalOptions,
-) -> Result<EvalReport, EvalError> {
+) -> Result<EvalReport, Error> {
     let split = options.split;
     if data.len(split) == 0 {
-        return Err(EvalError::Input(format!(
+        return Err(Error::Input(format!(
             "{}: the {split:?} split has no views",
             data.root().display()
         )));
     }
     if options.max_views == Some(0) {
-        return Err(EvalError::Input("--max-views must be at least 1".into()));
+        return Err(Error::Input("--max-views must be at least 1".into()));
     }
     let scales = resolve_scales(data, split, trainer.config.train_scale, &options.scales)?;
     let mut report = run_report(trainer, data);
 
     let final_dir = run.join("eval");
-    let tmp_dir = run.join(format!(".eval.tmp{}", std::process::id()));
+    let tmp_dir = maaf_io::temp_sibling(&final_dir);
     if tmp_dir.exists() {
-        std::fs::remove_dir_all(&tmp_dir).map_err(|e| EvalError::io(&tmp_dir, e))?;
+        std::fs::remove_dir_all(&tmp_dir).map_err(|e| Error::io(&tmp_dir, e))?;
     }
     let result = (|| {
         let sources: Vec<f64> = scales.iter().map(|s| s.source).collect();
         data.preload(split, &sources)
-            .map_err(|e| EvalError::Input(e.to_string()))?;
+            .map_err(|e| Error::Input(e.to_string()))?;
         for s in &scales {
             let start = Instant::now();
             let dir = tmp_dir.join(scale_label(s.relative));
-            std::fs::create_dir_all(&dir).map_err(|e| EvalError::io(&dir, e))?;
+            std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
             let views = evaluate_scale(trainer, data, split, s, options, &dir)?;
             let per: Vec<ImageMetrics> = views.iter().map(|v| v.metrics).collect();
-            let m = mean_metrics(&per)
-                .ok_or_else(|| EvalError::Input("no views were evaluated".into()))?;
+            let m =
+                mean_metrics(&per).ok_or_else(|| Error::Input("no views were evaluated".into()))?;
             let mut csv = String::from("view,time,psnr,ssim\n");
             for v in &views {
                 csv.push_str(&format!(
@@ -513,16 +467,9 @@ pub fn evaluate_trainer(
         return Err(e);
     }
     // Swap the complete folder into place, then write eval.json.
-    let old = run.join(format!(".eval.old{}", std::process::id()));
-    if final_dir.exists() {
-        std::fs::rename(&final_dir, &old).map_err(|e| EvalError::io(&final_dir, e))?;
-    }
-    std::fs::rename(&tmp_dir, &final_dir).map_err(|e| EvalError::io(&final_dir, e))?;
-    if old.exists() {
-        let _ = std::fs::remove_dir_all(&old);
-    }
-    let json = serde_json::to_vec_pretty(&report)
-        .map_err(|e| EvalError::Input(format!("eval.json: {e}")))?;
+    maaf_io::replace_dir(&tmp_dir, &final_dir).map_err(|e| Error::io(&final_dir, e))?;
+    let json =
+        serde_json::to_vec_pretty(&report).map_err(|e| Error::Input(format!("eval.json: {e}")))?;
     write_atomic(&run.join("eval.json"), &json)?;
     Ok(report)
 }

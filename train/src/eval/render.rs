@@ -4,12 +4,14 @@
 use std::path::{Path, PathBuf};
 
 use maaf_autodiff::Tensor;
-use maaf_splat::{Camera, RenderSettings, render_tensors};
+use maaf_splat::{Camera, RenderSettings};
 use serde::{Deserialize, Serialize};
 
-use super::{EvalError, images, write_atomic};
+use super::images;
 use crate::data::{Dataset, Split};
-use crate::trainer::{Trainer, frame_at, load_checkpoint};
+use crate::forward::forward;
+use crate::trainer::{Trainer, load_checkpoint};
+use crate::{Error, write_atomic};
 
 /// What a run was trained on, written as `RUN/data.json` by [`record_data`]; when it
 /// is present, [`load_run`] refuses a data set that differs from it.
@@ -31,10 +33,10 @@ pub struct DataFingerprint {
 
 impl DataFingerprint {
     /// The fingerprint of `data`.
-    pub fn of(data: &Dataset) -> Result<Self, EvalError> {
+    pub fn of(data: &Dataset) -> Result<Self, Error> {
         let meta = data
             .split(Split::Train)
-            .map_err(|e| EvalError::Input(e.to_string()))?;
+            .map_err(|e| Error::Input(e.to_string()))?;
         Ok(DataFingerprint {
             root: data.root().to_path_buf(),
             train_views: data.len(Split::Train),
@@ -48,39 +50,39 @@ impl DataFingerprint {
 
 /// Writes `RUN/data.json` (the data set's [`DataFingerprint`]), so later evaluations
 /// can refuse a different data set. Training (or the demo) calls this once.
-pub fn record_data(run: &Path, data: &Dataset) -> Result<(), EvalError> {
+pub fn record_data(run: &Path, data: &Dataset) -> Result<(), Error> {
     let fp = DataFingerprint::of(data)?;
     let json =
-        serde_json::to_vec_pretty(&fp).map_err(|e| EvalError::Input(format!("data.json: {e}")))?;
+        serde_json::to_vec_pretty(&fp).map_err(|e| Error::Input(format!("data.json: {e}")))?;
     write_atomic(&run.join("data.json"), &json)
 }
 
 /// Reads `RUN/data.json` if the run has one.
-pub fn recorded_data(run: &Path) -> Result<Option<DataFingerprint>, EvalError> {
+pub fn recorded_data(run: &Path) -> Result<Option<DataFingerprint>, Error> {
     let path = run.join("data.json");
     if !path.exists() {
         return Ok(None);
     }
-    let text = std::fs::read_to_string(&path).map_err(|e| EvalError::io(&path, e))?;
+    let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
     serde_json::from_str(&text)
         .map(Some)
-        .map_err(|e| EvalError::Input(format!("{}: {e}", path.display())))
+        .map_err(|e| Error::Input(format!("{}: {e}", path.display())))
 }
 
 /// Loads the trained model of `run` (`RUN/model/`) on `data`. One-line errors for a
 /// missing run or model and for a data set that does not match the run (different
 /// number of training views, different image size when `RUN/data.json` records it,
 /// or a training scale the images cannot be downsampled to).
-pub fn load_run(run: &Path, data: &Dataset) -> Result<Trainer, EvalError> {
+pub fn load_run(run: &Path, data: &Dataset) -> Result<Trainer, Error> {
     if !run.is_dir() {
-        return Err(EvalError::Input(format!(
+        return Err(Error::Input(format!(
             "{}: run directory does not exist",
             run.display()
         )));
     }
     let model = run.join("model");
     if !model.join("state.json").is_file() || !model.join("tensors.safetensors").is_file() {
-        return Err(EvalError::Input(format!(
+        return Err(Error::Input(format!(
             "{}: no trained model (expected {}/state.json and tensors.safetensors; train with `maaf train --out {}`)",
             run.display(),
             model.display(),
@@ -90,7 +92,7 @@ pub fn load_run(run: &Path, data: &Dataset) -> Result<Trainer, EvalError> {
     if let Some(rec) = recorded_data(run)? {
         let now = DataFingerprint::of(data)?;
         if (rec.train_views, rec.width, rec.height) != (now.train_views, now.width, now.height) {
-            return Err(EvalError::Input(format!(
+            return Err(Error::Input(format!(
                 "{}: does not match the run's data ({} training views of {}x{} in {}; this one has {} of {}x{})",
                 data.root().display(),
                 rec.train_views,
@@ -103,7 +105,7 @@ pub fn load_run(run: &Path, data: &Dataset) -> Result<Trainer, EvalError> {
             )));
         }
         if rec.background != now.background {
-            return Err(EvalError::Input(format!(
+            return Err(Error::Input(format!(
                 "{}: background {:?} differs from the {:?} the run was trained on",
                 data.root().display(),
                 now.background,
@@ -114,14 +116,14 @@ pub fn load_run(run: &Path, data: &Dataset) -> Result<Trainer, EvalError> {
     load_checkpoint(data, &model).map_err(|e| {
         let msg = e.to_string();
         if msg.contains("different data set") {
-            EvalError::Input(format!(
+            Error::Input(format!(
                 "{}: does not match the run {} (it was trained on a different number of training views; this data set has {})",
                 data.root().display(),
                 run.display(),
                 data.len(Split::Train)
             ))
         } else {
-            EvalError::Input(format!("{}: cannot load the model: {msg}", run.display()))
+            Error::Input(format!("{}: cannot load the model: {msg}", run.display()))
         }
     })
 }
@@ -134,19 +136,19 @@ pub fn run_camera(
     split: Split,
     index: usize,
     scale: f64,
-) -> Result<Camera, EvalError> {
+) -> Result<Camera, Error> {
     if !(scale.is_finite() && scale > 0.0) {
-        return Err(EvalError::Input(format!(
+        return Err(Error::Input(format!(
             "scale {scale}: must be a positive number"
         )));
     }
     let source = data
         .camera(split, index, 1.0)
-        .map_err(|e| EvalError::Input(e.to_string()))?;
+        .map_err(|e| Error::Input(e.to_string()))?;
     let s = trainer.config.train_scale * scale;
     let cam = source.scaled(s);
     if cam.width as u64 * cam.height as u64 > 64_000_000 {
-        return Err(EvalError::Input(format!(
+        return Err(Error::Input(format!(
             "scale {scale}: {}x{} is too large to render",
             cam.width, cam.height
         )));
@@ -154,20 +156,28 @@ pub fn run_camera(
     Ok(cam)
 }
 
-/// Renders the run's Gaussians at `time` from `camera` (float `[H, W, 3]`).
+/// Renders the run's Gaussians at `time` from `camera` (float `[H, W, 3]`), through
+/// the training pipeline ([`forward`]) with the parameters as constants.
 pub fn render_image(
     trainer: &Trainer,
     camera: &Camera,
     time: f64,
     settings: &RenderSettings,
 ) -> Tensor<f32> {
-    let [m, s, q, o, sh] = frame_at(
+    let tape = maaf_autodiff::Tape::new();
+    let params = trainer.model.params().bind_constants(&tape);
+    let out = forward(
         trainer.model.as_ref(),
+        &params,
         &trainer.filter,
-        trainer.config.filter.kind,
+        camera,
         time,
+        settings,
     );
-    render_tensors(&m, &s, &q, &o, &sh, camera, settings).image
+    // The binding ends the borrow of the tape before the tape is dropped.
+    #[allow(clippy::let_and_return)]
+    let image = out.render.image.value().clone();
+    image
 }
 
 /// Renders `frames` evenly spaced times over `[t0, t1]` from one fixed `camera` into
@@ -179,11 +189,11 @@ pub fn render_video(
     (t0, t1): (f64, f64),
     frames: usize,
     out: &Path,
-) -> Result<Vec<PathBuf>, EvalError> {
+) -> Result<Vec<PathBuf>, Error> {
     if frames == 0 {
-        return Err(EvalError::Input("--frames must be at least 1".into()));
+        return Err(Error::Input("--frames must be at least 1".into()));
     }
-    std::fs::create_dir_all(out).map_err(|e| EvalError::io(out, e))?;
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let settings = trainer.render_settings(trainer.iteration);
     let mut paths = Vec::with_capacity(frames);
     let mut rgb = Vec::with_capacity(frames);
@@ -195,7 +205,7 @@ pub fn render_video(
         };
         let img = images::to_rgb8(&render_image(trainer, camera, t, &settings))?;
         let path = out.join(format!("frame_{i:04}.png"));
-        images::save_png_atomic(&img, &path)?;
+        images::save_png(&img, &path)?;
         paths.push(path);
         rgb.push(img);
     }

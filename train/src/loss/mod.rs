@@ -2,10 +2,11 @@
 //!
 //! `total = sum_k w_k * term_k(ctx)`, and every term's unweighted value is returned by
 //! name for logging. The default 3DGS / SaRO-GS photometric loss is
-//! `(1 - 0.2) L1 + 0.2 (1 - SSIM)` ([`Objective::photometric`]); SaRO-GS adds
-//! `8e-6 L_SR` ([`Objective::saro`], SaRO-GS `helper_train.py::getloss`,
-//! domain-notes 2.4). A new term is one `impl Term` plus [`Objective::with`]; the
-//! training step only calls [`Objective::evaluate`], so it never changes.
+//! `(1 - 0.2) L1 + 0.2 (1 - SSIM)` ([`Objective::photometric`]); a representation's
+//! own regularisers (SaRO-GS's `8e-6 L_SR`, `helper_train.py::getloss`) are added by
+//! [`Objective::for_model`] with the weights the representation declares. A new term
+//! is one `impl Term` (or a closure, [`Objective::with_fn`]) plus [`Objective::with`];
+//! the training step only calls [`Objective::evaluate`], so it never changes.
 //!
 //! ```
 //! use maaf_autodiff::{Tape, Tensor};
@@ -25,12 +26,12 @@ mod terms;
 use maaf_autodiff::{Float, Var};
 
 pub use ssim::{Ssim, SsimOutput, ssim, ssim_map};
-pub use terms::{DSsim, L_SR, L1, Provided, Term, TermCtx};
+pub use terms::{DSsim, FnTerm, L1, Provided, Term, TermCtx};
+
+use crate::models::Representation;
 
 /// SaRO-GS / 3DGS weight of D-SSIM in the photometric loss (`lambda_dssim`).
 pub const LAMBDA_DSSIM: f64 = 0.2;
-/// SaRO-GS weight of the scale-residual regulariser (`lambda_dscale_reg`).
-pub const LAMBDA_SR: f64 = 8e-6;
 
 /// A weighted sum of named terms (module docs).
 pub struct Objective<T: Float> {
@@ -91,11 +92,33 @@ impl<T: Float> Objective<T> {
             .with(DSsim { weight: lambda })
     }
 
-    /// SaRO-GS's objective: [`Objective::photometric`]`(0.2)` plus
-    /// `8e-6 L_SR` read from the context under [`L_SR`] (0 when the model does not
-    /// provide it, i.e. in the static stage).
-    pub fn saro() -> Self {
-        Self::photometric(LAMBDA_DSSIM).with(Provided::new(L_SR, LAMBDA_SR))
+    /// The training objective of `model`: [`Objective::photometric`]`(lambda)` plus
+    /// one [`Provided`] term per regulariser the representation declares, with its
+    /// weight (SaRO: `8e-6 l_sr`; 0 on steps where the model does not provide it,
+    /// e.g. the static stage).
+    pub fn for_model(lambda: f64, model: &dyn Representation<T>) -> Self {
+        let mut out = Self::photometric(lambda);
+        for (name, weight) in model.regularisers() {
+            out.push(Box::new(Provided::new(&name, weight)));
+        }
+        out
+    }
+
+    /// Adds a term written as a closure over the context (about as short as a term
+    /// gets): `obj.with_fn("opacity_l1", 1e-3, |ctx| ctx.gaussians().opacity.mean())`.
+    pub fn with_fn<F>(self, name: &str, weight: f64, f: F) -> Self
+    where
+        F: for<'a, 't> Fn(&'a TermCtx<'t, T>) -> Var<'t, T> + Send + Sync + 'static,
+    {
+        self.with(FnTerm::new(name, weight, f))
+    }
+
+    /// [`Objective::with_fn`] on an existing objective (e.g. `trainer.objective`).
+    pub fn push_fn<F>(&mut self, name: &str, weight: f64, f: F)
+    where
+        F: for<'a, 't> Fn(&'a TermCtx<'t, T>) -> Var<'t, T> + Send + Sync + 'static,
+    {
+        self.push(Box::new(FnTerm::new(name, weight, f)));
     }
 
     /// Adds a term; panics if its name is already used (log columns must be unique).

@@ -3,18 +3,16 @@
 use std::collections::BTreeMap;
 
 use maaf_autodiff::{Float, Tensor, Var};
+use maaf_splat::{Camera, GaussianVars};
 
 use super::ssim::ssim;
 
-/// Key under which a model provides SaRO-GS's scale-residual regulariser
-/// `L_SR = ||Delta log s (t = mu_t)||_2` (plain L2 norm over all N x 3 entries, not
-/// squared, not averaged; SaRO-GS `helper_train.py::getloss`, domain-notes 2.4).
-pub const L_SR: &str = "l_sr";
-
-/// Everything a [`Term`] may read in one training step: the rendered image, the ground
-/// truth, the iteration, and named regulariser values provided by the model (e.g.
-/// [`L_SR`]). New inputs go here as named `Var`s, so adding a term never changes the
-/// training step's signature.
+/// Everything a [`Term`] may read in one training step: the rendered image, alpha and
+/// depth, the ground truth, the deformed Gaussians (as `Var`s, before the 3D filter),
+/// the camera, the time, the iteration, and named regulariser values provided by the
+/// model (e.g. SaRO's `l_sr`). The trainer's context (`Forward::term_ctx`) has all of
+/// them; a context built by hand with [`TermCtx::new`] has only the images, and the
+/// accessors of the others panic, naming what is missing.
 pub struct TermCtx<'t, T: Float> {
     /// Rendered image `[H, W, 3]` on the tape.
     pub render: Var<'t, T>,
@@ -22,6 +20,8 @@ pub struct TermCtx<'t, T: Float> {
     pub gt: Var<'t, T>,
     /// Training iteration (0-based), for terms with a schedule.
     pub iteration: usize,
+    render_extras: Option<(Var<'t, T>, Var<'t, T>)>,
+    scene: Option<(GaussianVars<'t, T>, Camera, f64)>,
     extras: BTreeMap<String, Var<'t, T>>,
 }
 
@@ -43,6 +43,8 @@ impl<'t, T: Float> TermCtx<'t, T> {
             render,
             gt,
             iteration: 0,
+            render_extras: None,
+            scene: None,
             extras: BTreeMap::new(),
         }
     }
@@ -53,7 +55,60 @@ impl<'t, T: Float> TermCtx<'t, T> {
         self
     }
 
-    /// Adds (or replaces) a named value, e.g. a model regulariser under [`L_SR`].
+    /// Adds the render's accumulated opacity `[H, W]` and alpha-weighted depth `[H, W]`.
+    pub fn with_render(mut self, alpha: Var<'t, T>, depth: Var<'t, T>) -> Self {
+        self.render_extras = Some((alpha, depth));
+        self
+    }
+
+    /// Adds the deformed Gaussians, the camera and the time of the render.
+    pub fn with_scene(mut self, gaussians: GaussianVars<'t, T>, camera: Camera, time: f64) -> Self {
+        self.scene = Some((gaussians, camera, time));
+        self
+    }
+
+    fn missing(what: &str) -> ! {
+        panic!(
+            "TermCtx: this context has no {what} (it was built with TermCtx::new; the \
+             trainer's context from Forward::term_ctx has it)"
+        )
+    }
+
+    /// Accumulated opacity `1 - T_final` per pixel, `[H, W]`.
+    pub fn alpha(&self) -> Var<'t, T> {
+        self.render_extras
+            .map_or_else(|| Self::missing("alpha"), |r| r.0)
+    }
+
+    /// Alpha-weighted camera depth `sum_i z_i alpha_i T_i` per pixel, `[H, W]`.
+    pub fn depth(&self) -> Var<'t, T> {
+        self.render_extras
+            .map_or_else(|| Self::missing("depth"), |r| r.1)
+    }
+
+    /// The deformed Gaussians at this step's time, before the 3D filter (the
+    /// representation's output: activated scales and opacity).
+    pub fn gaussians(&self) -> GaussianVars<'t, T> {
+        self.scene
+            .as_ref()
+            .map_or_else(|| Self::missing("Gaussians"), |s| s.0)
+    }
+
+    /// The camera of the render.
+    pub fn camera(&self) -> &Camera {
+        self.scene
+            .as_ref()
+            .map_or_else(|| Self::missing("camera"), |s| &s.1)
+    }
+
+    /// The time of the render.
+    pub fn time(&self) -> f64 {
+        self.scene
+            .as_ref()
+            .map_or_else(|| Self::missing("time"), |s| s.2)
+    }
+
+    /// Adds (or replaces) a named value, e.g. a model regulariser (SaRO's `l_sr`).
     pub fn insert(&mut self, name: &str, value: Var<'t, T>) {
         self.extras.insert(name.to_string(), value);
     }
@@ -137,8 +192,8 @@ impl<T: Float> Term<T> for DSsim {
 }
 
 /// A regulariser the model computes itself and hands over through
-/// [`TermCtx::insert`] under `key` (e.g. SaRO-GS's `L_SR` under [`L_SR`] with weight
-/// 8e-6). Its value is 0 on steps where the model does not provide it (e.g. the
+/// [`TermCtx::insert`] under `key` (e.g. SaRO-GS's `l_sr` with weight 8e-6; the
+/// trainer adds one per name the representation declares). Its value is 0 on steps where the model does not provide it (e.g. the
 /// static warm-up stage, where `L_SR` is inactive).
 #[derive(Clone, Debug)]
 pub struct Provided {
@@ -167,5 +222,41 @@ impl<T: Float> Term<T> for Provided {
     }
     fn value<'t>(&self, ctx: &TermCtx<'t, T>) -> Var<'t, T> {
         ctx.get(&self.key).unwrap_or_else(|| ctx.zero())
+    }
+}
+
+/// A term written as a closure: `Objective::with_fn("alpha_l1", 0.01, |ctx| ctx.alpha().mean())`.
+pub struct FnTerm<F> {
+    name: String,
+    weight: f64,
+    f: F,
+}
+
+impl<F> FnTerm<F> {
+    /// The term `weight * f(ctx)`, logged as `name`.
+    pub fn new<T: Float>(name: &str, weight: f64, f: F) -> Self
+    where
+        F: for<'a, 't> Fn(&'a TermCtx<'t, T>) -> Var<'t, T> + Send + Sync,
+    {
+        FnTerm {
+            name: name.to_string(),
+            weight,
+            f,
+        }
+    }
+}
+
+impl<T: Float, F> Term<T> for FnTerm<F>
+where
+    F: for<'a, 't> Fn(&'a TermCtx<'t, T>) -> Var<'t, T> + Send + Sync,
+{
+    fn name(&self) -> &str {
+        &self.name
+    }
+    fn weight(&self) -> f64 {
+        self.weight
+    }
+    fn value<'t>(&self, ctx: &TermCtx<'t, T>) -> Var<'t, T> {
+        (self.f)(ctx)
     }
 }

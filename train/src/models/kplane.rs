@@ -95,13 +95,13 @@ impl PlaneGeom {
     }
 }
 
-/// The six planes plus the bounds used to normalise positions.
+/// The layout of the six planes plus the bounds used to normalise positions. The
+/// plane values themselves are parameters and live in the representation's
+/// [`crate::params::ParamStore`] ([`KPlaneField::zero_planes`] makes the initial ones).
 #[derive(Clone, Debug, PartialEq)]
-pub struct KPlaneField<T: Float> {
+pub struct KPlaneField {
     /// Sizes.
     pub config: KPlaneConfig,
-    /// Plane values, [`PLANE_NAMES`] order, each \[height, width, channels].
-    pub planes: Vec<Tensor<T>>,
     /// Lower corner of the normalisation box (SaRO-GS: the AABB of the initial cloud).
     pub aabb_min: [f64; 3],
     /// Upper corner of the normalisation box.
@@ -117,9 +117,10 @@ pub struct FieldQuery {
     pub levels: Vec<[f64; 3]>,
 }
 
-impl<T: Float> KPlaneField<T> {
-    /// Zero-initialised planes (SaRO-GS `init_grid_param` zero-initialises spatial and
-    /// time planes alike). Panics unless `spatial_res` is a power of two.
+impl KPlaneField {
+    /// The field over the box `[aabb_min, aabb_max]`. Panics unless `spatial_res` is a
+    /// power of two and `time_res`, `channels` are positive (the model config is
+    /// validated before a field is built).
     pub fn new(config: KPlaneConfig, aabb_min: [f64; 3], aabb_max: [f64; 3]) -> Self {
         assert!(
             config.spatial_res.is_power_of_two(),
@@ -127,18 +128,22 @@ impl<T: Float> KPlaneField<T> {
             config.spatial_res
         );
         assert!(config.time_res >= 1 && config.channels >= 1);
-        let planes = (0..6)
-            .map(|p| {
-                let g = Self::geom_of(&config, p);
-                Tensor::zeros(&[g.height, g.width, config.channels])
-            })
-            .collect();
         KPlaneField {
             config,
-            planes,
             aabb_min,
             aabb_max,
         }
+    }
+
+    /// Zero planes in [`PLANE_NAMES`] order, each \[height, width, channels] (SaRO-GS
+    /// `init_grid_param` zero-initialises spatial and time planes alike).
+    pub fn zero_planes<T: Float>(&self) -> Vec<Tensor<T>> {
+        (0..6)
+            .map(|p| {
+                let g = self.geom(p);
+                Tensor::zeros(&[g.height, g.width, self.config.channels])
+            })
+            .collect()
     }
 
     fn geom_of(config: &KPlaneConfig, p: usize) -> PlaneGeom {
@@ -170,7 +175,7 @@ impl<T: Float> KPlaneField<T> {
     /// Builds the detached query for `N` Gaussians from canonical centres \[N*3],
     /// temporal centres \[N] (already in the field's time unit, \[0, 1]) and activated
     /// scales \[N*3] (SaRO-GS `ScaleAwareResField.get_density` + `get_level`).
-    pub fn query(&self, means: &[T], t_centre: &[T], scales: &[T]) -> FieldQuery {
+    pub fn query<T: Float>(&self, means: &[T], t_centre: &[T], scales: &[T]) -> FieldQuery {
         let n = t_centre.len();
         assert_eq!(means.len(), 3 * n);
         assert_eq!(scales.len(), 3 * n);
@@ -199,7 +204,12 @@ impl<T: Float> KPlaneField<T> {
 
     /// Number of scalars in the six planes.
     pub fn num_scalars(&self) -> usize {
-        self.planes.iter().map(Tensor::len).sum()
+        (0..6)
+            .map(|p| {
+                let g = self.geom(p);
+                g.height * g.width * self.config.channels
+            })
+            .sum()
     }
 }
 
@@ -300,7 +310,7 @@ pub struct PlaneSample {
 
 impl PlaneSample {
     /// The op for `field`'s layout and a detached `query`.
-    pub fn new<T: Float>(field: &KPlaneField<T>, query: Arc<FieldQuery>) -> Self {
+    pub fn new(field: &KPlaneField, query: Arc<FieldQuery>) -> Self {
         PlaneSample {
             query,
             geoms: std::array::from_fn(|p| field.geom(p)),
@@ -400,11 +410,15 @@ impl<T: Float> Op<T> for PlaneSample {
 /// the mean of the `2^l x 2^l` block of level-0 texels it covers, and bilinear
 /// interpolation is a sum of hat functions `max(0, 1 - |i - x|)` over every texel at
 /// the coordinate clamped to the texel-centre range (which equals clamp-to-edge).
-pub fn reference_sample(field: &KPlaneField<f64>, query: &FieldQuery) -> Tensor<f64> {
+pub fn reference_sample(
+    field: &KPlaneField,
+    planes: &[Tensor<f64>],
+    query: &FieldQuery,
+) -> Tensor<f64> {
     let c = field.config.channels;
     let n = query.coords.len();
     let mut out = vec![0.0; n * c];
-    for (p, plane) in field.planes.iter().enumerate() {
+    for (p, plane) in planes.iter().enumerate() {
         let g = field.geom(p);
         let texel = |l: usize, ix: usize, iy: usize, k: usize| -> f64 {
             let b = 1usize << l;
@@ -458,17 +472,20 @@ mod tests {
 
     /// A small field with random planes and queries that cover the interior, the
     /// border (clamp) and every mip level, including fractional ones.
-    fn fixture() -> (KPlaneField<f64>, FieldQuery) {
+    fn fixture() -> (KPlaneField, Vec<Tensor<f64>>, FieldQuery) {
         let config = KPlaneConfig {
             spatial_res: 8,
             time_res: 5,
             channels: 3,
             max_mip_level: 7,
         };
-        let mut field = KPlaneField::<f64>::new(config, [-1.0, -2.0, 0.0], [1.0, 2.0, 3.0]);
-        for (p, plane) in field.planes.iter_mut().enumerate() {
-            *plane = random_tensor(plane.shape(), -1.0, 1.0, 10 + p as u64);
-        }
+        let field = KPlaneField::new(config, [-1.0, -2.0, 0.0], [1.0, 2.0, 3.0]);
+        let planes: Vec<Tensor<f64>> = field
+            .zero_planes::<f64>()
+            .iter()
+            .enumerate()
+            .map(|(p, plane)| random_tensor(plane.shape(), -1.0, 1.0, 10 + p as u64))
+            .collect();
         let n = 12;
         let mut means = random_tensor::<f64>(&[n, 3], -1.2, 3.2, 1).into_vec();
         // Gaussian 0 outside the box (clamp), Gaussian 1 exactly on a texel centre.
@@ -478,23 +495,19 @@ mod tests {
         // Scales from below the clamp (level 0) to above it (level log2 8 = 3).
         let scales = random_tensor::<f64>(&[n, 3], -5.0, 1.0, 3).map(f64::exp);
         let q = field.query(&means, &times, scales.data());
-        (field, q)
+        (field, planes, q)
     }
 
     #[test]
     fn forward_matches_the_slow_reference() {
-        let (field, q) = fixture();
+        let (field, planes, q) = fixture();
         assert!(q.levels.iter().flatten().any(|&l| l == 0.0));
         assert!(q.levels.iter().flatten().any(|&l| l == 3.0));
         assert!(q.levels.iter().flatten().any(|&l| l.fract() > 0.1));
         let tape = Tape::<f64>::new();
-        let planes: Vec<_> = field
-            .planes
-            .iter()
-            .map(|p| tape.constant(p.clone()))
-            .collect();
-        let out = tape.apply1(PlaneSample::new(&field, Arc::new(q.clone())), &planes);
-        let want = reference_sample(&field, &q);
+        let vars: Vec<_> = planes.iter().map(|p| tape.constant(p.clone())).collect();
+        let out = tape.apply1(PlaneSample::new(&field, Arc::new(q.clone())), &vars);
+        let want = reference_sample(&field, &planes, &q);
         // Same arithmetic up to summation order: a few ulps of O(1) values.
         let cmp = compare(&out.value(), &want, 1e-12, 1e-12);
         assert!(cmp.passed(), "{cmp:?}");
@@ -503,36 +516,32 @@ mod tests {
     #[test]
     fn constant_planes_give_six_times_the_constant() {
         // A partition-of-unity check of the taps, at every level and at the border.
-        let (mut field, q) = fixture();
-        for plane in &mut field.planes {
-            *plane = Tensor::full(plane.shape(), 0.5);
-        }
+        let (field, planes, q) = fixture();
         let tape = Tape::<f64>::new();
-        let planes: Vec<_> = field
-            .planes
+        let vars: Vec<_> = planes
             .iter()
-            .map(|p| tape.constant(p.clone()))
+            .map(|p| tape.constant(Tensor::full(p.shape(), 0.5)))
             .collect();
-        let out = tape.apply1(PlaneSample::new(&field, Arc::new(q)), &planes);
+        let out = tape.apply1(PlaneSample::new(&field, Arc::new(q)), &vars);
         assert!(out.value().data().iter().all(|&v| (v - 3.0).abs() < 1e-14));
     }
 
     #[test]
     fn plane_sample_passes_gradcheck_and_rejects_a_wrong_backward() {
-        let (field, q) = fixture();
+        let (field, planes, q) = fixture();
         let q = Arc::new(q);
         // The op is linear in the planes, so central differences are exact up to
         // rounding (~1e-10 here); default tolerances (atol 1e-7, rtol 1e-5).
         let cfg = GradcheckConfig::default();
         let report = gradcheck(
             |t, v| t.apply1(PlaneSample::new(&field, q.clone()), v),
-            &field.planes,
+            &planes,
             &cfg,
         );
         report.assert_passed();
         let bad = gradcheck(
             |t, v| t.apply1(PlaneSample::new(&field, q.clone()).corrupted(), v),
-            &field.planes,
+            &planes,
             &cfg,
         );
         assert!(!bad.passed(), "the corrupted backward was not caught");

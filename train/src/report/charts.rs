@@ -10,8 +10,8 @@ use plotters::prelude::*;
 use plotters::style::{FontStyle, register_font};
 
 use super::{ReportRun, scale_header};
-use crate::eval::EvalError;
-use crate::eval::images::save_png_atomic;
+use crate::Error;
+use crate::eval::images::save_png;
 
 /// DejaVu Sans (Bitstream Vera licence, see `train/assets/DejaVuSans-LICENSE.txt`).
 static FONT: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
@@ -40,18 +40,18 @@ fn colour(run: &ReportRun, i: usize) -> RGBColor {
 }
 
 /// Registers the embedded font once per process.
-fn ensure_font() -> Result<(), EvalError> {
+fn ensure_font() -> Result<(), Error> {
     static DONE: OnceLock<Result<(), String>> = OnceLock::new();
     DONE.get_or_init(|| {
         register_font(FAMILY, FontStyle::Normal, FONT)
             .map_err(|_| "the embedded chart font is not a valid TTF".to_string())
     })
     .clone()
-    .map_err(EvalError::Input)
+    .map_err(Error::Input)
 }
 
-fn plot_err(path: &Path) -> impl Fn(String) -> EvalError + '_ {
-    move |e| EvalError::Input(format!("{}: drawing the chart failed: {e}", path.display()))
+fn plot_err(path: &Path) -> impl Fn(String) -> Error + '_ {
+    move |e| Error::Input(format!("{}: drawing the chart failed: {e}", path.display()))
 }
 
 type Area<'a> = DrawingArea<BitMapBackend<'a>, Shift>;
@@ -61,7 +61,7 @@ fn save_chart(
     path: &Path,
     (width, height): (u32, u32),
     draw: impl FnOnce(&Area<'_>) -> Result<(), String>,
-) -> Result<(), EvalError> {
+) -> Result<(), Error> {
     ensure_font()?;
     let mut buf = vec![0u8; width as usize * height as usize * 3];
     {
@@ -72,8 +72,8 @@ fn save_chart(
         root.present().map_err(|e| plot_err(path)(e.to_string()))?;
     }
     let img = image::RgbImage::from_raw(width, height, buf)
-        .ok_or_else(|| EvalError::Input("chart buffer has the wrong size".into()))?;
-    save_png_atomic(&img, path)
+        .ok_or_else(|| Error::Input("chart buffer has the wrong size".into()))?;
+    save_png(&img, path)
 }
 
 /// `(lo, hi)` of `values` padded by `pad` of the span (or a unit when flat).
@@ -109,7 +109,7 @@ fn e2s<E: std::fmt::Display>(e: E) -> String {
 }
 
 /// PSNR (left) and SSIM (right) against the render scale (log2 axis), one line per run.
-pub fn quality_vs_scale(runs: &[ReportRun], path: &Path) -> Result<(), EvalError> {
+pub fn quality_vs_scale(runs: &[ReportRun], path: &Path) -> Result<(), Error> {
     let scales = super::all_scales(runs);
     let keys: Vec<f64> = scales.iter().map(|s| s.log2()).collect();
     let (x0, x1) = padded_range(keys.iter().copied(), 0.08);
@@ -244,7 +244,7 @@ fn scatter_panel(
 
 /// Mean PSNR (left) and mean SSIM (right) over the evaluated scales against the
 /// training wall time: speed vs accuracy.
-pub fn quality_vs_time(runs: &[ReportRun], path: &Path) -> Result<(), EvalError> {
+pub fn quality_vs_time(runs: &[ReportRun], path: &Path) -> Result<(), Error> {
     save_chart(path, (1300, 560), |root| {
         let panels = root.split_evenly((1, 2));
         let t = |r: &ReportRun| r.eval.train_seconds;
@@ -269,7 +269,7 @@ pub fn quality_vs_time(runs: &[ReportRun], path: &Path) -> Result<(), EvalError>
 
 /// Mean PSNR against the number of Gaussians (left) and against the bytes of the
 /// model plus its filter state (right).
-pub fn quality_vs_size(runs: &[ReportRun], path: &Path) -> Result<(), EvalError> {
+pub fn quality_vs_size(runs: &[ReportRun], path: &Path) -> Result<(), Error> {
     save_chart(path, (1300, 560), |root| {
         let panels = root.split_evenly((1, 2));
         let n = |r: &ReportRun| r.eval.num_gaussians as f64 / 1000.0;
@@ -295,16 +295,16 @@ pub fn quality_vs_size(runs: &[ReportRun], path: &Path) -> Result<(), EvalError>
 /// The paper's f/d-over-time figure: for each exported Gaussian (a static and a
 /// moving one), its observed sampling rates f/d over time (dots) and the
 /// motion-aware nu(t) the filter uses (line), one panel each.
-pub fn nu_over_time(run: &ReportRun, path: &Path) -> Result<(), EvalError> {
+pub fn nu_over_time(run: &ReportRun, path: &Path) -> Result<(), Error> {
     let Some(export) = &run.analysis else {
-        return Err(EvalError::Input(format!(
+        return Err(Error::Input(format!(
             "{}: no nu(t) export for the chart",
             run.dir.display()
         )));
     };
     let traces = &export.gaussians;
     if traces.is_empty() {
-        return Err(EvalError::Input(format!(
+        return Err(Error::Input(format!(
             "{}: the nu(t) export holds no Gaussian",
             run.dir.display()
         )));

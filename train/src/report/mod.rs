@@ -14,7 +14,8 @@ use std::path::{Path, PathBuf};
 
 use maaf_filter::AnalysisExport;
 
-use crate::eval::{EvalError, EvalReport, FILTER_ANALYSIS_FILE, trim_float, write_atomic};
+use crate::eval::{EvalReport, FILTER_ANALYSIS_FILE, trim_float};
+use crate::{Error, write_atomic};
 
 /// One evaluated run as the report shows it.
 #[derive(Clone, Debug)]
@@ -52,14 +53,14 @@ pub fn filter_label(filter: &str) -> &str {
 
 /// Reads `eval.json` (and the nu(t) export when present) of every run. Labels are
 /// `<model> <filter label>`; a label used twice gets the run folder's name appended.
-pub fn load_runs(runs: &[PathBuf]) -> Result<Vec<ReportRun>, EvalError> {
+pub fn load_runs(runs: &[PathBuf]) -> Result<Vec<ReportRun>, Error> {
     if runs.is_empty() {
-        return Err(EvalError::Input("no run given (--runs RUN...)".into()));
+        return Err(Error::Input("no run given (--runs RUN...)".into()));
     }
     let mut out = Vec::with_capacity(runs.len());
     for dir in runs {
         if !dir.join("eval.json").is_file() {
-            return Err(EvalError::Input(format!(
+            return Err(Error::Input(format!(
                 "{}: no eval.json (run `maaf eval --run {}` first)",
                 dir.display(),
                 dir.display()
@@ -68,9 +69,9 @@ pub fn load_runs(runs: &[PathBuf]) -> Result<Vec<ReportRun>, EvalError> {
         let eval = EvalReport::read(dir)?;
         let path = dir.join("eval").join(FILTER_ANALYSIS_FILE);
         let analysis = if path.is_file() {
-            let text = std::fs::read_to_string(&path).map_err(|e| EvalError::io(&path, e))?;
+            let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
             Some(serde_json::from_str(&text).map_err(|e| {
-                EvalError::Input(format!("{}: not a filter analysis: {e}", path.display()))
+                Error::Input(format!("{}: not a filter analysis: {e}", path.display()))
             })?)
         } else {
             None
@@ -209,9 +210,9 @@ pub fn all_scales(runs: &[ReportRun]) -> Vec<f64> {
 /// `quality_vs_time.png`, `quality_vs_size.png`, and `nu_t.png` when a motion run
 /// has a nu(t) export) for the evaluated runs in `runs`. Every file is written
 /// atomically; `OUT` is created if needed.
-pub fn write_report(runs: &[PathBuf], out: &Path) -> Result<ReportOutput, EvalError> {
+pub fn write_report(runs: &[PathBuf], out: &Path) -> Result<ReportOutput, Error> {
     let runs = load_runs(runs)?;
-    std::fs::create_dir_all(out).map_err(|e| EvalError::io(out, e))?;
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let scales = all_scales(&runs);
     let zoom_in: Vec<f64> = scales.iter().copied().filter(|&s| s >= 1.0).collect();
     let mut zoom_out: Vec<f64> = scales.iter().copied().filter(|&s| s <= 1.0).collect();

@@ -1,23 +1,27 @@
-//! Checkpoints: a folder holding `tensors.safetensors` (parameters, Adam moments,
-//! densification statistics, f/d observations) and `state.json` (iteration, counters,
-//! configuration, filter state). Written to a temporary folder and renamed into place,
-//! so a crash never leaves a half-written checkpoint.
+//! Checkpoints: a folder holding `tensors.safetensors` (the parameter store as
+//! `param/{name}`, Adam moments, densification statistics, f/d observations) and
+//! `state.json` (model name, iteration, counters, configuration, filter state).
+//! Built under a temporary name and swapped in by [`maaf_io::replace_dir`], so a
+//! crash never leaves a half-written checkpoint.
 
 use std::collections::HashMap;
 use std::path::Path;
 
 use maaf_autodiff::Tensor;
 use maaf_autodiff::optim::Moments;
-use maaf_filter::FilterState;
+use maaf_filter::{FilterState, ObservationTable};
 use safetensors::{Dtype, SafeTensors, tensor::TensorView};
 use serde::{Deserialize, Serialize};
 
-use super::{Timings, TrainConfig, TrainError, Trainer, io};
+use super::{DensifyStats, Timings, TrainConfig, Trainer};
+use crate::Error;
 use crate::data::Dataset;
 
 /// Non-tensor state of a run.
 #[derive(Serialize, Deserialize)]
 struct State {
+    /// The representation's name: a checkpoint loads only into the same kind.
+    model: String,
     iteration: usize,
     skipped_steps: usize,
     last_reset: Option<usize>,
@@ -33,21 +37,17 @@ fn bytes_of(data: &[f32]) -> Vec<u8> {
 }
 
 /// Writes the trainer's full state to the folder `dir` atomically (temp folder, then
-/// rename; an existing `dir` is replaced only after the new one is complete).
-pub fn save_checkpoint(trainer: &mut Trainer, dir: &Path) -> Result<(), TrainError> {
+/// swap; an existing `dir` stays readable until the new one is complete).
+pub fn save_checkpoint(trainer: &Trainer, dir: &Path) -> Result<(), Error> {
     let mut named: Vec<(String, Vec<usize>, Vec<u8>)> = Vec::new();
     let mut adam_steps = HashMap::new();
-    let mut names = Vec::new();
-    for slot in trainer.model.params_mut() {
+    for (name, value) in trainer.model.params().named_tensors() {
         named.push((
-            format!("param/{}", slot.name),
-            slot.value.shape().to_vec(),
-            bytes_of(slot.value.data()),
+            format!("param/{name}"),
+            value.shape().to_vec(),
+            bytes_of(value.data()),
         ));
-        names.push(slot.name.clone());
-    }
-    for name in names {
-        if let Some(m) = trainer.adam.moments(&name) {
+        if let Some(m) = trainer.adam.moments(name) {
             named.push((
                 format!("adam_m/{name}"),
                 m.m.shape().to_vec(),
@@ -58,7 +58,7 @@ pub fn save_checkpoint(trainer: &mut Trainer, dir: &Path) -> Result<(), TrainErr
                 m.v.shape().to_vec(),
                 bytes_of(m.v.data()),
             ));
-            adam_steps.insert(name, m.steps);
+            adam_steps.insert(name.to_string(), m.steps);
         }
     }
     let n = trainer.num_gaussians();
@@ -76,12 +76,13 @@ pub fn save_checkpoint(trainer: &mut Trainer, dir: &Path) -> Result<(), TrainErr
         .map(|(name, shape, bytes)| {
             TensorView::new(Dtype::F32, shape.clone(), bytes)
                 .map(|v| (name.clone(), v))
-                .map_err(|e| TrainError::Input(format!("checkpoint tensor {name}: {e}")))
+                .map_err(|e| Error::Input(format!("checkpoint tensor {name}: {e}")))
         })
         .collect::<Result<_, _>>()?;
     let blob = safetensors::serialize(views, None)
-        .map_err(|e| TrainError::Input(format!("checkpoint serialisation: {e}")))?;
+        .map_err(|e| Error::Input(format!("checkpoint serialisation: {e}")))?;
     let state = State {
+        model: trainer.model.name().to_string(),
         iteration: trainer.iteration,
         skipped_steps: trainer.skipped_steps,
         last_reset: trainer.last_reset,
@@ -91,41 +92,32 @@ pub fn save_checkpoint(trainer: &mut Trainer, dir: &Path) -> Result<(), TrainErr
         timings: trainer.timings.clone(),
         adam_steps,
     };
-    let json = serde_json::to_vec(&state)
-        .map_err(|e| TrainError::Input(format!("checkpoint state: {e}")))?;
-    let parent = dir.parent().unwrap_or(Path::new("."));
-    std::fs::create_dir_all(parent).map_err(io(parent))?;
-    let name = dir
-        .file_name()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "checkpoint".into());
-    let tmp = parent.join(format!(".{name}.tmp"));
+    let json =
+        serde_json::to_vec(&state).map_err(|e| Error::Input(format!("checkpoint state: {e}")))?;
+    let parent = maaf_io::parent_of(dir);
+    std::fs::create_dir_all(parent).map_err(|e| Error::io(parent, e))?;
+    let tmp = maaf_io::temp_sibling(dir);
     if tmp.exists() {
-        std::fs::remove_dir_all(&tmp).map_err(io(&tmp))?;
+        std::fs::remove_dir_all(&tmp).map_err(|e| Error::io(&tmp, e))?;
     }
-    std::fs::create_dir_all(&tmp).map_err(io(&tmp))?;
-    std::fs::write(tmp.join("tensors.safetensors"), blob).map_err(io(&tmp))?;
-    std::fs::write(tmp.join("state.json"), json).map_err(io(&tmp))?;
-    let old = parent.join(format!(".{name}.old"));
-    if dir.exists() {
-        if old.exists() {
-            std::fs::remove_dir_all(&old).map_err(io(&old))?;
-        }
-        std::fs::rename(dir, &old).map_err(io(dir))?;
-    }
-    std::fs::rename(&tmp, dir).map_err(io(dir))?;
-    if old.exists() {
-        std::fs::remove_dir_all(&old).map_err(io(&old))?;
-    }
-    Ok(())
+    let written = (|| {
+        std::fs::create_dir_all(&tmp)?;
+        std::fs::write(tmp.join("tensors.safetensors"), &blob)?;
+        std::fs::write(tmp.join("state.json"), &json)?;
+        maaf_io::replace_dir(&tmp, dir)
+    })();
+    written.map_err(|e| {
+        let _ = std::fs::remove_dir_all(&tmp);
+        Error::io(dir, e)
+    })
 }
 
-fn tensor(st: &SafeTensors<'_>, name: &str, file: &Path) -> Result<Tensor<f32>, TrainError> {
+fn tensor(st: &SafeTensors<'_>, name: &str, file: &Path) -> Result<Tensor<f32>, Error> {
     let view = st
         .tensor(name)
-        .map_err(|e| TrainError::Input(format!("{}: tensor `{name}`: {e}", file.display())))?;
+        .map_err(|e| Error::Input(format!("{}: tensor `{name}`: {e}", file.display())))?;
     if view.dtype() != Dtype::F32 {
-        return Err(TrainError::Input(format!(
+        return Err(Error::Input(format!(
             "{}: tensor `{name}` is not f32",
             file.display()
         )));
@@ -138,66 +130,98 @@ fn tensor(st: &SafeTensors<'_>, name: &str, file: &Path) -> Result<Tensor<f32>, 
     Ok(Tensor::from_vec(data, view.shape()))
 }
 
-/// Restores a trainer from a checkpoint folder written by [`save_checkpoint`], on the
-/// same data set. Errors name the file and the missing or malformed entry.
-pub fn load_checkpoint(data: &Dataset, dir: &Path) -> Result<Trainer, TrainError> {
-    let state_path = dir.join("state.json");
-    let text = std::fs::read(&state_path).map_err(io(&state_path))?;
-    let state: State = serde_json::from_slice(&text)
-        .map_err(|e| TrainError::Input(format!("{}: {e}", state_path.display())))?;
-    let blob_path = dir.join("tensors.safetensors");
-    let blob = std::fs::read(&blob_path).map_err(io(&blob_path))?;
-    let st = SafeTensors::deserialize(&blob)
-        .map_err(|e| TrainError::Input(format!("{}: {e}", blob_path.display())))?;
-    let mut trainer = Trainer::initial(data, state.config.clone())?;
-    let mut names = Vec::new();
-    for slot in trainer.model.params_mut() {
-        *slot.value = tensor(&st, &format!("param/{}", slot.name), &blob_path)?;
-        names.push(slot.name.clone());
-    }
-    if trainer.model.num_gaussians() != state.num_gaussians {
-        return Err(TrainError::Input(format!(
-            "{}: {} Gaussians in the parameters, state.json says {}",
-            dir.display(),
-            trainer.model.num_gaussians(),
-            state.num_gaussians
-        )));
-    }
-    for name in names {
-        if let Some(&steps) = state.adam_steps.get(&name) {
-            let m = tensor(&st, &format!("adam_m/{name}"), &blob_path)?;
-            let v = tensor(&st, &format!("adam_v/{name}"), &blob_path)?;
-            trainer.adam.set_moments(&name, Moments { m, v, steps });
-        }
-    }
-    let n = state.num_gaussians;
-    trainer.stats.grad_accum = tensor(&st, "stats/grad_accum", &blob_path)?.into_vec();
-    trainer.stats.denom = tensor(&st, "stats/denom", &blob_path)?.into_vec();
-    trainer.stats.max_radii = tensor(&st, "stats/max_radii", &blob_path)?.into_vec();
-    let obs = tensor(&st, "observations", &blob_path)?;
-    let f = trainer.observations.num_frames();
-    if obs.shape() != [n, f] {
-        return Err(TrainError::Input(format!(
-            "{}: observations have shape {:?}, expected [{n}, {f}] (different data set?)",
-            blob_path.display(),
-            obs.shape()
-        )));
-    }
-    trainer.observations =
-        maaf_filter::ObservationTable::new(trainer.observations.times().to_vec(), n);
-    for i in 0..n {
-        trainer
-            .observations
-            .row_mut(i)
-            .copy_from_slice(&obs.data()[i * f..(i + 1) * f]);
-    }
-    trainer.filter = state.filter;
-    trainer.iteration = state.iteration;
-    // The stage (e.g. SaRO-GS's static warm-up) follows the iteration; without this a
-    // loaded run would render its canonical, undeformed Gaussians.
-    trainer.model.set_iteration(state.iteration);
-    trainer.skipped_steps = state.skipped_steps;
-    trainer.last_reset = state.last_reset;
-    trainer.timings = state.timings;
+fn read_state(dir: &Path) -> Result<State, Error> {
+    let path = dir.join("state.json");
+    let text = std::fs::read(&path).map_err(|e| Error::io(&path, e))?;
+    serde_json::from_slice(&text).map_err(|e| Error::Input(format!("{}: {e}", path.display())))
+}
+
+/// Restores a trainer of the built-in representation `config.model` names from a
+/// checkpoint folder written by [`save_checkpoint`], on the same data set. Errors
+/// name the file and the missing or malformed entry.
+pub fn load_checkpoint(data: &Dataset, dir: &Path) -> Result<Trainer, Error> {
+    let state = read_state(dir)?;
+    let mut trainer = Trainer::new(data, state.config.clone())?;
+    trainer.restore_state(dir, state)?;
     Ok(trainer)
+}
+
+impl Trainer {
+    /// Loads a checkpoint into this trainer (built by [`Trainer::new`] or
+    /// [`Trainer::with_model`] on the same data set, with the same kind of
+    /// representation): parameters (any Gaussian count), Adam moments, statistics,
+    /// observations, filter, iteration, counters and the run's configuration. The
+    /// trainer's objective is kept, so custom terms are re-supplied by building the
+    /// trainer the same way as the first time.
+    pub fn restore(&mut self, dir: &Path) -> Result<(), Error> {
+        let state = read_state(dir)?;
+        self.restore_state(dir, state)
+    }
+
+    fn restore_state(&mut self, dir: &Path, state: State) -> Result<(), Error> {
+        if state.model != self.model.name() {
+            return Err(Error::Input(format!(
+                "{}: holds a `{}` model but the trainer was built with `{}` (build the trainer with the same representation)",
+                dir.display(),
+                state.model,
+                self.model.name()
+            )));
+        }
+        let blob_path = dir.join("tensors.safetensors");
+        let blob = std::fs::read(&blob_path).map_err(|e| Error::io(&blob_path, e))?;
+        let st = SafeTensors::deserialize(&blob)
+            .map_err(|e| Error::Input(format!("{}: {e}", blob_path.display())))?;
+        self.model
+            .params_mut()
+            .load(|name| {
+                tensor(&st, &format!("param/{name}"), &blob_path).map_err(|e| e.to_string())
+            })
+            .map_err(|e| Error::Input(format!("{}: {e}", blob_path.display())))?;
+        let n = state.num_gaussians;
+        if self.model.num_gaussians() != n {
+            return Err(Error::Input(format!(
+                "{}: {} Gaussians in the parameters, state.json says {n}",
+                dir.display(),
+                self.model.num_gaussians(),
+            )));
+        }
+        for name in self.model.params().names() {
+            if let Some(&steps) = state.adam_steps.get(&name) {
+                let m = tensor(&st, &format!("adam_m/{name}"), &blob_path)?;
+                let v = tensor(&st, &format!("adam_v/{name}"), &blob_path)?;
+                self.adam.set_moments(&name, Moments { m, v, steps });
+            }
+        }
+        self.stats = DensifyStats {
+            grad_accum: tensor(&st, "stats/grad_accum", &blob_path)?.into_vec(),
+            denom: tensor(&st, "stats/denom", &blob_path)?.into_vec(),
+            max_radii: tensor(&st, "stats/max_radii", &blob_path)?.into_vec(),
+        };
+        let obs = tensor(&st, "observations", &blob_path)?;
+        let f = self.observations.num_frames();
+        if obs.shape() != [n, f] {
+            return Err(Error::Input(format!(
+                "{}: observations have shape {:?}, expected [{n}, {f}] (different data set?)",
+                blob_path.display(),
+                obs.shape()
+            )));
+        }
+        self.observations = ObservationTable::new(self.observations.times().to_vec(), n);
+        for i in 0..n {
+            self.observations
+                .row_mut(i)
+                .copy_from_slice(&obs.data()[i * f..(i + 1) * f]);
+        }
+        self.filter = state.filter;
+        self.filter_ready = true;
+        self.iteration = state.iteration;
+        // The stage (e.g. SaRO-GS's static warm-up) follows the iteration; without this a
+        // loaded run would render its canonical, undeformed Gaussians.
+        self.model.set_iteration(state.iteration);
+        self.skipped_steps = state.skipped_steps;
+        self.last_reset = state.last_reset;
+        self.timings = state.timings;
+        self.config = state.config;
+        Ok(())
+    }
 }

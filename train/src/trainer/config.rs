@@ -4,7 +4,8 @@
 use maaf_filter::FilterConfig;
 use serde::{Deserialize, Serialize};
 
-use crate::models::SaroConfig;
+use crate::Error;
+use crate::models::ModelConfig;
 
 /// Densification schedule and thresholds (3DGS `densify_and_prune`, SaRO-GS D-NeRF
 /// config: from 500 to 15 000 every 100, gradient threshold 2e-4, opacity reset every
@@ -71,8 +72,8 @@ pub struct TrainConfig {
     pub log_every: usize,
     /// Scan every forward value and cotangent for NaN/Inf (slower; names the op).
     pub validate: bool,
-    /// The 4D representation.
-    pub model: SaroConfig,
+    /// The 4D representation: its kind (`"kind": "saro"`) and settings.
+    pub model: ModelConfig,
     /// The 3D smoothing filter (kind and KDE parameters).
     pub filter: FilterConfig,
     /// Densification.
@@ -91,9 +92,19 @@ impl Default for TrainConfig {
             checkpoint_every: 5000,
             log_every: 100,
             validate: false,
-            model: SaroConfig::default(),
+            model: ModelConfig::default(),
             filter: FilterConfig::default(),
             densify: DensifyConfig::default(),
         }
+    }
+}
+
+impl TrainConfig {
+    /// Checks the model and filter settings, naming the field at fault.
+    pub fn validate(&self) -> Result<(), Error> {
+        self.model.validate().map_err(Error::Input)?;
+        self.filter
+            .validate()
+            .map_err(|e| Error::Input(format!("filter config: {e}")))
     }
 }

@@ -7,8 +7,9 @@ use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 
-use super::{Timings, TrainConfig, TrainError, Trainer, io, load_checkpoint, save_checkpoint};
+use super::{Timings, TrainConfig, Trainer, load_checkpoint, save_checkpoint};
 use crate::data::Dataset;
+use crate::{Error, write_atomic};
 
 /// What a finished run reports (also written as `RUN/summary.json`).
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -25,50 +26,80 @@ pub struct RunSummary {
     pub timings: Timings,
 }
 
-/// Writes `bytes` to `path` through a temporary file and a rename.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), TrainError> {
-    let tmp = path.with_extension("tmp");
-    std::fs::write(&tmp, bytes).map_err(io(&tmp))?;
-    std::fs::rename(&tmp, path).map_err(io(path))
-}
-
-/// Trains on `data` into `out` (created if needed), or continues the run in `out`
-/// from its `model/` checkpoint when `resume` is set. Prints a progress bar on a
-/// terminal and a line every 10% otherwise.
+/// Trains on `data` into `out` (created if needed) with the representation
+/// `config.model` describes, or continues the run in `out` from its `model/`
+/// checkpoint when `resume` is set (then only the iteration budget of `config`
+/// applies). Prints a progress bar on a terminal and a line every 10% otherwise.
 pub fn train_run(
     data: &Dataset,
     config: TrainConfig,
     out: &Path,
     resume: bool,
-) -> Result<RunSummary, TrainError> {
-    std::fs::create_dir_all(out).map_err(io(out))?;
-    let model_dir = out.join("model");
-    let mut trainer = if resume {
-        let mut t = load_checkpoint(data, &model_dir)?;
+) -> Result<RunSummary, Error> {
+    let trainer = if resume {
+        let mut t = load_checkpoint(data, &out.join("model"))?;
         // Only the iteration budget may change on resume.
         t.config.iterations = config.iterations;
         t
     } else {
         Trainer::new(data, config)?
     };
+    run_trainer(trainer, out, resume)
+}
+
+/// [`train_run`] for a trainer the caller built ([`Trainer::with_model`] for a
+/// representation of its own, custom terms pushed onto [`Trainer::objective`]): the
+/// library's run entry point for research code. With `resume`, the run in `out` is
+/// restored into `trainer` ([`Trainer::restore`]), which keeps its objective: build
+/// the trainer exactly as for the first session, so custom terms are re-supplied.
+/// Refuses a resume whose objective differs from the one `log.csv` was written with.
+pub fn train_run_with(mut trainer: Trainer, out: &Path, resume: bool) -> Result<RunSummary, Error> {
+    if resume {
+        let budget = trainer.config.iterations;
+        trainer.restore(&out.join("model"))?;
+        trainer.config.iterations = budget;
+    }
+    run_trainer(trainer, out, resume)
+}
+
+/// The header of `log.csv` for `trainer`'s objective.
+fn log_header(trainer: &Trainer) -> String {
+    let mut header = String::from("iteration");
+    for name in trainer.objective.names() {
+        header.push(',');
+        header.push_str(&name);
+    }
+    header.push_str(",total,num_gaussians,elapsed_seconds,skipped_steps");
+    header
+}
+
+fn run_trainer(mut trainer: Trainer, out: &Path, resume: bool) -> Result<RunSummary, Error> {
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    let model_dir = out.join("model");
     let config_json =
-        serde_json::to_vec_pretty(&trainer.config).map_err(|e| TrainError::Input(e.to_string()))?;
+        serde_json::to_vec_pretty(&trainer.config).map_err(|e| Error::Input(e.to_string()))?;
     write_atomic(&out.join("config.json"), &config_json)?;
     let log_path = out.join("log.csv");
+    let header = log_header(&trainer);
     let new_log = !resume || !log_path.exists();
+    if !new_log {
+        let text = std::fs::read_to_string(&log_path).map_err(|e| Error::io(&log_path, e))?;
+        let first = text.lines().next().unwrap_or("");
+        if first != header {
+            return Err(Error::Input(format!(
+                "{}: its columns `{first}` differ from this run's objective `{header}` (on resume, add the same custom terms as in the first session)",
+                log_path.display()
+            )));
+        }
+    }
     let mut log = std::fs::OpenOptions::new()
         .create(true)
         .append(true)
         .open(&log_path)
-        .map_err(io(&log_path))?;
+        .map_err(|e| Error::io(&log_path, e))?;
     if new_log {
-        let mut header = String::from("iteration");
-        for name in trainer.objective.names() {
-            header.push(',');
-            header.push_str(&name);
-        }
-        header.push_str(",total,num_gaussians,elapsed_seconds,skipped_steps\n");
-        log.write_all(header.as_bytes()).map_err(io(&log_path))?;
+        log.write_all(format!("{header}\n").as_bytes())
+            .map_err(|e| Error::io(&log_path, e))?;
     }
     let total = trainer.config.iterations;
     let bar = indicatif::ProgressBar::new(total as u64);
@@ -90,7 +121,7 @@ pub fn train_run(
             .iter()
             .find(|(n, _)| n == "total")
             .map_or(f64::NAN, |(_, v)| *v);
-        if it % trainer.config.log_every.max(1) == 0 || it == total {
+        if it.is_multiple_of(trainer.config.log_every.max(1)) || it == total {
             let mut row = it.to_string();
             for name in trainer.objective.names() {
                 let v = trainer
@@ -106,7 +137,8 @@ pub fn train_run(
                 before + start.elapsed().as_secs_f64(),
                 trainer.skipped_steps
             ));
-            log.write_all(row.as_bytes()).map_err(io(&log_path))?;
+            log.write_all(row.as_bytes())
+                .map_err(|e| Error::io(&log_path, e))?;
             bar.set_message(format!(
                 "loss {loss:.4}  gaussians {}",
                 trainer.num_gaussians()
@@ -119,12 +151,12 @@ pub fn train_run(
                 trainer.num_gaussians()
             );
         }
-        if it % ckpt_every == 0 && it < total {
-            save_checkpoint(&mut trainer, &checkpoint_dir(out, it))?;
+        if it.is_multiple_of(ckpt_every) && it < total {
+            save_checkpoint(&trainer, &checkpoint_dir(out, it))?;
         }
     }
     bar.finish_and_clear();
-    save_checkpoint(&mut trainer, &model_dir)?;
+    save_checkpoint(&trainer, &model_dir)?;
     let summary = RunSummary {
         iterations: trainer.iteration,
         train_seconds: trainer.timings.total(),
@@ -132,7 +164,7 @@ pub fn train_run(
         skipped_steps: trainer.skipped_steps,
         timings: trainer.timings.clone(),
     };
-    let json = serde_json::to_vec_pretty(&summary).map_err(|e| TrainError::Input(e.to_string()))?;
+    let json = serde_json::to_vec_pretty(&summary).map_err(|e| Error::Input(e.to_string()))?;
     write_atomic(&out.join("summary.json"), &json)?;
     Ok(summary)
 }

@@ -1,0 +1,150 @@
+//! One forward pass of the pipeline (DESIGN.md section 6): deform at t, fold the 3D
+//! filter in, render; then, for training, the objective on that render.
+//!
+//! This is the only place the pipeline is written: `Trainer::step`, evaluation
+//! rendering and the end-to-end gradient check all call [`forward`], so the check
+//! checks the step that trains.
+//!
+//! ```text
+//! bound    = model.bind(params)                       // time-independent work
+//! deformed = bound.deform(t)                          // GaussianVars
+//! filtered = fold_filter(deformed, filter, t)         // Sigma + var(t) I, opacity compensation
+//! render   = maaf_splat::render(filtered, camera)     // image, alpha, depth, means2d, radii
+//! loss     = objective(TermCtx{render, gt, deformed, camera, t, iteration, regularisers})
+//! ```
+
+use std::time::Instant;
+
+use maaf_autodiff::{Float, Tensor, Var};
+use maaf_filter::{FilterKind, FilterState};
+use maaf_splat::{Camera, GaussianVars, RenderOutput, RenderSettings, SplatFloat, apply_3d_filter};
+
+use crate::loss::{Evaluated, Objective, TermCtx};
+use crate::models::Representation;
+use crate::params::BoundParams;
+
+/// What one forward pass at (camera, time) produced.
+pub struct Forward<'t, T: Float> {
+    /// The representation's Gaussians at `time`, before the 3D filter.
+    pub deformed: GaussianVars<'t, T>,
+    /// What the renderer drew: `deformed` with the 3D filter folded in.
+    pub filtered: GaussianVars<'t, T>,
+    /// The render (image, alpha, depth, screen means, radii).
+    pub render: RenderOutput<'t, T>,
+    /// The representation's regularisers this step, by name.
+    pub regularisers: Vec<(String, Var<'t, T>)>,
+    /// The camera.
+    pub camera: Camera,
+    /// The time.
+    pub time: f64,
+    /// Wall seconds spent binding and deforming (field and MLPs).
+    pub deform_seconds: f64,
+    /// Wall seconds spent in the filter fold and the renderer.
+    pub render_seconds: f64,
+}
+
+/// The 3D smoothing filter folded into `g` at `time`: `Sigma' = Sigma + var I` with
+/// the opacity compensation `sqrt(det Sigma / det Sigma')` (paper Eq. 2-3; the
+/// variance is `s / nu^2`, static or nu(t), from `filter`). No filter: `g` unchanged.
+pub fn fold_filter<'t, T: Float>(
+    g: GaussianVars<'t, T>,
+    filter: &FilterState,
+    time: f64,
+) -> GaussianVars<'t, T> {
+    if filter.kind() == FilterKind::None {
+        return g;
+    }
+    let var: Vec<T> = filter
+        .variance_at(time as f32)
+        .into_iter()
+        .map(|v| T::of(f64::from(v)))
+        .collect();
+    let n = var.len();
+    let (scales, opacity) = apply_3d_filter(g.scales, g.opacity, &Tensor::from_vec(var, &[n]));
+    GaussianVars {
+        scales,
+        opacity,
+        ..g
+    }
+}
+
+/// The Gaussians of `model` (bound through `params`) at `time`, before the 3D
+/// filter, and the regularisers of the binding.
+pub fn deform<'t, T: Float>(
+    model: &dyn Representation<T>,
+    params: &BoundParams<'t, T>,
+    time: f64,
+) -> (GaussianVars<'t, T>, Vec<(String, Var<'t, T>)>) {
+    let bound = model.bind(params);
+    (bound.deform(time), bound.regularisers())
+}
+
+/// The deformed, filtered Gaussians of `model` at `time` as plain tensors
+/// `[means, scales, quats, opacity, sh]` (what the renderer draws; evaluation,
+/// export and tests read them).
+pub fn gaussians_at<T: Float>(
+    model: &dyn Representation<T>,
+    filter: &FilterState,
+    time: f64,
+) -> [Tensor<T>; 5] {
+    let tape = maaf_autodiff::Tape::new();
+    let params = model.params().bind_constants(&tape);
+    let (g, _) = deform(model, &params, time);
+    let g = fold_filter(g, filter, time);
+    [g.means, g.scales, g.quats, g.opacity, g.sh].map(|v| v.value().clone())
+}
+
+/// Deforms `model` (bound through `params`) at `time`, folds `filter` in and renders
+/// from `camera`: the pipeline of a training step, of evaluation and of the
+/// end-to-end gradient check.
+pub fn forward<'t, T: SplatFloat>(
+    model: &dyn Representation<T>,
+    params: &BoundParams<'t, T>,
+    filter: &FilterState,
+    camera: &Camera,
+    time: f64,
+    settings: &RenderSettings,
+) -> Forward<'t, T> {
+    let t0 = Instant::now();
+    let (deformed, regularisers) = deform(model, params, time);
+    let t1 = Instant::now();
+    let filtered = fold_filter(deformed, filter, time);
+    let tape = deformed.means.tape();
+    let render = maaf_splat::render(tape, &filtered, camera, settings);
+    Forward {
+        deformed,
+        filtered,
+        render,
+        regularisers,
+        camera: camera.clone(),
+        time,
+        deform_seconds: (t1 - t0).as_secs_f64(),
+        render_seconds: t1.elapsed().as_secs_f64(),
+    }
+}
+
+impl<'t, T: Float> Forward<'t, T> {
+    /// The context a loss term sees: render, alpha, depth, the ground truth `gt`
+    /// (recorded as a constant), the deformed Gaussians, camera, time, `iteration`
+    /// (0-based) and the regularisers by name.
+    pub fn term_ctx(&self, gt: &Tensor<T>, iteration: usize) -> TermCtx<'t, T> {
+        let mut ctx = TermCtx::new(self.render.image, gt)
+            .at_iteration(iteration)
+            .with_render(self.render.alpha, self.render.depth)
+            .with_scene(self.deformed, self.camera.clone(), self.time);
+        for (name, value) in &self.regularisers {
+            ctx.insert(name, *value);
+        }
+        ctx
+    }
+
+    /// The objective on this render against `gt` at `iteration` (0-based).
+    pub fn objective(
+        &self,
+        objective: &Objective<T>,
+        gt: &Tensor<T>,
+        iteration: usize,
+    ) -> Evaluated<'t, T> {
+        objective.evaluate(&self.term_ctx(gt, iteration))
+    }
+}

@@ -1,0 +1,193 @@
+//! Initial values of a representation: the point cloud it starts from, the
+//! 3DGS nearest-neighbour scale, and the colour-to-SH-DC conversion.
+
+use maaf_splat::sh::SH_C0;
+use rand::{RngExt, SeedableRng};
+use rand_pcg::Pcg64;
+
+/// A coloured point cloud used to initialise a representation.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PointCloud {
+    /// Positions.
+    pub points: Vec<[f64; 3]>,
+    /// Colours in \[0, 1].
+    pub colours: Vec<[f64; 3]>,
+}
+
+impl PointCloud {
+    /// `n` points uniform in the box `\[lo, hi]^3` with uniform random colours, as
+    /// SaRO-GS and D-NeRF loaders do for synthetic scenes (SaRO-GS
+    /// `scene/dataset_readers.py`: 100 000 points in \[-1.3, 1.3]^3). Seeded.
+    pub fn random_in_box(n: usize, lo: f64, hi: f64, seed: u64) -> Self {
+        let mut rng = Pcg64::seed_from_u64(seed);
+        let mut draw3 = |a: f64, b: f64| {
+            [
+                rng.random_range(a..b),
+                rng.random_range(a..b),
+                rng.random_range(a..b),
+            ]
+        };
+        let points = (0..n).map(|_| draw3(lo, hi)).collect();
+        let colours = (0..n).map(|_| draw3(0.0, 1.0)).collect();
+        PointCloud { points, colours }
+    }
+
+    /// Number of points.
+    pub fn len(&self) -> usize {
+        self.points.len()
+    }
+
+    /// True when the cloud has no point.
+    pub fn is_empty(&self) -> bool {
+        self.points.is_empty()
+    }
+
+    /// Axis-aligned bounds `(min, max)`; a degenerate axis is widened to 1e-6 so that
+    /// normalisation by the extent never divides by zero.
+    pub fn bounds(&self) -> ([f64; 3], [f64; 3]) {
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        for p in &self.points {
+            for a in 0..3 {
+                lo[a] = lo[a].min(p[a]);
+                hi[a] = hi[a].max(p[a]);
+            }
+        }
+        for a in 0..3 {
+            if !lo[a].is_finite() {
+                (lo[a], hi[a]) = (-1.0, 1.0);
+            }
+            if hi[a] - lo[a] < 1e-6 {
+                hi[a] = lo[a] + 1e-6;
+            }
+        }
+        (lo, hi)
+    }
+}
+
+/// DC coefficient that renders as colour `c`: `(c - 0.5) / C0` (3DGS `RGB2SH`).
+pub fn rgb_to_sh_dc(c: f64) -> f64 {
+    (c - 0.5) / SH_C0
+}
+
+/// Mean squared distance from each point to its `k` nearest other points (3DGS
+/// `distCUDA2` uses k = 3), clamped below at 1e-7 as 3DGS does. Exact: a uniform grid
+/// is searched ring by ring until the k-th candidate is closer than the searched
+/// radius, so the result equals brute force. O(N) for roughly uniform clouds.
+pub fn knn_mean_sq_dist(points: &[[f64; 3]], k: usize) -> Vec<f64> {
+    let n = points.len();
+    if n <= 1 || k == 0 {
+        return vec![1e-7; n];
+    }
+    let k = k.min(n - 1);
+    let cloud = PointCloud {
+        points: points.to_vec(),
+        colours: Vec::new(),
+    };
+    let (lo, hi) = cloud.bounds();
+    // About two points per cell on average.
+    let volume: f64 = (0..3).map(|a| hi[a] - lo[a]).product();
+    let cell = (2.0 * volume / n as f64).cbrt().max(1e-9);
+    let dims: [usize; 3] =
+        std::array::from_fn(|a| (((hi[a] - lo[a]) / cell).ceil() as usize).clamp(1, 1 << 10));
+    let cell_of = |p: &[f64; 3]| -> [usize; 3] {
+        std::array::from_fn(|a| {
+            (((p[a] - lo[a]) / cell).floor().max(0.0) as usize).min(dims[a] - 1)
+        })
+    };
+    let flat = |c: [usize; 3]| (c[2] * dims[1] + c[1]) * dims[0] + c[0];
+    // Counting sort of the points by cell.
+    let mut start = vec![0usize; dims[0] * dims[1] * dims[2] + 1];
+    for p in points {
+        start[flat(cell_of(p)) + 1] += 1;
+    }
+    for i in 1..start.len() {
+        start[i] += start[i - 1];
+    }
+    let mut fill = start.clone();
+    let mut order = vec![0usize; n];
+    for (i, p) in points.iter().enumerate() {
+        let c = flat(cell_of(p));
+        order[fill[c]] = i;
+        fill[c] += 1;
+    }
+    let max_ring = dims.iter().copied().max().unwrap_or(1);
+    let mut out = Vec::with_capacity(n);
+    let mut best: Vec<f64> = Vec::with_capacity(k + 1);
+    for (i, p) in points.iter().enumerate() {
+        let c = cell_of(p);
+        best.clear();
+        for ring in 0..=max_ring {
+            // Visit the cells at Chebyshev distance exactly `ring` from c.
+            let r = ring as isize;
+            for dz in -r..=r {
+                for dy in -r..=r {
+                    for dx in -r..=r {
+                        if dx.abs().max(dy.abs()).max(dz.abs()) != r {
+                            continue;
+                        }
+                        let q = [c[0] as isize + dx, c[1] as isize + dy, c[2] as isize + dz];
+                        if (0..3).any(|a| q[a] < 0 || q[a] >= dims[a] as isize) {
+                            continue;
+                        }
+                        let cf = flat([q[0] as usize, q[1] as usize, q[2] as usize]);
+                        for &j in &order[start[cf]..start[cf + 1]] {
+                            if j == i {
+                                continue;
+                            }
+                            let d2: f64 = (0..3).map(|a| (points[j][a] - p[a]).powi(2)).sum();
+                            if best.len() < k || d2 < best[k - 1] {
+                                let pos = best.partition_point(|&b| b <= d2);
+                                best.insert(pos, d2);
+                                best.truncate(k);
+                            }
+                        }
+                    }
+                }
+            }
+            // Every point within distance ring*cell of p lies in rings 0..=ring.
+            let covered = ring as f64 * cell;
+            if best.len() == k && best[k - 1] <= covered * covered {
+                break;
+            }
+        }
+        let mean = best.iter().sum::<f64>() / best.len().max(1) as f64;
+        out.push(mean.max(1e-7));
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn knn_matches_brute_force() {
+        let cloud = PointCloud::random_in_box(400, -1.3, 1.3, 3);
+        let fast = knn_mean_sq_dist(&cloud.points, 3);
+        for (i, p) in cloud.points.iter().enumerate() {
+            let mut d: Vec<f64> = cloud
+                .points
+                .iter()
+                .enumerate()
+                .filter(|&(j, _)| j != i)
+                .map(|(_, q)| (0..3).map(|a| (q[a] - p[a]).powi(2)).sum())
+                .collect();
+            d.sort_by(f64::total_cmp);
+            let want = (d[0] + d[1] + d[2]) / 3.0;
+            // Same three distances summed in possibly another order: ~1 ulp.
+            assert!(
+                (fast[i] - want).abs() <= 1e-12 * want,
+                "{i}: {} vs {want}",
+                fast[i]
+            );
+        }
+    }
+
+    #[test]
+    fn sh_dc_inverts_the_renderer_colour() {
+        for c in [0.0, 0.3, 1.0] {
+            assert!((rgb_to_sh_dc(c) * SH_C0 + 0.5 - c).abs() < 1e-15);
+        }
+    }
+}

@@ -1,0 +1,438 @@
+use maaf_autodiff::Var;
+use maaf_autodiff::check::{GradcheckConfig, gradcheck, tests_support::random_tensor};
+use maaf_autodiff::nn::Linear;
+use maaf_autodiff::ops::concat;
+
+use super::*;
+use crate::models::KPlaneConfig;
+use crate::models::kplane::PlaneSample;
+
+fn tiny_config() -> SaroConfig {
+    SaroConfig {
+        field: KPlaneConfig {
+            spatial_res: 4,
+            time_res: 3,
+            channels: 3,
+            max_mip_level: 7,
+        },
+        hidden: 5,
+        time_freqs: 2,
+        sh_degree: 1,
+        duration: Some(10.0),
+        ..SaroConfig::default()
+    }
+}
+
+fn tiny_model<T: Float>(n: usize, seed: u64) -> SaroModel<T> {
+    let cloud = PointCloud::random_in_box(n, -1.0, 1.0, seed);
+    let mut m = SaroModel::<T>::from_point_cloud(&cloud, tiny_config(), 2.0, seed);
+    m.set_iteration(m.config.static_iterations + 1);
+    m
+}
+
+fn randomise_planes<T: Float>(m: &mut SaroModel<T>, lo: f64, hi: f64, seed: u64) {
+    for (p, id) in m.ids.planes.into_iter().enumerate() {
+        let shape = m.params.value(id).shape().to_vec();
+        *m.params.value_mut(id) = random_tensor(&shape, lo, hi, seed + p as u64);
+    }
+}
+
+fn bind_tape<'t, T: Float>(m: &SaroModel<T>, tape: &'t Tape<T>) -> SaroBound<'t, T> {
+    m.bind_saro(&m.params.bind(tape))
+}
+
+#[test]
+fn zero_heads_give_the_canonical_scene_times_the_temporal_factor() {
+    let mut model = tiny_model::<f32>(40, 1);
+    // Random planes so that the field, the lifespans and the MLP hidden layers are
+    // all non-trivial; only the zero output layers keep the residuals at zero.
+    randomise_planes(&mut model, -1.0, 1.0, 7);
+    let canon = model.canonical();
+    let lifespans = model.lifespans();
+    let tape = Tape::new();
+    let bound = bind_tape(&model, &tape);
+    assert!(bound.l_sr().expect("dynamic").value().item() == 0.0);
+    let sh_dc = model.params.value(model.ids.sh_dc).clone();
+    let t_centre = model.params.value(model.ids.t_centre).clone();
+    for time in [0.0, 0.37, 1.0] {
+        let g = bound.deform(time);
+        // Exactly: x + 0 = x, exp(s + 0) = exp(s), q + 0 = q, SH + 0 = SH.
+        assert_eq!(*g.means.value(), canon.means);
+        assert_eq!(*g.scales.value(), canon.scales);
+        assert_eq!(*g.quats.value(), canon.quats);
+        let sh = g.sh.value();
+        assert_eq!(sh.shape(), &[40, 4, 3]);
+        for i in 0..40 {
+            assert_eq!(
+                &sh.data()[i * 12..i * 12 + 3],
+                &sh_dc.data()[i * 3..i * 3 + 3]
+            );
+            assert!(
+                sh.data()[i * 12 + 3..(i + 1) * 12]
+                    .iter()
+                    .all(|&v| v == 0.0)
+            );
+        }
+        let opacity = g.opacity.value();
+        for (i, &l) in lifespans.iter().enumerate() {
+            let dt = time - f64::from(t_centre.data()[i]);
+            let w = (-4.0 * (dt / l).powi(2)).exp();
+            let want = f64::from(canon.opacity.data()[i]) * w;
+            // f32 products of an exp and a sigmoid: a few ulps of values <= 1.
+            assert!(
+                (f64::from(opacity.data()[i]) - want).abs() <= 1e-6,
+                "{i}: {} vs {want}",
+                opacity.data()[i]
+            );
+        }
+        let m = model.config.min_lifespan();
+        assert!(lifespans.iter().all(|&l| l >= m && l <= 1.0));
+    }
+    // The static stage is plain 3DGS: no temporal factor, no regulariser.
+    model.set_iteration(1);
+    let tape = Tape::new();
+    let params = model.params.bind(&tape);
+    let bound = model.bind(&params);
+    let g = bound.deform(0.5);
+    assert_eq!(*g.opacity.value(), canon.opacity);
+    assert!(bound.regularisers().is_empty());
+}
+
+/// A tiny f64 model where nothing is trivially zero: random planes, random residual
+/// heads, random SH bands and scales.
+fn busy_model(n: usize) -> SaroModel<f64> {
+    let mut m = tiny_model::<f64>(n, 5);
+    randomise_planes(&mut m, -1.0, 1.0, 20);
+    let mut heads = vec![m.ids.motion.last_layer(), m.ids.rot.last_layer()];
+    heads.extend(m.ids.sh.as_ref().map(|h| h.last_layer()));
+    for (k, (w, b)) in heads.into_iter().enumerate() {
+        let (i, o) = {
+            let s = m.params.value(w).shape();
+            (s[0], s[1])
+        };
+        let layer = Linear::<f64>::new(i, o, 40 + k as u64);
+        *m.params.value_mut(w) = layer.weight;
+        *m.params.value_mut(b) = layer.bias;
+    }
+    let rest = m.ids.sh_rest.expect("degree 1");
+    let shape = m.params.value(rest).shape().to_vec();
+    *m.params.value_mut(rest) = random_tensor(&shape, -0.3, 0.3, 43);
+    let shape = m.params.value(m.ids.log_scale).shape().to_vec();
+    *m.params.value_mut(m.ids.log_scale) = random_tensor(&shape, -4.0, 0.0, 44);
+    m
+}
+
+/// Every deformed output at two times plus L_SR, flattened into one vector: the
+/// gradcheck contracts it with a random cotangent, i.e. checks a random scalar
+/// function of all of them.
+fn all_outputs<'t>(m: &SaroModel<f64>, v: &[Var<'t, f64>]) -> Var<'t, f64> {
+    let params = BoundParams::from_vars(&m.params, v);
+    let bound = m.bind(&params);
+    let mut parts = Vec::new();
+    for time in [0.2, 0.75] {
+        let g = bound.deform(time);
+        for x in [g.means, g.scales, g.quats, g.opacity, g.sh] {
+            let len = x.value().len();
+            parts.push(x.reshape(&[len]));
+        }
+    }
+    for (_, value) in bound.regularisers() {
+        parts.push(value.reshape(&[1]));
+    }
+    concat(&parts, 0)
+}
+
+#[test]
+fn gradcheck_field_mlp_temporal_opacity_to_deformed_gaussians() {
+    let model = busy_model(6);
+    let inputs = model.params.tensors();
+    // Stop-gradient inputs are read from the stored (unperturbed) values: the finite
+    // differences then see exactly the function whose gradient the tape computes.
+    // Smooth O(1) compositions of exp/sigmoid/matmul/bilinear taps: central
+    // differences with eps 1e-6 are accurate to ~1e-9; atol 1e-6 / rtol 1e-5
+    // still catch a wrong factor or a dropped tap by orders of magnitude.
+    let cfg = GradcheckConfig::default().with_tol(1e-6, 1e-5);
+    let report = gradcheck(|_, v| all_outputs(&model, v), &inputs, &cfg);
+    report.assert_passed();
+    assert!(report.checked > 500, "only {} coordinates", report.checked);
+
+    let mut bad = model.clone();
+    bad.corrupt_field_backward = true;
+    let report = gradcheck(|_, v| all_outputs(&bad, v), &inputs, &cfg);
+    assert!(
+        !report.passed(),
+        "negative control: a wrong field backward passed"
+    );
+    let names = model.params.names();
+    assert!(
+        report
+            .failures()
+            .iter()
+            .all(|f| names[f.input].starts_with("field.")),
+        "only the planes' gradients should be wrong"
+    );
+}
+
+#[test]
+fn norm2_gradcheck_and_zero_subgradient() {
+    let x = random_tensor(&[4, 3], -1.0, 1.0, 9);
+    gradcheck(|t, v| t.apply1(Norm2, v), &[x], &GradcheckConfig::default()).assert_passed();
+    let tape = Tape::<f64>::new();
+    let z = tape.var(Tensor::zeros(&[5, 3]));
+    let n = tape.apply1(Norm2, &[z]);
+    let grads = tape.backward(n).expect("finite");
+    assert!(grads.wrt(z).expect("grad").data().iter().all(|&g| g == 0.0));
+}
+
+#[test]
+fn select_rows_resizes_every_per_gaussian_parameter_in_lock_step() {
+    let mut model = busy_model(5);
+    let before = model.clone();
+    // Prune 1 and 3, clone 2, split 4 into two rows.
+    let index = [0, 2, 2, 4, 4];
+    model.select_rows(&index);
+    assert_eq!(model.num_gaussians(), 5);
+    for (new, old) in model.params.iter().zip(before.params.iter()) {
+        if new.rows == Rows::Shared {
+            assert_eq!(new.value, old.value, "{} must not change", new.name);
+            continue;
+        }
+        assert_eq!(new.value.rows(), index.len(), "{}", new.name);
+        let w = old.value.row_len();
+        for (new_row, &old_row) in index.iter().enumerate() {
+            assert_eq!(
+                &new.value.data()[new_row * w..(new_row + 1) * w],
+                &old.value.data()[old_row * w..(old_row + 1) * w],
+                "{} row {new_row}",
+                new.name
+            );
+        }
+    }
+    // A split then moves the two halves: only those rows change.
+    let means = Tensor::from_vec(vec![0.1, 0.2, 0.3, -0.1, -0.2, -0.3], &[2, 3]);
+    let scales = Tensor::from_vec(vec![0.01, 0.02, 0.03, 0.04, 0.05, 0.06], &[2, 3]);
+    let kept = model.clone();
+    model.set_rows(&[3, 4], &means, &scales);
+    let c = model.canonical();
+    assert_eq!(&c.means.data()[9..15], means.data());
+    for (a, b) in c.scales.data()[9..15].iter().zip(scales.data()) {
+        assert!((a - b).abs() <= 1e-15 * b, "exp(ln s) round trip");
+    }
+    let xyz = kept.params.value(kept.ids.xyz);
+    assert_eq!(&c.means.data()[..9], &xyz.data()[..9]);
+    assert_eq!(c.quats, *kept.params.value(kept.ids.rotation));
+    // The resized model still binds and deforms with consistent shapes.
+    let tape = Tape::new();
+    let g = bind_tape(&model, &tape).deform(0.5);
+    assert_eq!(g.means.shape().as_slice(), &[5, 3]);
+    assert_eq!(g.opacity.shape().as_slice(), &[5]);
+    assert_eq!(g.sh.shape().as_slice(), &[5, 4, 3]);
+}
+
+#[test]
+fn temporal_integral_matches_quadrature_and_flags_short_lived() {
+    let mut model = tiny_model::<f64>(8, 3);
+    let integral = model.temporal_integral();
+    let lifespans = model.lifespans();
+    let t_centre = model.params.value(model.ids.t_centre).clone();
+    for i in 0..8 {
+        let (mu, l) = (t_centre.data()[i], lifespans[i]);
+        // Midpoint rule with 20 000 cells: error ~1e-9 for these smooth integrands;
+        // the logistic CDF approximation itself is good to ~1e-4 (SaRO-GS Eq 22).
+        let steps = 20_000;
+        let quad: f64 = (0..steps)
+            .map(|k| {
+                let t = (k as f64 + 0.5) / steps as f64;
+                (-4.0 * ((t - mu) / l).powi(2)).exp() / steps as f64
+            })
+            .sum();
+        assert!(
+            (integral[i] - quad).abs() < 1e-3 * l,
+            "{i}: {} vs {quad}",
+            integral[i]
+        );
+    }
+    // Move Gaussian 2 far outside [0, 1] in time: its integral vanishes.
+    let id = model.ids.t_centre;
+    model.params.value_mut(id).data_mut()[2] = 5.0;
+    assert_eq!(model.short_lived(), vec![2]);
+    model.set_iteration(1);
+    assert!(
+        model.short_lived().is_empty(),
+        "no temporal pruning in the static stage"
+    );
+}
+
+#[test]
+fn parameters_are_named_as_bound_and_scaled_by_extent() {
+    let model = tiny_model::<f32>(4, 1);
+    let names = model.params.names();
+    let tape = Tape::new();
+    let bound = bind_tape(&model, &tape);
+    let loss = {
+        let g = bound.deform(0.5);
+        let mut l = g.means.sum() + g.scales.sum() + g.quats.sum() + g.opacity.sum() + g.sh.sum();
+        for (_, r) in bound.regularisers() {
+            l = l + r;
+        }
+        l
+    };
+    let grads = tape.backward(loss).expect("finite");
+    let mut tape_names = grads.param_names();
+    tape_names.sort_unstable();
+    let mut sorted = names.clone();
+    sorted.sort_unstable();
+    assert_eq!(
+        tape_names,
+        sorted.iter().map(String::as_str).collect::<Vec<_>>()
+    );
+    let xyz = model.params.param(model.ids.xyz);
+    assert_eq!(xyz.name, "xyz");
+    // Extent 2.0 in tiny_model: 1.6e-4 * 2.
+    assert!((xyz.lr.at(0) - 3.2e-4).abs() < 1e-12);
+    assert_eq!(model.params.per_gaussian_names().len(), 7);
+    // SaRO-GS's Adam L2 of 8e-7 on MLPs and planes, none on per-Gaussian tensors.
+    for p in model.params.iter() {
+        let want = if p.rows == Rows::Shared { 8e-7 } else { 0.0 };
+        assert_eq!(p.weight_decay, want, "{}", p.name);
+    }
+}
+
+/// CPU time of this thread in seconds (Linux `/proc/thread-self/schedstat`, first
+/// field in ns), so the cost report is meaningful on a shared, loaded machine.
+fn thread_cpu_seconds() -> f64 {
+    std::fs::read_to_string("/proc/thread-self/schedstat")
+        .ok()
+        .and_then(|s| s.split_whitespace().next().map(str::to_string))
+        .and_then(|s| s.parse::<f64>().ok())
+        .map_or(f64::NAN, |ns| ns * 1e-9)
+}
+
+/// Cost of the default configuration at N = 20 000 (one view per step):
+/// `cargo test -p maaf-train --release cost_report -- --ignored --nocapture`.
+/// Prints thread CPU times (single-threaded code); never asserts a time (DESIGN.md
+/// section 9).
+#[test]
+#[ignore]
+fn cost_report() {
+    let clock = thread_cpu_seconds;
+    let n = 20_000;
+    let cloud = PointCloud::random_in_box(n, -1.3, 1.3, 1);
+    for (label, config) in [
+        ("default", SaroConfig::default()),
+        (
+            "no SH residual",
+            SaroConfig {
+                sh_residual: false,
+                ..SaroConfig::default()
+            },
+        ),
+        (
+            "reference widths (H 128, t 128)",
+            SaroConfig {
+                hidden: 128,
+                field: KPlaneConfig {
+                    time_res: 128,
+                    ..KPlaneConfig::default()
+                },
+                ..SaroConfig::default()
+            },
+        ),
+    ] {
+        let mut model = SaroModel::<f32>::from_point_cloud(&cloud, config, 1.0, 1);
+        // Non-zero planes so the timing includes every path.
+        randomise_planes(&mut model, -0.1, 0.1, 0);
+        model.set_dynamic(true);
+        let field = model.field.num_scalars();
+        let mut mlps = vec![&model.ids.motion, &model.ids.rot, &model.ids.life];
+        mlps.extend(model.ids.sh.as_ref());
+        let mlp_scalars: usize = mlps.iter().map(|m| m.num_params(&model.params)).sum();
+        let per_gaussian = (model.num_scalars() - field - mlp_scalars) / n;
+        println!(
+            "{label}: planes {field} scalars ({:.2} MB f32), MLPs {mlp_scalars} ({:.2} MB), \
+             {per_gaussian} scalars per Gaussian ({:.2} MB at N = {n}); Adam triples all",
+            field as f64 * 4e-6,
+            mlp_scalars as f64 * 4e-6,
+            (per_gaussian * n) as f64 * 4e-6
+        );
+        let reps = 3;
+        let mut t = [0.0; 5];
+        for _ in 0..reps {
+            let tape = Tape::new();
+            let t0 = clock();
+            let planes = model
+                .ids
+                .planes
+                .map(|id| tape.var(model.params.value(id).clone()));
+            let sample = PlaneSample::new(&model.field, std::sync::Arc::new(model.field_query()));
+            let f = tape.apply1(sample, &planes);
+            let t1 = clock();
+            tape.backward(f.sum()).expect("finite");
+            let t2 = clock();
+            let tape = Tape::new();
+            let t3 = clock();
+            let bound = bind_tape(&model, &tape);
+            let t4 = clock();
+            let g = bound.deform(0.4);
+            let mut loss = g.means.sum() + g.scales.sum() + g.quats.sum();
+            loss = loss + g.opacity.sum() + g.sh.sum();
+            loss = loss + bound.l_sr().expect("dynamic");
+            let t5 = clock();
+            tape.backward(loss).expect("finite");
+            let t6 = clock();
+            for (acc, d) in t
+                .iter_mut()
+                .zip([t1 - t0, t2 - t1, t4 - t3, t5 - t4, t6 - t5])
+            {
+                *acc += d / reps as f64 * 1e3;
+            }
+        }
+        let times: Vec<f64> = (0..5).map(|k| k as f64 / 4.0).collect();
+        let c0 = clock();
+        let centres = model.centres_at_times(&times);
+        let per_time = (clock() - c0) / times.len() as f64 * 1e3;
+        assert_eq!(centres.len(), times.len());
+        println!("  centres_at_times: {per_time:.0} ms CPU per time");
+        println!(
+            "  CPU ms per step: field lookup fwd {:.0} / bwd {:.0} (included below); \
+             bind {:.0}, deform(t) {:.0}, backward {:.0}, total {:.0}",
+            t[0],
+            t[1],
+            t[2],
+            t[3],
+            t[4],
+            t[2] + t[3] + t[4]
+        );
+    }
+}
+
+#[test]
+fn centres_at_times_equal_the_deformed_means() {
+    let mut model = busy_model(7);
+    let times = [0.0, 0.3, 0.9];
+    let fast = model.centres_at_times(&times);
+    for (&t, c) in times.iter().zip(&fast) {
+        let tape = Tape::new();
+        let want = bind_tape(&model, &tape).deform(t).means.value().clone();
+        // Same operations in the same order: bit-identical.
+        assert_eq!(*c, want);
+    }
+    model.set_iteration(1);
+    assert_eq!(
+        model.centres_at_times(&[0.5])[0],
+        *model.params.value(model.ids.xyz)
+    );
+}
+
+#[test]
+fn the_trainer_can_hold_any_representation_as_a_trait_object() {
+    let model: Box<dyn Representation<f32>> = Box::new(tiny_model::<f32>(3, 2));
+    assert_eq!(model.name(), "saro");
+    assert_eq!(model.num_gaussians(), 3);
+    assert_eq!(model.regularisers(), vec![("l_sr".to_string(), 8e-6)]);
+    let tape = Tape::new();
+    let params = model.params().bind(&tape);
+    let bound = model.bind(&params);
+    assert_eq!(bound.deform(0.1).quats.shape().as_slice(), &[3, 4]);
+    assert_eq!(bound.regularisers()[0].0, "l_sr");
+}
