@@ -20,7 +20,8 @@
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use maaf_autodiff::{Tape, Tensor};
 use maaf_splat::binning::bin_gaussians;
-use maaf_splat::project::{project_ewa, quat_scale_to_cov};
+use maaf_splat::cov3d::quat_scale_to_cov;
+use maaf_splat::project::project_ewa;
 use maaf_splat::sh::sh_color;
 use maaf_splat::{Camera, GaussianVars, RenderSettings, render};
 use rand::{RngExt, SeedableRng};

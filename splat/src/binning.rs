@@ -7,8 +7,8 @@
 use maaf_autodiff::Float;
 use rayon::prelude::*;
 
+use crate::compositing::TILE;
 use crate::project::pixel_range;
-use crate::rasterize::TILE;
 
 /// Per-tile sorted Gaussian lists: tile `t` holds `ids[offsets[t]..offsets[t+1]]`.
 #[derive(Clone, Debug, Default)]

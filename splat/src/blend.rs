@@ -11,10 +11,10 @@
 
 use maaf_autodiff::Float;
 
-use crate::lanes::{Lanes, SplatFloat};
-use crate::rasterize::{
+use crate::compositing::{
     ALPHA_MAX, ALPHA_MIN, AlphaCutoff, SMOOTH_TAPER_START, SUPPORT_POWER, T_MIN, TILE,
 };
+use crate::lanes::{Lanes, SplatFloat};
 
 /// Pixels of a tile; per-pixel state is stored row-major with stride [`TILE`].
 pub(crate) const NP: usize = TILE * TILE;
