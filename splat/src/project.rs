@@ -5,6 +5,7 @@ use maaf_autodiff::{BackwardCtx, Float, Op, Tensor, Var};
 use rayon::prelude::*;
 
 use crate::Camera;
+use crate::compositing::support_sigmas;
 use crate::math::{M3, mul3, mul3tv, mul3v, sym_from6, transpose3};
 
 /// The screen-space low-pass ("2D filter") added to every projected covariance.
@@ -45,9 +46,6 @@ pub const NEAR_PLANE: f64 = 0.2;
 /// (Inria `computeCov2D`).
 pub const FRUSTUM_MARGIN: f64 = 0.3;
 
-/// 3-sigma extent factor of the screen-space radius (Inria `preprocessCUDA`).
-pub const RADIUS_SIGMAS: f64 = 3.0;
-
 /// EWA projection of 3D Gaussians (Zwicker et al. 2002, as in 3DGS / gsplat):
 ///
 /// ```text
@@ -58,13 +56,15 @@ pub const RADIUS_SIGMAS: f64 = 3.0;
 /// conic  = cov2d^{-1} packed as (A, B, C) = ([0][0], [0][1], [1][1])
 /// opac'  = o * sqrt(max(det(cov2d - k I), 0) / det cov2d)  (Mip), o (classic)
 /// depth  = t.z
-/// radius = ceil(3 sqrt(lambda_max)),  lambda_max = m + sqrt(max(0.1, m^2 - det)), m = tr/2
+/// radius = ceil(k sqrt(lambda_max)),  lambda_max = m + sqrt(max(0.1, m^2 - det)), m = tr/2
+///          k = sqrt(2 ln(255 opac'))  (support_sigmas; gsplat's opacity-aware extent)
 /// ```
 ///
 /// Inputs: `means [N,3]`, `cov3d [N,6]`, `opacity [N]`. Outputs: `means2d [N,2]`,
 /// `conics [N,3]`, `opacity [N]`, `depths [N]`, `radii [N]` (integers stored as `T`,
 /// not differentiable; 0 = culled). A Gaussian is culled (all outputs 0) when
-/// `t.z <= near` or when no pixel centre lies within `radius` of its mean on both axes.
+/// `t.z <= near`, when `opac' <= 1/255` (its alpha never reaches the threshold) or
+/// when no pixel centre lies within `radius` of its mean on both axes.
 /// Non-finite inputs are not culled: they propagate to the outputs so validate mode
 /// names this op.
 pub struct ProjectEwa<T: Float> {
@@ -236,23 +236,28 @@ impl<T: Float> Op<T> for ProjectEwa<T> {
             let det0 = a * c - b * b;
             let (ad, cd) = (a + self.kernel, c + self.kernel);
             let det = ad * cd - b * b;
-            let nonfinite = !(det.is_finite() && mx.is_finite() && my.is_finite());
-            if !nonfinite && det <= zero {
-                return None;
-            }
             let comp = if !self.compensate {
                 T::one()
             } else if det0 > zero {
                 (det0 / det).sqrt()
-            } else if nonfinite {
+            } else if !det0.is_finite() {
                 det0
             } else {
                 zero
             };
+            let op = opac.data()[i] * comp;
+            let nonfinite =
+                !(det.is_finite() && mx.is_finite() && my.is_finite() && op.is_finite());
+            if !nonfinite && det <= zero {
+                return None;
+            }
             let mid = T::of(0.5) * (ad + cd);
             let lam = mid + (mid * mid - det).max(T::of(0.1)).sqrt();
-            let r = (T::of(RADIUS_SIGMAS) * lam.sqrt()).ceil();
+            let r = (T::of(support_sigmas(op.to_f64())) * lam.sqrt()).ceil();
             if !nonfinite {
+                if r <= zero {
+                    return None;
+                }
                 let (rf, mxf, myf) = (r.to_f64(), mx.to_f64(), my.to_f64());
                 if pixel_range(mxf, rf, self.width).is_none()
                     || pixel_range(myf, rf, self.height).is_none()
@@ -263,7 +268,7 @@ impl<T: Float> Op<T> for ProjectEwa<T> {
             Some(Row {
                 m2: [mx, my],
                 con: [cd / det, -b / det, ad / det],
-                op: opac.data()[i] * comp,
+                op,
                 dep: z,
                 rad: if nonfinite { zero } else { r },
                 saved: ProjSaved {

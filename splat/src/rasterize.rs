@@ -11,7 +11,7 @@ use rayon::prelude::*;
 
 use crate::binning::{Binning, bin_gaussians};
 use crate::blend::{NP, Splat, TileEnd, TileGrads, TileOut, TileRect, backward_tile, forward_tile};
-use crate::compositing::{AlphaCutoff, TILE};
+use crate::compositing::{AlphaCutoff, TILE, support_power};
 use crate::lanes::SplatFloat;
 
 /// The rasterizer op: alpha compositing of projected Gaussians, front to back.
@@ -20,7 +20,8 @@ use crate::lanes::SplatFloat;
 /// order, with `d = q - mean2d_i` and `power_i = (A dx^2 + C dy^2)/2 + B dx dy`:
 ///
 /// ```text
-/// alpha_i = min(0.99, o_i exp(-power_i))     (see AlphaCutoff for the skip rules)
+/// alpha_i = min(0.99, o_i exp(-power_i))     (see AlphaCutoff for the skip rules;
+///                                             the support is power_i <= ln(255 o_i))
 /// T_i     = prod_{j<i} (1 - alpha_j)
 /// image   = sum_i c_i alpha_i T_i + T_final * background
 /// alpha   = 1 - T_final
@@ -78,6 +79,7 @@ fn gather_splats<T: Float>(list: &[u32], inputs: &[&Tensor<T>], bins: &Binning) 
                 b: con[3 * g + 1],
                 c: con[3 * g + 2],
                 o: op[g],
+                lim: support_power(op[g]),
                 col: [col[3 * g], col[3 * g + 1], col[3 * g + 2]],
                 z: dep[g],
                 bbox: bins.boxes[g],
@@ -136,6 +138,7 @@ impl<T: SplatFloat> Op<T> for Rasterize<T> {
         let bins = bin_gaussians(
             inputs[0].data(),
             inputs[1].data(),
+            inputs[3].data(),
             inputs[5].data(),
             inputs[4].data(),
             self.width,

@@ -196,7 +196,7 @@ fn rasterize_gradcheck_smooth_and_hard() {
     let inputs = raster_inputs(Filter2d::Mip);
     for cut in [AlphaCutoff::Smooth, AlphaCutoff::Hard] {
         // Hard: piecewise smooth; with eps = 1e-6 no sampled coordinate moves a pixel
-        // across the 1/255, 0.99, T-floor or 3-sigma thresholds for this seed.
+        // across the 1/255 (support edge), 0.99 or T-floor thresholds for this seed.
         let report = gradcheck(
             |_, x| flat(&raster(x, &inputs[5], cut)),
             &inputs[..5],

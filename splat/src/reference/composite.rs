@@ -5,9 +5,7 @@ use maaf_autodiff::{Float, Tensor};
 
 use super::stages::{RefSplat, covariance, project, sh_colour};
 use crate::Camera;
-use crate::compositing::{
-    ALPHA_MAX, ALPHA_MIN, AlphaCutoff, SMOOTH_TAPER_START, SUPPORT_POWER, T_MIN,
-};
+use crate::compositing::{ALPHA_MAX, ALPHA_MIN, AlphaCutoff, SMOOTH_TAPER_WIDTH, T_MIN};
 use crate::render::RenderSettings;
 
 /// Reference render of activated parameters: returns `(image [H,W,3], alpha [H,W],
@@ -102,7 +100,8 @@ pub fn render<T: Float>(
                     }
                 }
                 power *= T::of(0.5);
-                if power < T::zero() || power > T::of(SUPPORT_POWER) {
+                // No support radius: the alpha threshold alone decides (Inria).
+                if power < T::zero() {
                     continue;
                 }
                 let al = match settings.alpha_cutoff {
@@ -114,11 +113,15 @@ pub fn render<T: Float>(
                         raw.min(T::of(ALPHA_MAX))
                     }
                     AlphaCutoff::Smooth => {
-                        let u = ((power - T::of(SMOOTH_TAPER_START))
-                            / T::of(SUPPORT_POWER - SMOOTH_TAPER_START))
-                        .max(T::zero());
+                        // Taper on the raw alpha's log headroom over 1/255.
+                        let raw = s.opacity * (-power).exp();
+                        if raw <= T::of(ALPHA_MIN) {
+                            continue;
+                        }
+                        let headroom = (raw / T::of(ALPHA_MIN)).ln();
+                        let u = (T::one() - headroom / T::of(SMOOTH_TAPER_WIDTH)).max(T::zero());
                         let win = (T::one() - u * u).max(T::zero());
-                        s.opacity * (-power).exp() * win * win
+                        raw * win * win
                     }
                 };
                 if al <= T::zero() {

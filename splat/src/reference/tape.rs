@@ -5,7 +5,7 @@ use maaf_autodiff::ops::concat;
 use maaf_autodiff::{Float, Tape, Tensor, Var};
 
 use crate::Camera;
-use crate::compositing::{SMOOTH_TAPER_START, SUPPORT_POWER};
+use crate::compositing::SMOOTH_TAPER_WIDTH;
 use crate::project::{FRUSTUM_MARGIN, Filter2d};
 use crate::sh::{SH_C0, SH_C1, SH_C2, SH_C3};
 
@@ -203,7 +203,8 @@ pub fn sh_color<'t, T: Float>(
 
 /// Smooth-cutoff compositing from primitives on an `H x W` image: returns
 /// `[image [H,W,3], alpha [H,W], depth [H,W]]`. Gaussians are composited in
-/// `(depth, index)` order; no culling (use in-view test scenes).
+/// `(depth, index)` order; no culling (use in-view test scenes with positive
+/// opacities: the taper takes `ln(255 o)`).
 #[allow(clippy::too_many_arguments)]
 pub fn rasterize_smooth<'t, T: Float>(
     t: &'t Tape<T>,
@@ -237,7 +238,6 @@ pub fn rasterize_smooth<'t, T: Float>(
     let mut trans = t.constant(Tensor::full(&[np], T::one()));
     let mut img = t.constant(Tensor::zeros(&[np, 3]));
     let mut dep = t.constant(Tensor::zeros(&[np]));
-    let span = SUPPORT_POWER - SMOOTH_TAPER_START;
     for &i in &order {
         let dx = px - scalar(means2d, i, 0);
         let dy = py - scalar(means2d, i, 1);
@@ -247,12 +247,13 @@ pub fn rasterize_smooth<'t, T: Float>(
             scalar(conics, i, 2),
         );
         let power = (a * dx.square() + c * dy.square()).scale(0.5) + b * dx * dy;
-        let q = power
-            .add_scalar(-SMOOTH_TAPER_START)
-            .scale(1.0 / span)
+        let o = opacity.slice(0, i, i + 1);
+        // q = relu(1 - r / width) with the headroom r = ln(255 o) - power.
+        let q = (power - o.scale(255.0).ln())
+            .scale(1.0 / SMOOTH_TAPER_WIDTH)
+            .add_scalar(1.0)
             .relu();
         let win = q.square().scale(-1.0).add_scalar(1.0).relu().square();
-        let o = opacity.slice(0, i, i + 1);
         let alpha = o * (-power).exp() * win;
         let wgt = alpha * trans;
         let colour = colors.slice(0, i, i + 1); // [1,3]
