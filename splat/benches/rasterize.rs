@@ -20,7 +20,8 @@
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use maaf_autodiff::{Tape, Tensor};
 use maaf_splat::binning::bin_gaussians;
-use maaf_splat::project::{project_ewa, quat_scale_to_cov};
+use maaf_splat::cov3d::quat_scale_to_cov;
+use maaf_splat::project::project_ewa;
 use maaf_splat::sh::sh_color;
 use maaf_splat::{Camera, GaussianVars, RenderSettings, render};
 use rand::{RngExt, SeedableRng};
@@ -127,6 +128,7 @@ fn pairs(scene: &Scene, cam: &Camera) -> u64 {
     let bins = bin_gaussians(
         p.means2d.value().data(),
         p.conics.value().data(),
+        p.opacity.value().data(),
         p.radii.value().data(),
         p.depths.value().data(),
         cam.width,
@@ -196,16 +198,25 @@ fn breakdown(c: &mut Criterion) {
         maaf_splat::Filter2d::Mip,
         0.2,
     );
-    let (m2, con, radii, depths) = (
+    let (m2, con, op, radii, depths) = (
         p.means2d.value().clone(),
         p.conics.value().clone(),
+        p.opacity.value().clone(),
         p.radii.value().clone(),
         p.depths.value().clone(),
     );
     group.bench_function("bin+sort 200x200 50k", |b| {
         b.iter(|| {
-            bin_gaussians(m2.data(), con.data(), radii.data(), depths.data(), 200, 200)
-                .intersections()
+            bin_gaussians(
+                m2.data(),
+                con.data(),
+                op.data(),
+                radii.data(),
+                depths.data(),
+                200,
+                200,
+            )
+            .intersections()
         })
     });
     group.finish();

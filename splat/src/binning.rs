@@ -1,14 +1,14 @@
 //! Tile binning and the per-tile depth sort of the rasterizer (not differentiable).
 //!
 //! The image is cut into 16x16 tiles. Every visible Gaussian is listed in each tile
-//! its pixel box (the bounding box of its support ellipse) touches; each tile's list
-//! is sorted front to back by `(depth, index)`.
+//! its pixel box (the bounding box of its opacity-dependent support ellipse) touches;
+//! each tile's list is sorted front to back by `(depth, index)`.
 
 use maaf_autodiff::Float;
 use rayon::prelude::*;
 
+use crate::compositing::{TILE, support_power};
 use crate::project::pixel_range;
-use crate::rasterize::TILE;
 
 /// Per-tile sorted Gaussian lists: tile `t` holds `ids[offsets[t]..offsets[t+1]]`.
 #[derive(Clone, Debug, Default)]
@@ -49,15 +49,17 @@ fn pixel_box(mx: f64, my: f64, rx: f64, ry: f64, w: u32, h: u32) -> Option<[u32;
 /// Bins visible Gaussians (`radius > 0`) into 16x16 tiles and sorts each tile's list
 /// by `(depth as f32, index)`; not differentiable.
 ///
-/// The box of a Gaussian is the bounding box of its support ellipse `power <= 4.5`,
-/// i.e. half-extents `3 sqrt(Sigma_xx)` and `3 sqrt(Sigma_yy)` of the dilated 2D
-/// covariance `Sigma = conic^-1` (like gsplat's per-axis radius), capped by the
-/// isotropic 3DGS `radius`; a 1e-4 relative margin absorbs rounding so that no pixel
-/// with `power <= 4.5` is ever left out. Flat splats seen edge-on touch far fewer
-/// tiles than with the isotropic radius.
+/// The box of a Gaussian is the bounding box of its support ellipse
+/// `power <= P = ln(255 o)` ([`support_power`]: where its alpha reaches 1/255), i.e.
+/// half-extents `sqrt(2 P Sigma_xx)` and `sqrt(2 P Sigma_yy)` of the dilated 2D
+/// covariance `Sigma = conic^-1` (gsplat's opacity-aware per-axis radius), capped by
+/// the isotropic `radius`; a 1e-4 relative and 1e-3 px margin absorbs rounding so
+/// that no pixel in the support is ever left out. Gaussians with `o <= 1/255` have no
+/// support and are not listed.
 pub fn bin_gaussians<T: Float>(
     means2d: &[T],
     conics: &[T],
+    opacity: &[T],
     radii: &[T],
     depths: &[T],
     width: u32,
@@ -70,7 +72,8 @@ pub fn bin_gaussians<T: Float>(
         .into_par_iter()
         .map(|i| {
             let r = Float::to_f64(radii[i]);
-            if r > 0.0 {
+            let p = support_power(Float::to_f64(opacity[i]));
+            if r > 0.0 && p >= 0.0 {
                 let (a, b, c) = (
                     Float::to_f64(conics[3 * i]),
                     Float::to_f64(conics[3 * i + 1]),
@@ -78,7 +81,7 @@ pub fn bin_gaussians<T: Float>(
                 );
                 let det = a * c - b * b;
                 let ext = |v: f64| {
-                    let e = (9.0 * v / det).sqrt() * (1.0 + 1e-4) + 1e-4;
+                    let e = (2.0 * p * v / det).sqrt() * (1.0 + 1e-4) + 1e-3;
                     if e.is_finite() && det > 0.0 {
                         e.min(r)
                     } else {

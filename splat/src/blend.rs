@@ -2,8 +2,9 @@
 //! ([`Lanes`]: 4 pixels of a tile row for f32, one for f64).
 //!
 //! Each Gaussian of the tile's sorted list visits only the rows of its pixel box and,
-//! in each row, the lane groups the box touches; lanes outside the support ellipse
-//! (`power > 4.5`), already saturated or outside the image are masked. The per-pixel
+//! in each row, the lane groups the box touches; lanes outside its support ellipse
+//! (`power > ln(255 o)`, where alpha < 1/255), already saturated or outside the image
+//! are masked. The per-pixel
 //! operations and their order along the list are those of the textbook per-pixel loop
 //! ([`crate::rasterize::Rasterize`]), so the forward and the backward make the same
 //! decisions lane for lane: both evaluate alpha through [`lane_alpha`] on identical
@@ -11,16 +12,15 @@
 
 use maaf_autodiff::Float;
 
+use crate::compositing::{ALPHA_MAX, ALPHA_MIN, AlphaCutoff, SMOOTH_TAPER_WIDTH, T_MIN, TILE};
 use crate::lanes::{Lanes, SplatFloat};
-use crate::rasterize::{
-    ALPHA_MAX, ALPHA_MIN, AlphaCutoff, SMOOTH_TAPER_START, SUPPORT_POWER, T_MIN, TILE,
-};
 
 /// Pixels of a tile; per-pixel state is stored row-major with stride [`TILE`].
 pub(crate) const NP: usize = TILE * TILE;
 
-/// One Gaussian as the blend loop reads it, with its inclusive pixel box
-/// `[x_lo, x_hi] x [y_lo, y_hi]` in image coordinates.
+/// One Gaussian as the blend loop reads it, with its support edge
+/// `lim = ln(255 o)` ([`crate::compositing::support_power`]) and its inclusive pixel
+/// box `[x_lo, x_hi] x [y_lo, y_hi]` in image coordinates.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Splat<T> {
     pub mx: T,
@@ -29,6 +29,7 @@ pub(crate) struct Splat<T> {
     pub b: T,
     pub c: T,
     pub o: T,
+    pub lim: T,
     pub col: [T; 3],
     pub z: T,
     pub bbox: [u32; 4],
@@ -76,6 +77,7 @@ struct Wide<L> {
     b: L,
     c: L,
     o: L,
+    lim: L,
     col: [L; 3],
     z: L,
 }
@@ -91,6 +93,7 @@ impl<L> Wide<L> {
             b: L::splat(s.b),
             c: L::splat(s.c),
             o: L::splat(s.o),
+            lim: L::splat(s.lim),
             col: s.col.map(L::splat),
             z: L::splat(s.z),
         }
@@ -107,7 +110,7 @@ fn lane_dx<T: SplatFloat>(x0: usize, group: usize, w: &Wide<T::L>) -> T::L {
 }
 
 /// `power = (A dx^2 + C dy^2)/2 + B dx dy` per lane and whether it lies in the
-/// support `[0, 4.5]`; groups where no live lane is in the support are skipped
+/// support `[0, ln(255 o)]`; groups where no live lane is in the support are skipped
 /// before the exponential.
 #[inline(always)]
 fn lane_power<T: SplatFloat>(
@@ -117,7 +120,7 @@ fn lane_power<T: SplatFloat>(
 ) -> (T::L, <T::L as Lanes<T>>::Mask) {
     let l = T::L::splat;
     let p = l(T::of(0.5)) * (w.a * dx * dx + w.c * dy * dy) + w.b * dx * dy;
-    (p, p.ge(l(T::zero())) & p.le(l(T::of(SUPPORT_POWER))))
+    (p, p.ge(l(T::zero())) & p.le(w.lim))
 }
 
 /// What [`lane_alpha`] returns per lane.
@@ -128,13 +131,14 @@ struct Alpha<L: Lanes<T>, T> {
     alpha: L,
     /// `exp(-power)`.
     g: L,
-    /// `power`.
-    p: L,
+    /// `d alpha / d(o exp(-power))`: 1 for the hard cutoff (where unclamped),
+    /// `w + dw/dr` for the smooth one.
+    da: L,
 }
 
 /// `g = exp(-power)` and alpha with the [`AlphaCutoff`] rules: hard
-/// `alpha = min(0.99, o g)`, counted when `0 <= power <= 4.5` and `o g >= 1/255`;
-/// smooth `alpha = o g w(power)`, counted when positive.
+/// `alpha = min(0.99, o g)`, counted when `0 <= power <= ln(255 o)` and
+/// `o g >= 1/255`; smooth `alpha = o g w(ln(255 o) - power)`, counted when positive.
 #[inline(always)]
 fn lane_alpha<T: SplatFloat>(
     cut: AlphaCutoff,
@@ -151,38 +155,36 @@ fn lane_alpha<T: SplatFloat>(
                 ok: in_support & a.ge(l(T::of(ALPHA_MIN))),
                 alpha: a.min(l(T::of(ALPHA_MAX))),
                 g,
-                p,
+                da: T::L::select(a.gt(l(T::of(ALPHA_MAX))), l(T::zero()), l(T::one())),
             }
         }
         AlphaCutoff::Smooth => {
-            let (wt, _) = taper::<T>(p);
+            let (wt, dwt) = taper::<T>(w.lim - p);
             let a = w.o * g * wt;
             Alpha {
                 ok: in_support & a.gt(l(T::zero())),
                 alpha: a,
                 g,
-                p,
+                da: wt + dwt,
             }
         }
     }
 }
 
-/// The C1 taper of [`AlphaCutoff::Smooth`], `w = (1 - q^2)^2` for
-/// `q = (power - 2)/(4.5 - 2)` in `[0, 1]` (1 below, 0 above), and `dw/dpower`.
+/// The C1 taper of [`AlphaCutoff::Smooth`] as a function of the headroom
+/// `r = ln(255 o) - power` above the support edge: `w = (1 - q^2)^2` for
+/// `q = 1 - r / 2.5` in `[0, 1]` (1 for `r >= 2.5`, 0 for `r <= 0`), and `dw/dr`.
 #[inline(always)]
-fn taper<T: SplatFloat>(p: T::L) -> (T::L, T::L) {
+fn taper<T: SplatFloat>(r: T::L) -> (T::L, T::L) {
     let l = T::L::splat;
-    let span = T::of(SUPPORT_POWER - SMOOTH_TAPER_START);
-    let q = (p - l(T::of(SMOOTH_TAPER_START))) / l(span);
+    let width = l(T::of(SMOOTH_TAPER_WIDTH));
+    let q = l(T::one()) - r / width;
     let s = l(T::one()) - q * q;
+    let inside = l(T::one());
     let below = q.le(l(T::zero()));
-    let above = q.ge(l(T::one()));
-    let w = T::L::select(below, l(T::one()), T::L::select(above, l(T::zero()), s * s));
-    let dw = T::L::select(
-        below | above,
-        l(T::zero()),
-        l(T::of(-4.0)) * s * q / l(span),
-    );
+    let above = q.ge(inside);
+    let w = T::L::select(below, inside, T::L::select(above, l(T::zero()), s * s));
+    let dw = T::L::select(below | above, l(T::zero()), l(T::of(4.0)) * q * s / width);
     (w, dw)
 }
 
@@ -382,21 +384,11 @@ pub(crate) fn backward_tile<T: SplatFloat>(
             let bh = T::L::load(&behind[3][k..]);
             g_al = g_al + gd * (w.z * t - bh * inv);
             T::L::select(m, bh + w.z * wgt, bh).store(&mut behind[3][k..]);
-            let og = w.o * al.g;
-            let (g_o, g_p) = match cut {
-                AlphaCutoff::Hard => {
-                    // The 0.99 clamp is active: alpha does not depend on o or power.
-                    let free = !og.gt(l(T::of(ALPHA_MAX)));
-                    (
-                        T::L::select(free, g_al * al.g, l(zero)),
-                        T::L::select(free, -(g_al * og), l(zero)),
-                    )
-                }
-                AlphaCutoff::Smooth => {
-                    let (wt, dwt) = taper::<T>(al.p);
-                    (g_al * al.g * wt, g_al * og * (dwt - wt))
-                }
-            };
+            // alpha = f(a) with a = o exp(-power): d/do = f'(a) g, d/dpower = -f'(a) a;
+            // f'(a) = al.da (0 where the 0.99 clamp holds, w + dw/dr when smooth).
+            let g_a = g_al * al.da;
+            let g_o = g_a * al.g;
+            let g_p = -(g_a * w.o * al.g);
             let g_p = pick(g_p);
             acc[5] = acc[5] + pick(g_o);
             acc[2] = acc[2] + g_p * l(half) * dx * dx;

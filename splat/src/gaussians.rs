@@ -2,9 +2,10 @@
 //! baking and static rendering.
 
 use maaf_autodiff::Tensor;
+use maaf_autodiff::scalar::{logit, sigmoid};
 
 use crate::Camera;
-use crate::render::{Frame, RenderSettings, render_tensors};
+use crate::render::{RenderSettings, RenderedFrame, render_tensors};
 use crate::sh::num_coeffs;
 
 /// A static 3DGS scene in storage parameterisation (DESIGN.md section 3; Inria PLY):
@@ -25,20 +26,6 @@ pub struct Gaussians {
     pub sh: Tensor<f32>,
     /// SH degree stored (0..=3).
     pub sh_degree: usize,
-}
-
-fn sigmoid(x: f32) -> f32 {
-    if x >= 0.0 {
-        1.0 / (1.0 + (-x).exp())
-    } else {
-        let e = x.exp();
-        e / (1.0 + e)
-    }
-}
-
-fn logit(p: f32) -> f32 {
-    let p = p.clamp(1e-7, 1.0 - 1e-7);
-    (p / (1.0 - p)).ln()
 }
 
 impl Gaussians {
@@ -103,7 +90,7 @@ impl Gaussians {
 
     /// Renders the scene with `camera` (no tape); `settings.sh_degree` is capped at the
     /// stored degree.
-    pub fn render(&self, camera: &Camera, settings: &RenderSettings) -> Frame<f32> {
+    pub fn render(&self, camera: &Camera, settings: &RenderSettings) -> RenderedFrame<f32> {
         let mut s = settings.clone();
         s.sh_degree = s.sh_degree.min(self.sh_degree);
         render_tensors(
@@ -119,6 +106,10 @@ impl Gaussians {
 }
 
 /// Renders a static scene without a tape; see [`Gaussians::render`].
-pub fn render_gaussians(g: &Gaussians, camera: &Camera, settings: &RenderSettings) -> Frame<f32> {
+pub fn render_gaussians(
+    g: &Gaussians,
+    camera: &Camera,
+    settings: &RenderSettings,
+) -> RenderedFrame<f32> {
     g.render(camera, settings)
 }

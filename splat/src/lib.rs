@@ -7,7 +7,7 @@
 //! `opacity [N]` and `sh [N,K,3]`.
 //!
 //! The pipeline ([`render`]) is four ops, each with a hand-written backward next to
-//! its forward and generic over f32/f64: [`project::QuatScaleToCov`],
+//! its forward and generic over f32/f64: [`cov3d::QuatScaleToCov`],
 //! [`project::ProjectEwa`] (frustum clamp, 2D filter), [`sh::ShColor`] and
 //! [`rasterize::Rasterize`] (16x16 tiles, per-tile depth sort, deterministic parallel
 //! backward). [`apply_3d_filter`] folds the Mip-Splatting 3D filter into scales and
@@ -19,10 +19,12 @@
 pub mod binning;
 mod blend;
 pub mod camera;
+pub mod compositing;
+pub mod cov3d;
 pub mod filter3d;
 pub mod gaussians;
 pub mod lanes;
-mod math;
+pub mod math;
 pub mod output;
 pub mod ply;
 pub mod project;
@@ -32,10 +34,13 @@ pub mod render;
 pub mod sh;
 
 pub use camera::{Camera, CameraError};
+pub use compositing::AlphaCutoff;
 pub use filter3d::apply_3d_filter;
 pub use gaussians::{Gaussians, render_gaussians};
 pub use lanes::SplatFloat;
+pub use math::quat_to_rotmat;
 pub use ply::{PlyError, read_ply, write_baked_ply, write_ply};
 pub use project::Filter2d;
-pub use rasterize::AlphaCutoff;
-pub use render::{Frame, GaussianVars, RenderOutput, RenderSettings, render, render_tensors};
+pub use render::{
+    GaussianVars, RenderOutput, RenderSettings, RenderedFrame, render, render_tensors,
+};

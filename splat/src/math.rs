@@ -1,6 +1,6 @@
 //! Small fixed-size matrix helpers generic over [`Float`], used by the per-Gaussian
 //! kernels (glam has no generic-scalar matrices, and the kernels must also run in f64
-//! for gradient checks).
+//! for gradient checks), and the one quaternion-to-rotation function of the crate.
 
 use maaf_autodiff::Float;
 
@@ -52,33 +52,44 @@ pub(crate) fn sym_from6<T: Float>(c: &[T]) -> M3<T> {
     [[c[0], c[1], c[2]], [c[1], c[3], c[4]], [c[2], c[4], c[5]]]
 }
 
-/// Rotation matrix of a unit quaternion `(w, x, y, z)` (Hamilton convention, as in
-/// gsplat `_quat_to_rotmat` and Inria `computeCov3D`).
-pub(crate) fn rotmat<T: Float>(q: [T; 4]) -> M3<T> {
+/// Rotation matrix of an unnormalised quaternion `q = (w, x, y, z)` (Hamilton
+/// convention, as gsplat `_quat_to_rotmat` and Inria `computeCov3D`, which normalise
+/// first). With `s = 2 / (w^2 + x^2 + y^2 + z^2)`:
+///
+/// ```text
+///     | 1 - s(y^2 + z^2)    s(xy - wz)        s(xz + wy)     |
+/// R = | s(xy + wz)          1 - s(x^2 + z^2)  s(yz - wx)     |
+///     | s(xz - wy)          s(yz + wx)        1 - s(x^2 + y^2) |
+/// ```
+///
+/// which equals the unit-quaternion matrix of `q / |q|` (the `1/|q|^2` of every
+/// quadratic term is folded into `s`). `q = 0` gives non-finite entries.
+pub fn quat_to_rotmat<T: Float>(q: [T; 4]) -> [[T; 3]; 3] {
     let [w, x, y, z] = q;
     let one = T::one();
-    let two = T::of(2.0);
+    let s = T::of(2.0) / (w * w + x * x + y * y + z * z);
     [
         [
-            one - two * (y * y + z * z),
-            two * (x * y - w * z),
-            two * (x * z + w * y),
+            one - s * (y * y + z * z),
+            s * (x * y - w * z),
+            s * (x * z + w * y),
         ],
         [
-            two * (x * y + w * z),
-            one - two * (x * x + z * z),
-            two * (y * z - w * x),
+            s * (x * y + w * z),
+            one - s * (x * x + z * z),
+            s * (y * z - w * x),
         ],
         [
-            two * (x * z - w * y),
-            two * (y * z + w * x),
-            one - two * (x * x + y * y),
+            s * (x * z - w * y),
+            s * (y * z + w * x),
+            one - s * (x * x + y * y),
         ],
     ]
 }
 
-/// Vector-Jacobian product of [`rotmat`]: given `G = dL/dR`, returns `dL/dq` for the
-/// (already unit) quaternion `q`, treating `q` as free (no normalisation term).
+/// Vector-Jacobian product of [`quat_to_rotmat`] at a unit quaternion `q` with `s = 2`
+/// held fixed: given `G = dL/dR`, returns `dL/dq` treating `q` as free. The caller
+/// adds the normalisation, `dq = (dq_hat - q_hat (q_hat . dq_hat)) / |q|`.
 pub(crate) fn rotmat_vjp<T: Float>(q: [T; 4], g: &M3<T>) -> [T; 4] {
     let [w, x, y, z] = q;
     let two = T::of(2.0);
@@ -95,4 +106,40 @@ pub(crate) fn rotmat_vjp<T: Float>(q: [T; 4], g: &M3<T>) -> [T; 4] {
         * (-w * g[0][1] + x * g[0][2] + w * g[1][0] + y * g[1][2] + x * g[2][0] + y * g[2][1])
         - four * z * (g[0][0] + g[1][1]);
     [dw, dx, dy, dz]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `R` is a rotation (orthonormal, det 1), independent of the quaternion's length
+    /// and sign, and maps as the Hamilton product: a 90 degree turn about z sends x
+    /// to y.
+    #[test]
+    fn quat_to_rotmat_is_a_rotation_for_any_length() {
+        let q = [0.7f64, -0.2, 0.5, 0.3];
+        let r = quat_to_rotmat(q);
+        let rtr = mul3(&transpose3(&r), &r);
+        for i in 0..3 {
+            for j in 0..3 {
+                let want = if i == j { 1.0 } else { 0.0 };
+                assert!((rtr[i][j] - want).abs() < 1e-14, "R^T R [{i}][{j}]");
+            }
+        }
+        let det = r[0][0] * (r[1][1] * r[2][2] - r[1][2] * r[2][1])
+            - r[0][1] * (r[1][0] * r[2][2] - r[1][2] * r[2][0])
+            + r[0][2] * (r[1][0] * r[2][1] - r[1][1] * r[2][0]);
+        assert!((det - 1.0).abs() < 1e-14);
+        for k in [3.0, -0.01] {
+            let rk = quat_to_rotmat(q.map(|v| v * k));
+            for i in 0..3 {
+                for j in 0..3 {
+                    assert!((rk[i][j] - r[i][j]).abs() < 1e-14, "scale {k}");
+                }
+            }
+        }
+        let h = std::f64::consts::FRAC_1_SQRT_2;
+        let y = mul3v(&quat_to_rotmat([h, 0.0, 0.0, h]), [1.0, 0.0, 0.0]);
+        assert!((y[0]).abs() < 1e-15 && (y[1] - 1.0).abs() < 1e-15 && y[2].abs() < 1e-15);
+    }
 }

@@ -6,8 +6,6 @@ use maaf_autodiff::Tensor;
 
 use npyz::WriterBuilder;
 
-use crate::ply::write_atomic;
-
 /// Errors of [`save_image`]; each names the file.
 #[derive(Debug, thiserror::Error)]
 pub enum OutputError {
@@ -80,5 +78,5 @@ pub fn save_image(path: &Path, image: &Tensor<f32>) -> Result<(), OutputError> {
         }
         _ => return Err(OutputError::Extension { path: shown }),
     };
-    write_atomic(path, &bytes).map_err(|e| err(e.to_string()))
+    maaf_io::write_atomic(path, &bytes).map_err(|e| err(e.to_string()))
 }

@@ -8,7 +8,7 @@
 //! (Inria `save_ply` flattens `features_rest` transposed to `[N, 3, K-1]`). Normals are
 //! optional on read and written as zeros; extra properties are ignored on read.
 
-use std::io::{BufReader, Write};
+use std::io::BufReader;
 use std::path::Path;
 
 use maaf_autodiff::Tensor;
@@ -82,16 +82,110 @@ impl<'de> Deserialize<'de> for Row {
     }
 }
 
-fn required_names(k: usize) -> Vec<String> {
-    let mut names: Vec<String> = ["x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2"]
-        .iter()
-        .map(|s| s.to_string())
-        .collect();
-    names.extend((0..3 * (k - 1)).map(|i| format!("f_rest_{i}")));
-    names.push("opacity".into());
-    names.extend((0..3).map(|i| format!("scale_{i}")));
-    names.extend((0..4).map(|i| format!("rot_{i}")));
-    names
+/// The `vertex` row of a 3DGS PLY with `k` SH coefficients per channel: the one
+/// place that fixes the property names and their order, for reading and writing.
+///
+/// `x y z nx ny nz f_dc_0 f_dc_1 f_dc_2 f_rest_0..f_rest_{3(k-1)-1} opacity scale_0
+/// scale_1 scale_2 rot_0 rot_1 rot_2 rot_3` (Inria `construct_list_of_attributes`).
+#[derive(Clone, Copy, Debug)]
+struct Layout {
+    k: usize,
+}
+
+impl Layout {
+    const MEAN: usize = 0;
+    const NORMAL: usize = 3;
+    const DC: usize = 6;
+    const REST: usize = 9;
+
+    fn opacity(self) -> usize {
+        Self::REST + 3 * (self.k - 1)
+    }
+
+    fn scale(self) -> usize {
+        self.opacity() + 1
+    }
+
+    fn rot(self) -> usize {
+        self.opacity() + 4
+    }
+
+    fn len(self) -> usize {
+        self.opacity() + 8
+    }
+
+    /// Row position of SH coefficient `kk` (0 = DC) of channel `c`; `f_rest` is
+    /// channel-major.
+    fn sh(self, kk: usize, c: usize) -> usize {
+        if kk == 0 {
+            Self::DC + c
+        } else {
+            Self::REST + c * (self.k - 1) + (kk - 1)
+        }
+    }
+
+    /// Property names in row order.
+    fn names(self) -> Vec<String> {
+        let mut names: Vec<String> = ["x", "y", "z", "nx", "ny", "nz"]
+            .iter()
+            .map(|s| s.to_string())
+            .collect();
+        names.extend((0..3).map(|c| format!("f_dc_{c}")));
+        names.extend((0..3 * (self.k - 1)).map(|i| format!("f_rest_{i}")));
+        names.push("opacity".into());
+        names.extend((0..3).map(|i| format!("scale_{i}")));
+        names.extend((0..4).map(|i| format!("rot_{i}")));
+        debug_assert_eq!(names.len(), self.len());
+        names
+    }
+
+    /// Whether the property at row position `j` may be absent on read (the normals,
+    /// which 3DGS writes as zeros and never reads).
+    fn optional(j: usize) -> bool {
+        (Self::NORMAL..Self::NORMAL + 3).contains(&j)
+    }
+
+    /// Gaussian `i` of `g` as a row (normals zero).
+    fn pack(self, g: &Gaussians, i: usize) -> Vec<f32> {
+        let mut row = vec![0.0f32; self.len()];
+        let shk = g.sh.shape()[1];
+        row[Self::MEAN..Self::MEAN + 3].copy_from_slice(&g.means.data()[3 * i..3 * i + 3]);
+        for kk in 0..self.k {
+            for c in 0..3 {
+                row[self.sh(kk, c)] = g.sh.data()[(i * shk + kk) * 3 + c];
+            }
+        }
+        row[self.opacity()] = g.raw_opacity.data()[i];
+        row[self.scale()..self.scale() + 3].copy_from_slice(&g.log_scales.data()[3 * i..3 * i + 3]);
+        row[self.rot()..self.rot() + 4].copy_from_slice(&g.quats.data()[4 * i..4 * i + 4]);
+        row
+    }
+
+    /// Appends a row to the column buffers of a scene (`sh` holds `k` coefficients).
+    fn unpack(self, row: &[f32], out: &mut Columns) {
+        out.means
+            .extend_from_slice(&row[Self::MEAN..Self::MEAN + 3]);
+        for kk in 0..self.k {
+            for c in 0..3 {
+                out.sh.push(row[self.sh(kk, c)]);
+            }
+        }
+        out.raw_opacity.push(row[self.opacity()]);
+        out.log_scales
+            .extend_from_slice(&row[self.scale()..self.scale() + 3]);
+        out.quats
+            .extend_from_slice(&row[self.rot()..self.rot() + 4]);
+    }
+}
+
+/// Flat buffers of a scene being read, in [`Gaussians`] order.
+#[derive(Default)]
+struct Columns {
+    means: Vec<f32>,
+    log_scales: Vec<f32>,
+    quats: Vec<f32>,
+    raw_opacity: Vec<f32>,
+    sh: Vec<f32>,
 }
 
 /// Reads a 3DGS PLY file (ascii or binary) into [`Gaussians`]. The SH degree is
@@ -139,12 +233,15 @@ pub fn read_ply(path: &Path) -> Result<Gaussians, PlyError> {
             )));
         }
     };
-    let k = crate::sh::num_coeffs(degree);
-    let names = required_names(k);
+    let layout = Layout {
+        k: crate::sh::num_coeffs(degree),
+    };
+    let names = layout.names();
     let mut column = Vec::with_capacity(names.len());
-    for name in &names {
+    for (j, name) in names.iter().enumerate() {
         match props.iter().position(|p| p == name) {
-            Some(c) => column.push(c),
+            Some(c) => column.push(Some(c)),
+            None if Layout::optional(j) => column.push(None),
             None => {
                 return Err(PlyError::MissingProperty {
                     path: shown.clone(),
@@ -167,11 +264,8 @@ pub fn read_ply(path: &Path) -> Result<Gaussians, PlyError> {
         )));
     }
     let n = rows.len();
-    let mut means = Vec::with_capacity(3 * n);
-    let mut log_scales = Vec::with_capacity(3 * n);
-    let mut quats = Vec::with_capacity(4 * n);
-    let mut raw_opacity = Vec::with_capacity(n);
-    let mut sh = vec![0.0f32; n * k * 3];
+    let mut cols = Columns::default();
+    let mut values = vec![0.0f32; layout.len()];
     for (i, row) in rows.iter().enumerate() {
         if row.0.len() != props.len() {
             return Err(format(format!(
@@ -180,45 +274,26 @@ pub fn read_ply(path: &Path) -> Result<Gaussians, PlyError> {
                 props.len()
             )));
         }
-        let get = |j: usize| -> Result<f32, PlyError> {
-            let v = row.0[column[j]];
-            if v.is_finite() {
-                Ok(v)
-            } else {
-                Err(PlyError::NonFinite {
+        for (j, c) in column.iter().enumerate() {
+            let v = c.map_or(0.0, |c| row.0[c]);
+            if !v.is_finite() {
+                return Err(PlyError::NonFinite {
                     path: shown.clone(),
                     property: names[j].clone(),
                     row: i,
                     value: v,
-                })
+                });
             }
-        };
-        for j in 0..3 {
-            means.push(get(j)?);
+            values[j] = v;
         }
-        for c in 0..3 {
-            sh[(i * k) * 3 + c] = get(3 + c)?;
-        }
-        for c in 0..3 {
-            for kk in 1..k {
-                sh[(i * k + kk) * 3 + c] = get(6 + c * (k - 1) + (kk - 1))?;
-            }
-        }
-        let base = 6 + 3 * (k - 1);
-        raw_opacity.push(get(base)?);
-        for j in 0..3 {
-            log_scales.push(get(base + 1 + j)?);
-        }
-        for j in 0..4 {
-            quats.push(get(base + 4 + j)?);
-        }
+        layout.unpack(&values, &mut cols);
     }
     Ok(Gaussians {
-        means: Tensor::from_vec(means, &[n, 3]),
-        log_scales: Tensor::from_vec(log_scales, &[n, 3]),
-        quats: Tensor::from_vec(quats, &[n, 4]),
-        raw_opacity: Tensor::from_vec(raw_opacity, &[n]),
-        sh: Tensor::from_vec(sh, &[n, k, 3]),
+        means: Tensor::from_vec(cols.means, &[n, 3]),
+        log_scales: Tensor::from_vec(cols.log_scales, &[n, 3]),
+        quats: Tensor::from_vec(cols.quats, &[n, 4]),
+        raw_opacity: Tensor::from_vec(cols.raw_opacity, &[n]),
+        sh: Tensor::from_vec(cols.sh, &[n, layout.k, 3]),
         sh_degree: degree,
     })
 }
@@ -226,17 +301,10 @@ pub fn read_ply(path: &Path) -> Result<Gaussians, PlyError> {
 /// Encodes `g` as a `binary_little_endian` 3DGS PLY.
 pub fn ply_bytes(g: &Gaussians) -> Vec<u8> {
     let n = g.len();
-    let k = crate::sh::num_coeffs(g.sh_degree);
-    let mut names: Vec<String> = [
-        "x", "y", "z", "nx", "ny", "nz", "f_dc_0", "f_dc_1", "f_dc_2",
-    ]
-    .iter()
-    .map(|s| s.to_string())
-    .collect();
-    names.extend((0..3 * (k - 1)).map(|i| format!("f_rest_{i}")));
-    names.push("opacity".into());
-    names.extend((0..3).map(|i| format!("scale_{i}")));
-    names.extend((0..4).map(|i| format!("rot_{i}")));
+    let layout = Layout {
+        k: crate::sh::num_coeffs(g.sh_degree),
+    };
+    let names = layout.names();
     let mut out = Vec::with_capacity(200 + n * names.len() * 4);
     out.extend_from_slice(b"ply\nformat binary_little_endian 1.0\n");
     out.extend_from_slice(format!("element vertex {n}\n").as_bytes());
@@ -244,56 +312,17 @@ pub fn ply_bytes(g: &Gaussians) -> Vec<u8> {
         out.extend_from_slice(format!("property float {name}\n").as_bytes());
     }
     out.extend_from_slice(b"end_header\n");
-    let shk = g.sh.shape()[1];
     for i in 0..n {
-        let mut row: Vec<f32> = Vec::with_capacity(names.len());
-        row.extend_from_slice(&g.means.data()[3 * i..3 * i + 3]);
-        row.extend_from_slice(&[0.0; 3]);
-        for c in 0..3 {
-            row.push(g.sh.data()[(i * shk) * 3 + c]);
-        }
-        for c in 0..3 {
-            for kk in 1..k {
-                row.push(g.sh.data()[(i * shk + kk) * 3 + c]);
-            }
-        }
-        row.push(g.raw_opacity.data()[i]);
-        row.extend_from_slice(&g.log_scales.data()[3 * i..3 * i + 3]);
-        row.extend_from_slice(&g.quats.data()[4 * i..4 * i + 4]);
-        for v in row {
+        for v in layout.pack(g, i) {
             out.extend_from_slice(&v.to_le_bytes());
         }
     }
     out
 }
 
-/// Writes `bytes` to `path` atomically: a temporary file in the same directory is
-/// written, flushed and renamed over the target.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    let dir = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let name = path
-        .file_name()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "out".into());
-    let tmp = dir.join(format!(".{name}.tmp{}", std::process::id()));
-    let result = (|| {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
-}
-
 /// Writes a 3DGS PLY (binary little endian) atomically.
 pub fn write_ply(path: &Path, g: &Gaussians) -> Result<(), PlyError> {
-    write_atomic(path, &ply_bytes(g)).map_err(|source| PlyError::Io {
+    maaf_io::write_atomic(path, &ply_bytes(g)).map_err(|source| PlyError::Io {
         path: path.display().to_string(),
         source,
     })

@@ -1,116 +1,12 @@
-//! Covariance from quaternion and scale, and the EWA projection to screen space with
-//! the frustum clamp and the 2D filter (DESIGN.md section 3).
+//! The EWA projection of 3D Gaussians to screen space with the frustum clamp and the
+//! 2D filter (DESIGN.md section 3).
 
 use maaf_autodiff::{BackwardCtx, Float, Op, Tensor, Var};
 use rayon::prelude::*;
 
 use crate::Camera;
-use crate::math::{M3, mul3, mul3tv, mul3v, rotmat, rotmat_vjp, sym_from6, transpose3};
-
-/// Covariance `Sigma = R S S^T R^T` from an unnormalised quaternion `q = (w,x,y,z)`
-/// (normalised inside, `R` as in gsplat `_quat_to_rotmat`) and activated scales
-/// `S = diag(s)`. Inputs `quats [N,4]`, `scales [N,3]`; output the upper triangle
-/// `[N,6] = (xx, xy, xz, yy, yz, zz)`.
-///
-/// Backward: with `G` the symmetric cotangent of `Sigma` (off-diagonal packed entries
-/// count for both halves), `dM = 2 G M` for `M = R S`, `dR_ij = dM_ij s_j`,
-/// `ds_j = sum_i dM_ij R_ij`, then through `R(q)` and the normalisation
-/// `dq = (dq_hat - q_hat (q_hat . dq_hat)) / |q|`.
-pub struct QuatScaleToCov;
-
-fn normalise<T: Float>(q: &[T]) -> ([T; 4], T) {
-    let n = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
-    ([q[0] / n, q[1] / n, q[2] / n, q[3] / n], n)
-}
-
-impl<T: Float> Op<T> for QuatScaleToCov {
-    type Saved = ();
-
-    fn name(&self) -> String {
-        "quat_scale_to_cov".into()
-    }
-
-    fn forward(&self, inputs: &[&Tensor<T>]) -> (Vec<Tensor<T>>, ()) {
-        let (q, s) = (inputs[0], inputs[1]);
-        let n = q.rows();
-        assert_eq!(q.shape(), &[n, 4], "quat_scale_to_cov: quats must be [N,4]");
-        assert_eq!(
-            s.shape(),
-            &[n, 3],
-            "quat_scale_to_cov: scales must be [N,3]"
-        );
-        let mut out = vec![T::zero(); 6 * n];
-        out.par_chunks_mut(6).enumerate().for_each(|(i, o)| {
-            let (qh, _) = normalise(&q.data()[4 * i..4 * i + 4]);
-            let r = rotmat(qh);
-            let sc = &s.data()[3 * i..3 * i + 3];
-            // Sigma_ab = sum_k R_ak s_k^2 R_bk
-            let mut k = 0;
-            for a in 0..3 {
-                for b in a..3 {
-                    o[k] = (0..3).map(|j| r[a][j] * sc[j] * sc[j] * r[b][j]).sum();
-                    k += 1;
-                }
-            }
-        });
-        (vec![Tensor::from_vec(out, &[n, 6])], ())
-    }
-
-    fn backward(&self, ctx: &BackwardCtx<'_, T, ()>) -> Vec<Option<Tensor<T>>> {
-        let (q, s) = (ctx.inputs[0], ctx.inputs[1]);
-        let g6 = &ctx.grad_outputs[0];
-        let n = q.rows();
-        let half = T::of(0.5);
-        let two = T::of(2.0);
-        let mut dq = vec![T::zero(); 4 * n];
-        let mut ds = vec![T::zero(); 3 * n];
-        dq.par_chunks_mut(4)
-            .zip(ds.par_chunks_mut(3))
-            .enumerate()
-            .for_each(|(i, (dq, ds))| {
-                let (qh, qn) = normalise(&q.data()[4 * i..4 * i + 4]);
-                let r = rotmat(qh);
-                let sc = &s.data()[3 * i..3 * i + 3];
-                let g = &g6.data()[6 * i..6 * i + 6];
-                // Symmetric cotangent: packed off-diagonals are split over both halves.
-                let gs: M3<T> = [
-                    [g[0], half * g[1], half * g[2]],
-                    [half * g[1], g[3], half * g[4]],
-                    [half * g[2], half * g[4], g[5]],
-                ];
-                let mut m = [[T::zero(); 3]; 3];
-                for a in 0..3 {
-                    for j in 0..3 {
-                        m[a][j] = r[a][j] * sc[j];
-                    }
-                }
-                let gm = mul3(&gs, &m);
-                let mut gr = [[T::zero(); 3]; 3];
-                for a in 0..3 {
-                    for j in 0..3 {
-                        let dm = two * gm[a][j];
-                        gr[a][j] = dm * sc[j];
-                        ds[j] += dm * r[a][j];
-                    }
-                }
-                let dqh = rotmat_vjp(qh, &gr);
-                let dot = (0..4).map(|k| qh[k] * dqh[k]).sum::<T>();
-                for k in 0..4 {
-                    dq[k] = (dqh[k] - qh[k] * dot) / qn;
-                }
-            });
-        vec![
-            Some(Tensor::from_vec(dq, &[n, 4])),
-            Some(Tensor::from_vec(ds, &[n, 3])),
-        ]
-    }
-}
-
-/// Covariance on the tape, see [`QuatScaleToCov`]: `quats [N,4]`, `scales [N,3]` ->
-/// `[N,6]` upper triangle.
-pub fn quat_scale_to_cov<'t, T: Float>(quats: Var<'t, T>, scales: Var<'t, T>) -> Var<'t, T> {
-    quats.tape().apply1(QuatScaleToCov, &[quats, scales])
-}
+use crate::compositing::support_sigmas;
+use crate::math::{M3, mul3, mul3tv, mul3v, sym_from6, transpose3};
 
 /// The screen-space low-pass ("2D filter") added to every projected covariance.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -150,9 +46,6 @@ pub const NEAR_PLANE: f64 = 0.2;
 /// (Inria `computeCov2D`).
 pub const FRUSTUM_MARGIN: f64 = 0.3;
 
-/// 3-sigma extent factor of the screen-space radius (Inria `preprocessCUDA`).
-pub const RADIUS_SIGMAS: f64 = 3.0;
-
 /// EWA projection of 3D Gaussians (Zwicker et al. 2002, as in 3DGS / gsplat):
 ///
 /// ```text
@@ -163,13 +56,15 @@ pub const RADIUS_SIGMAS: f64 = 3.0;
 /// conic  = cov2d^{-1} packed as (A, B, C) = ([0][0], [0][1], [1][1])
 /// opac'  = o * sqrt(max(det(cov2d - k I), 0) / det cov2d)  (Mip), o (classic)
 /// depth  = t.z
-/// radius = ceil(3 sqrt(lambda_max)),  lambda_max = m + sqrt(max(0.1, m^2 - det)), m = tr/2
+/// radius = ceil(k sqrt(lambda_max)),  lambda_max = m + sqrt(max(0.1, m^2 - det)), m = tr/2
+///          k = sqrt(2 ln(255 opac'))  (support_sigmas; gsplat's opacity-aware extent)
 /// ```
 ///
 /// Inputs: `means [N,3]`, `cov3d [N,6]`, `opacity [N]`. Outputs: `means2d [N,2]`,
 /// `conics [N,3]`, `opacity [N]`, `depths [N]`, `radii [N]` (integers stored as `T`,
 /// not differentiable; 0 = culled). A Gaussian is culled (all outputs 0) when
-/// `t.z <= near` or when no pixel centre lies within `radius` of its mean on both axes.
+/// `t.z <= near`, when `opac' <= 1/255` (its alpha never reaches the threshold) or
+/// when no pixel centre lies within `radius` of its mean on both axes.
 /// Non-finite inputs are not culled: they propagate to the outputs so validate mode
 /// names this op.
 pub struct ProjectEwa<T: Float> {
@@ -341,23 +236,28 @@ impl<T: Float> Op<T> for ProjectEwa<T> {
             let det0 = a * c - b * b;
             let (ad, cd) = (a + self.kernel, c + self.kernel);
             let det = ad * cd - b * b;
-            let nonfinite = !(det.is_finite() && mx.is_finite() && my.is_finite());
-            if !nonfinite && det <= zero {
-                return None;
-            }
             let comp = if !self.compensate {
                 T::one()
             } else if det0 > zero {
                 (det0 / det).sqrt()
-            } else if nonfinite {
+            } else if !det0.is_finite() {
                 det0
             } else {
                 zero
             };
+            let op = opac.data()[i] * comp;
+            let nonfinite =
+                !(det.is_finite() && mx.is_finite() && my.is_finite() && op.is_finite());
+            if !nonfinite && det <= zero {
+                return None;
+            }
             let mid = T::of(0.5) * (ad + cd);
             let lam = mid + (mid * mid - det).max(T::of(0.1)).sqrt();
-            let r = (T::of(RADIUS_SIGMAS) * lam.sqrt()).ceil();
+            let r = (T::of(support_sigmas(op.to_f64())) * lam.sqrt()).ceil();
             if !nonfinite {
+                if r <= zero {
+                    return None;
+                }
                 let (rf, mxf, myf) = (r.to_f64(), mx.to_f64(), my.to_f64());
                 if pixel_range(mxf, rf, self.width).is_none()
                     || pixel_range(myf, rf, self.height).is_none()
@@ -368,7 +268,7 @@ impl<T: Float> Op<T> for ProjectEwa<T> {
             Some(Row {
                 m2: [mx, my],
                 con: [cd / det, -b / det, ad / det],
-                op: opac.data()[i] * comp,
+                op,
                 dep: z,
                 rad: if nonfinite { zero } else { r },
                 saved: ProjSaved {

@@ -11,41 +11,8 @@ use rayon::prelude::*;
 
 use crate::binning::{Binning, bin_gaussians};
 use crate::blend::{NP, Splat, TileEnd, TileGrads, TileOut, TileRect, backward_tile, forward_tile};
+use crate::compositing::{AlphaCutoff, TILE, support_power};
 use crate::lanes::SplatFloat;
-
-/// Tile edge in pixels.
-pub const TILE: usize = 16;
-/// Minimum alpha for a Gaussian to count at a pixel (hard cutoff): `1/255`.
-pub const ALPHA_MIN: f64 = 1.0 / 255.0;
-/// Alpha clamp (hard cutoff): `alpha = min(0.99, o exp(-power))` (Inria, Mip-Splatting,
-/// gsplat >= 2026-02).
-pub const ALPHA_MAX: f64 = 0.99;
-/// Transmittance floor: a pixel stops before blending a Gaussian that would take
-/// `T` below `1e-4` (exclusive, as Inria and gsplat).
-pub const T_MIN: f64 = 1e-4;
-/// Support of a Gaussian: `power = d^T conic d / 2 <= 4.5`, the 3-sigma ellipse. It is
-/// contained in the `ceil(3 sqrt(lambda_max))` radius used for binning, so the image
-/// does not depend on the tile grid. Deliberate difference: Inria/gsplat blend a
-/// Gaussian at every pixel of every tile its box touches, which keeps tails beyond
-/// 3 sigma (alpha <= 0.011 o) at some pixels and not at others.
-pub const SUPPORT_POWER: f64 = 4.5;
-/// Start of the smooth taper of [`AlphaCutoff::Smooth`] in power units.
-pub const SMOOTH_TAPER_START: f64 = 2.0;
-
-/// How alpha is cut off.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub enum AlphaCutoff {
-    /// 3DGS behaviour: `alpha = min(0.99, o exp(-power))` for `power <= 4.5`, skipped
-    /// when below `1/255`, a pixel stops before `T` would fall under `1e-4`. The
-    /// gradient is zero where the 0.99 clamp is active (the true derivative; gsplat
-    /// masks it too, Inria does not).
-    #[default]
-    Hard,
-    /// A C1 variant for finite-difference tests: `alpha = o exp(-power) w(power)`
-    /// with the taper `w = (1 - q^2)^2` for `q = (power - 2)/(4.5 - 2)` in `[0,1]`,
-    /// `w = 1` below and `0` above; no 1/255 skip, no clamp, no early stop.
-    Smooth,
-}
 
 /// The rasterizer op: alpha compositing of projected Gaussians, front to back.
 ///
@@ -53,7 +20,8 @@ pub enum AlphaCutoff {
 /// order, with `d = q - mean2d_i` and `power_i = (A dx^2 + C dy^2)/2 + B dx dy`:
 ///
 /// ```text
-/// alpha_i = min(0.99, o_i exp(-power_i))     (see AlphaCutoff for the skip rules)
+/// alpha_i = min(0.99, o_i exp(-power_i))     (see AlphaCutoff for the skip rules;
+///                                             the support is power_i <= ln(255 o_i))
 /// T_i     = prod_{j<i} (1 - alpha_j)
 /// image   = sum_i c_i alpha_i T_i + T_final * background
 /// alpha   = 1 - T_final
@@ -111,6 +79,7 @@ fn gather_splats<T: Float>(list: &[u32], inputs: &[&Tensor<T>], bins: &Binning) 
                 b: con[3 * g + 1],
                 c: con[3 * g + 2],
                 o: op[g],
+                lim: support_power(op[g]),
                 col: [col[3 * g], col[3 * g + 1], col[3 * g + 2]],
                 z: dep[g],
                 bbox: bins.boxes[g],
@@ -169,6 +138,7 @@ impl<T: SplatFloat> Op<T> for Rasterize<T> {
         let bins = bin_gaussians(
             inputs[0].data(),
             inputs[1].data(),
+            inputs[3].data(),
             inputs[5].data(),
             inputs[4].data(),
             self.width,

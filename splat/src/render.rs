@@ -4,9 +4,11 @@
 use maaf_autodiff::{Float, Tape, Tensor, Var};
 
 use crate::Camera;
+use crate::compositing::AlphaCutoff;
+use crate::cov3d::quat_scale_to_cov;
 use crate::lanes::SplatFloat;
-use crate::project::{Filter2d, NEAR_PLANE, project_ewa, quat_scale_to_cov};
-use crate::rasterize::{AlphaCutoff, rasterize};
+use crate::project::{Filter2d, NEAR_PLANE, project_ewa};
+use crate::rasterize::rasterize;
 use crate::sh::sh_color;
 
 /// Activated per-Gaussian parameters on a tape (the trainer applies `exp` to log-scales
@@ -77,7 +79,7 @@ impl<T: Float> RenderOutput<'_, T> {
     }
 }
 
-/// Renders Gaussians on `tape`: covariance ([`crate::project::QuatScaleToCov`]), EWA
+/// Renders Gaussians on `tape`: covariance ([`crate::cov3d::QuatScaleToCov`]), EWA
 /// projection with the frustum clamp and 2D filter ([`crate::project::ProjectEwa`]),
 /// SH colour ([`crate::sh::ShColor`]) and tile rasterization
 /// ([`crate::rasterize::Rasterize`]), each an op with a hand-written backward.
@@ -167,7 +169,7 @@ fn effective_sh_degree<T: Float>(sh: Var<'_, T>, settings: &RenderSettings) -> u
 
 /// A rendered frame as plain tensors (no tape).
 #[derive(Clone, Debug)]
-pub struct Frame<T> {
+pub struct RenderedFrame<T> {
     /// Colour `[H,W,3]`.
     pub image: Tensor<T>,
     /// Accumulated opacity `[H,W]`.
@@ -187,7 +189,7 @@ pub fn render_tensors<T: SplatFloat>(
     sh: &Tensor<T>,
     camera: &Camera,
     settings: &RenderSettings,
-) -> Frame<T> {
+) -> RenderedFrame<T> {
     let tape = Tape::new();
     let g = GaussianVars {
         means: tape.constant(means.clone()),
@@ -200,7 +202,7 @@ pub fn render_tensors<T: SplatFloat>(
     let image = out.image.value().clone();
     let alpha = out.alpha.value().clone();
     let depth = out.depth.value().clone();
-    Frame {
+    RenderedFrame {
         image,
         alpha,
         depth,

@@ -15,7 +15,8 @@ mod common;
 use maaf_autodiff::check::{GradcheckConfig, check_vjp, gradcheck};
 use maaf_autodiff::ops::concat;
 use maaf_autodiff::{BackwardCtx, Op, Tape, Tensor, Var};
-use maaf_splat::project::{project_ewa, quat_scale_to_cov};
+use maaf_splat::cov3d::quat_scale_to_cov;
+use maaf_splat::project::project_ewa;
 use maaf_splat::rasterize::{Rasterize, rasterize};
 use maaf_splat::sh::sh_color;
 use maaf_splat::{AlphaCutoff, Camera, Filter2d, GaussianVars, RenderSettings, reference, render};
@@ -195,7 +196,7 @@ fn rasterize_gradcheck_smooth_and_hard() {
     let inputs = raster_inputs(Filter2d::Mip);
     for cut in [AlphaCutoff::Smooth, AlphaCutoff::Hard] {
         // Hard: piecewise smooth; with eps = 1e-6 no sampled coordinate moves a pixel
-        // across the 1/255, 0.99, T-floor or 3-sigma thresholds for this seed.
+        // across the 1/255 (support edge), 0.99 or T-floor thresholds for this seed.
         let report = gradcheck(
             |_, x| flat(&raster(x, &inputs[5], cut)),
             &inputs[..5],
