@@ -140,7 +140,6 @@ impl Product<'_> {
     }
 }
 
-
 fn compare(c: &mut Criterion) {
     let mut group = c.benchmark_group("gemm_compare");
     group.sample_size(10);
