@@ -29,10 +29,11 @@ pub trait Float:
     /// `C = alpha * A B + beta * C` with explicit row and column strides (in elements),
     /// `A` m x k, `B` k x n, `C` m x n; with `beta = 0` the old C is never read.
     ///
-    /// Large products run on rayon in fixed blocks: blocks of 1024 rows of C when C has
-    /// at least two, else blocks of 2048 steps of the inner dimension (partial products
-    /// added in block order) when there are at least two; the result depends on the
-    /// shapes only, never on the number of threads.
+    /// Products of 2^20 multiply-adds or more run on rayon in fixed blocks: blocks of
+    /// rows of C (1024 rows, fewer for C under 8192 rows) when C has at least two,
+    /// else blocks of 2048 steps of the inner dimension (partial products added in
+    /// block order) when there are at least two; the blocks depend on the shapes only,
+    /// so the result never depends on the number of threads.
     #[allow(clippy::too_many_arguments)]
     fn gemm(
         m: usize,
@@ -203,12 +204,22 @@ pub(crate) const ROW_BLOCK: usize = 1024;
 pub(crate) const DEPTH_BLOCK: usize = 2048;
 /// Products below this many multiply-adds run on one thread (rayon's hand-off costs
 /// more than it saves).
-const PARALLEL_MIN_MACS: usize = 1 << 20;
+pub(crate) const PARALLEL_MIN_MACS: usize = 1 << 20;
+
+/// Rows of C per block when a product with `m` rows is split over rows: 1024 from
+/// 8192 rows up, else an eighth of the rows rounded up to a multiple of 16, so medium
+/// products (an SSIM blur with 200 rows) still spread over the cores.
+fn row_block(m: usize) -> usize {
+    if m >= 8 * ROW_BLOCK {
+        ROW_BLOCK
+    } else {
+        m.div_ceil(8).next_multiple_of(16)
+    }
+}
 
 /// `C = alpha A B + beta C`, split into blocks that depend on the shapes only:
-/// - C with at least two [`ROW_BLOCK`]s of rows, stored by rows (`rs >= n cs`):
-///   blocks of rows of C, each one single-threaded product, in parallel (each element
-///   is computed exactly as in one unsplit call);
+/// - C with at least two [`row_block`]s of rows, stored by rows (`rs >= n cs`):
+///   blocks of rows of C, each one single-threaded product, in parallel;
 /// - otherwise, a reduction of at least two [`DEPTH_BLOCK`]s (the weight gradient
 ///   `x^T g` of a dense layer): one partial product per block of the inner dimension,
 ///   in parallel, added in block order;
@@ -232,16 +243,17 @@ pub(crate) fn gemm_blocked<T: Float>(
     if m * k * n < PARALLEL_MIN_MACS {
         return T::gemm_serial(alpha, a, b, beta, c);
     }
-    if m >= 2 * ROW_BLOCK && c.rs >= n * c.cs {
+    let rb = row_block(m);
+    if m >= 2 * rb && c.rs >= n * c.cs {
         let (rs, cs) = (c.rs, c.cs);
         return c.data[..extent(m, n, (rs, cs))]
-            .par_chunks_mut(ROW_BLOCK * rs)
+            .par_chunks_mut(rb * rs)
             .enumerate()
             .for_each(|(i, block)| {
-                let rows = ROW_BLOCK.min(m - i * ROW_BLOCK);
+                let rows = rb.min(m - i * rb);
                 T::gemm_serial(
                     alpha,
-                    a.rows(i * ROW_BLOCK, rows),
+                    a.rows(i * rb, rows),
                     b,
                     beta,
                     MatMut::new(block, rows, n, (rs, cs)),
@@ -380,11 +392,13 @@ mod tests {
 
     #[test]
     fn blocked_gemm_matches_a_triple_loop_on_every_path() {
-        // Serial (small), split over rows of C, split over the reduction; A and B both
-        // plain and transposed; beta 0 (C ignored, even when NaN) and beta != 0.
+        // Serial (small), split over rows of C (large and medium blocks), split over the
+        // reduction; A and B both plain and transposed; beta 0 (C ignored, even when
+        // NaN) and beta != 0.
         for (m, k, n) in [
             (7, 5, 3),
             (2 * ROW_BLOCK + 52, 30, 20),
+            (200, 80, 70),
             (6, 2 * DEPTH_BLOCK + 404, 40),
         ] {
             for transposed in [false, true] {

@@ -11,7 +11,7 @@
 
 use rayon::prelude::*;
 
-use crate::float::ROW_BLOCK;
+use crate::float::{PARALLEL_MIN_MACS, ROW_BLOCK};
 use crate::op::{BackwardCtx, Op};
 use crate::{Float, MatMut, MatRef, Tensor, Var};
 
@@ -32,9 +32,6 @@ pub struct Dense(pub Activation);
 
 /// One block's partial weight and bias gradients (`None` when not needed).
 type BlockGrads<T> = (Option<Vec<T>>, Option<Vec<T>>);
-
-/// Products below this many multiply-adds run their blocks on the calling thread.
-const PARALLEL_MIN_MACS: usize = 1 << 20;
 
 /// Runs `f(block index)` for every block, in parallel when `parallel`; returns the
 /// results in block order.
