@@ -28,7 +28,7 @@ pub mod scalar;
 mod tape;
 mod tensor;
 
-pub use float::Float;
+pub use float::{Float, MatMut, MatRef};
 pub use op::{BackwardCtx, Op};
 pub use per_gaussian::PerGaussian;
 pub use tape::{Grads, Tape, TapeError, Var};

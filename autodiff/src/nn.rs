@@ -7,6 +7,7 @@
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 
+use crate::ops::dense::Activation;
 use crate::{Float, Tape, Tensor, Var};
 
 /// A fully connected layer `y = x W + b`, `W` [in, out], `b` [out].
@@ -70,9 +71,14 @@ pub struct LinearVars<'t, T: Float> {
 }
 
 impl<'t, T: Float> LinearVars<'t, T> {
-    /// `x W + b` for `x` [rows, in].
+    /// `x W + b` for `x` [rows, in], as one fused [`crate::ops::dense::Dense`] op.
     pub fn forward(&self, x: Var<'t, T>) -> Var<'t, T> {
-        x.matmul(self.weight) + self.bias
+        self.forward_act(x, Activation::Identity)
+    }
+
+    /// `act(x W + b)` for `x` [rows, in], as one fused [`crate::ops::dense::Dense`] op.
+    pub fn forward_act(&self, x: Var<'t, T>, act: Activation) -> Var<'t, T> {
+        x.dense(self.weight, self.bias, act)
     }
 }
 
@@ -145,12 +151,17 @@ pub struct MlpVars<'t, T: Float> {
 }
 
 impl<'t, T: Float> MlpVars<'t, T> {
-    /// Runs the network on `x` [rows, in].
+    /// Runs the network on `x` [rows, in]: `h_{i+1} = relu(h_i W_i + b_i)` for the
+    /// hidden layers and `h_i W_i + b_i` for the last, each layer one fused [`crate::ops::dense::Dense`] op.
     pub fn forward(&self, x: Var<'t, T>) -> Var<'t, T> {
         let last = self.layers.len() - 1;
         self.layers.iter().enumerate().fold(x, |h, (i, l)| {
-            let y = l.forward(h);
-            if i < last { y.relu() } else { y }
+            let act = if i < last {
+                Activation::Relu
+            } else {
+                Activation::Identity
+            };
+            l.forward_act(h, act)
         })
     }
 }

@@ -1,4 +1,5 @@
-//! Matrix product through the `matrixmultiply` GEMM kernels.
+//! Matrix product through [`crate::Float::gemm`] (the `gemm` crate's kernels on fixed
+//! blocks over rayon).
 
 use crate::op::{BackwardCtx, Op};
 use crate::{Float, Tensor, Var};

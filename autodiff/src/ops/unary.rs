@@ -100,6 +100,77 @@ impl UnaryKind {
     }
 }
 
+/// Evaluates `$body` with `$k` bound to `$kind`, in one copy per variant: inside each
+/// copy the variant is a constant, so the per-element `match` of [`UnaryKind::eval`]
+/// and [`UnaryKind::derivative`] folds away and the loop can vectorise.
+macro_rules! unswitch {
+    ($kind:expr, $k:ident => $body:expr) => {{
+        use UnaryKind::*;
+        match $kind {
+            Exp => {
+                let $k = Exp;
+                $body
+            }
+            Ln => {
+                let $k = Ln;
+                $body
+            }
+            Sqrt => {
+                let $k = Sqrt;
+                $body
+            }
+            Square => {
+                let $k = Square;
+                $body
+            }
+            Abs => {
+                let $k = Abs;
+                $body
+            }
+            Sigmoid => {
+                let $k = Sigmoid;
+                $body
+            }
+            Relu => {
+                let $k = Relu;
+                $body
+            }
+            Softplus => {
+                let $k = Softplus;
+                $body
+            }
+            Sin => {
+                let $k = Sin;
+                $body
+            }
+            Cos => {
+                let $k = Cos;
+                $body
+            }
+            Tanh => {
+                let $k = Tanh;
+                $body
+            }
+            Neg => {
+                let $k = Neg;
+                $body
+            }
+            Scale(c) => {
+                let $k = Scale(c);
+                $body
+            }
+            AddScalar(c) => {
+                let $k = AddScalar(c);
+                $body
+            }
+            Powf(p) => {
+                let $k = Powf(p);
+                $body
+            }
+        }
+    }};
+}
+
 impl<T: Float> Op<T> for Unary {
     type Saved = ();
 
@@ -108,20 +179,19 @@ impl<T: Float> Op<T> for Unary {
     }
 
     fn forward(&self, inputs: &[&Tensor<T>]) -> (Vec<Tensor<T>>, ()) {
-        let kind = self.0;
-        (vec![inputs[0].map(|x| kind.eval(x))], ())
+        let x = inputs[0];
+        (vec![unswitch!(self.0, k => x.map(|v| k.eval(v)))], ())
     }
 
     fn backward(&self, ctx: &BackwardCtx<'_, T, ()>) -> Vec<Option<Tensor<T>>> {
         let (x, y, g) = (ctx.inputs[0], ctx.outputs[0], &ctx.grad_outputs[0]);
-        let kind = self.0;
-        let data = x
+        let data = unswitch!(self.0, k => x
             .data()
             .iter()
             .zip(y.data())
             .zip(g.data())
-            .map(|((&x, &y), &g)| g * kind.derivative(x, y))
-            .collect();
+            .map(|((&x, &y), &g)| g * k.derivative(x, y))
+            .collect());
         vec![Some(Tensor::from_vec(data, x.shape()))]
     }
 }
