@@ -242,7 +242,7 @@ mod tests {
             let slow = conv_reference(&c, &x);
             assert_eq!(
                 (fast.h, fast.w, fast.c),
-                (c.out_len(h).unwrap(), c.out_len(w).unwrap(), co)
+                (c.out_len(h).expect("fits"), c.out_len(w).expect("fits"), co)
             );
             assert_eq!(fast.data.len(), slow.len());
             let worst = fast
@@ -280,7 +280,7 @@ mod tests {
                 data: (0..3)
                     .flat_map(|dy| {
                         let iy = oy as i64 - 1 + dy;
-                        if iy < 0 || iy >= 1200 {
+                        if !(0..1200).contains(&iy) {
                             vec![0.0; 400 * 40]
                         } else {
                             let i = iy as usize * 400 * 40;
