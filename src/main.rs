@@ -42,6 +42,8 @@ enum Command {
     RenderVideo(cli::render::RenderVideoArgs),
     /// Compare evaluated runs: markdown tables (paper Tab. 2 layout) and PNG charts.
     Report(cli::report::ReportArgs),
+    /// PSNR, SSIM and LPIPS of two images (the conventions of `maaf eval`).
+    Compare(cli::compare::CompareArgs),
 }
 
 /// Runs the command; errors print as one line (file, field, reason) and exit with 1.
@@ -63,6 +65,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Render(args) => cli::render::run(&args)?,
         Command::RenderVideo(args) => cli::render::run_video(&args)?,
         Command::Report(args) => cli::report::run(&args)?,
+        Command::Compare(args) => cli::compare::run(&args)?,
         Command::Info => {
             println!("maaf {}", env!("CARGO_PKG_VERSION"));
             println!(

@@ -1,0 +1,130 @@
+//! `maaf compare` as a user runs it: values on the LPIPS fixture pairs, JSON output,
+//! and one-line errors naming the file.
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn fixture(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("lpips/tests/fixtures")
+        .join(name)
+}
+
+fn maaf(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_maaf"))
+        .arg("compare")
+        .args(args)
+        .output()
+        .expect("run maaf")
+}
+
+/// The reference LPIPS of a fixture pair (`lpips_fixtures.txt`).
+fn reference_lpips(a: &str) -> f64 {
+    let text = std::fs::read_to_string(fixture("lpips_fixtures.txt")).expect("fixtures");
+    let line = text
+        .lines()
+        .find(|l| l.starts_with(a))
+        .expect("pair listed");
+    line.split_whitespace()
+        .nth(2)
+        .expect("value")
+        .parse()
+        .expect("number")
+}
+
+/// An 8-bit RGB fixture as the metrics see it.
+fn tensor(name: &str) -> maaf::autodiff::Tensor<f32> {
+    let img = maaf::train::data::image::decode_rgba(&fixture(name)).expect("decode");
+    let rgb: Vec<f32> = img
+        .data
+        .chunks_exact(4)
+        .flat_map(|p| [p[0], p[1], p[2]])
+        .collect();
+    maaf::autodiff::Tensor::from_vec(rgb, &[img.height as usize, img.width as usize, 3])
+}
+
+#[test]
+fn json_output_has_the_eval_psnr_ssim_and_the_reference_lpips() {
+    let (a, b) = (fixture("blur_a.png"), fixture("blur_b.png"));
+    let out = maaf(&[
+        a.to_str().expect("utf8"),
+        b.to_str().expect("utf8"),
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+    let (ta, tb) = (tensor("blur_a.png"), tensor("blur_b.png"));
+    let psnr = maaf::train::metrics::psnr(&ta, &tb).expect("psnr");
+    let ssim = maaf::train::metrics::ssim(&ta, &tb).expect("ssim");
+    assert!(
+        (v["psnr"].as_f64().expect("psnr") - psnr).abs() < 1e-9,
+        "{v}"
+    );
+    assert!(
+        (v["ssim"].as_f64().expect("ssim") - ssim).abs() < 1e-9,
+        "{v}"
+    );
+    let lpips = v["lpips"].as_f64().expect("lpips");
+    assert!((lpips - reference_lpips("blur_a.png")).abs() < 1e-5, "{v}");
+    assert_eq!(
+        (v["width"].as_u64(), v["height"].as_u64()),
+        (Some(100), Some(100))
+    );
+    assert!(v["lpips_unavailable"].is_null());
+}
+
+#[test]
+fn identical_images_and_missing_weights_are_reported_not_failed() {
+    let a = fixture("near_a.png");
+    let a = a.to_str().expect("utf8");
+    let out = maaf(&[a, a, "--json"]);
+    assert!(out.status.success());
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    assert_eq!(v["identical"], serde_json::json!(true));
+    assert!(
+        v["psnr"].is_null() && v["lpips"].as_f64() == Some(0.0),
+        "{v}"
+    );
+    let out = Command::new(env!("CARGO_BIN_EXE_maaf"))
+        .args(["compare", a, a, "--json"])
+        .env("MAAF_LPIPS_WEIGHTS", "/nonexistent/alex.safetensors")
+        .output()
+        .expect("run");
+    assert!(out.status.success());
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    assert!(v["lpips"].is_null(), "{v}");
+    let why = v["lpips_unavailable"].as_str().expect("reason");
+    assert!(why.contains("/nonexistent/alex.safetensors"), "{why}");
+    // Text output says the same.
+    let text = maaf(&[a, fixture("near_b.png").to_str().expect("utf8")]);
+    let s = String::from_utf8_lossy(&text.stdout);
+    assert!(
+        s.contains("PSNR") && s.contains("SSIM") && s.contains("LPIPS 0.00"),
+        "{s}"
+    );
+}
+
+#[test]
+fn errors_name_the_file() {
+    let missing = fixture("no_such_image.png");
+    let b = fixture("near_b.png");
+    let out = maaf(&[missing.to_str().expect("utf8"), b.to_str().expect("utf8")]);
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("no_such_image.png") && err.lines().count() == 1,
+        "{err}"
+    );
+    let other = fixture("far_a.png");
+    let out = maaf(&[b.to_str().expect("utf8"), other.to_str().expect("utf8")]);
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("near_b.png") && err.contains("far_a.png") && err.contains("64x64"),
+        "{err}"
+    );
+}
