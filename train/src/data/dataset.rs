@@ -2,6 +2,11 @@
 //! time) of each split at any integer-ratio scale of the source images, decoded once and
 //! cached per scale; the scene bounds for initialisation; the time range.
 //!
+//! Two formats open the same way ([`Dataset::open`] tells them apart): D-NeRF
+//! (`transforms_train.json`, [`super::dnerf`]) and Plenoptic Video (`poses_bounds.npy`
+//! and `camXX/images/`, [`super::n3dv`]), whose train and test cameras become the same
+//! [`SplitMeta`]s.
+//!
 //! A *scale* is relative to the source image size: `0.25` of 800x800 is 200x200. It must
 //! be `1 / k` for an integer `k` that divides both the width and height; the image is
 //! then box-downsampled by `k` (premultiplied, then composited, see
@@ -23,6 +28,7 @@ use super::downsample::{box_downsample, composite_premultiplied, premultiply};
 use super::error::DataError;
 use super::flow::{downsample_flow, read_flow};
 use super::image::{Image, decode_rgba};
+use super::n3dv::{POSES_BOUNDS, read_plenoptic};
 
 /// White background, `[1, 1, 1]` (the default, as D-NeRF's `white_bkgd = True`).
 pub const WHITE: [f32; 3] = [1.0, 1.0, 1.0];
@@ -60,13 +66,25 @@ pub struct View {
 /// Cache key: split, downsampling factor, view index.
 type CacheKey = (Split, u32, usize);
 
-/// A D-NeRF-format data set: parsed metadata of its splits plus a per-scale image cache.
+/// The on-disk format of a data set.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Format {
+    /// `transforms_{train,val,test}.json` and RGBA PNGs ([`super::dnerf`]).
+    DNerf,
+    /// Plenoptic Video / N3DV: `poses_bounds.npy` and `camXX/images/` ([`super::n3dv`]).
+    Plenoptic,
+}
+
+/// A data set (D-NeRF or Plenoptic Video): parsed metadata of its splits plus a
+/// per-scale image cache.
 #[derive(Debug)]
 pub struct Dataset {
     root: PathBuf,
+    format: Format,
     background: [f32; 3],
     splits: BTreeMap<Split, SplitMeta>,
     bounds: Aabb,
+    masks: Vec<Option<PathBuf>>,
     cache: Mutex<HashMap<CacheKey, Arc<Image>>>,
 }
 
@@ -99,20 +117,51 @@ pub fn scale_factor(scale: f64, width: u32, height: u32) -> Result<u32, String> 
 }
 
 impl Dataset {
-    /// Opens a data folder: reads `transforms_train.json` and `transforms_test.json`
-    /// (required), `transforms_val.json` and `transforms_video.json` (optional; skipped
-    /// when absent, checked when present) and every image header. No image is decoded.
+    /// Opens a data folder. A folder with `transforms_train.json` is D-NeRF: it reads
+    /// `transforms_train.json` and `transforms_test.json` (required),
+    /// `transforms_val.json` and `transforms_video.json` (optional; skipped when absent,
+    /// checked when present). Otherwise a folder with `poses_bounds.npy` is Plenoptic
+    /// Video ([`read_plenoptic`]). Every image header is read; no image is decoded.
     pub fn open(root: &Path, options: DatasetOptions) -> Result<Self, DataError> {
+        Self::open_capped(root, options, None)
+    }
+
+    /// [`Dataset::open`], keeping at most `max_train_times` distinct time stamps of the
+    /// `train` split (every view at a kept time), evenly spread over the sorted distinct
+    /// times: indices `round(j (n - 1) / (m - 1))`, `j = 0..m`, of the `n` times (the
+    /// first when `m <= 1`). Times stay as stored. This bounds the memory of
+    /// [`Dataset::train_views`] for multi-view videos (cameras x frames views, `12 W H`
+    /// bytes each at the loaded scale); `None` keeps everything, as [`Dataset::open`].
+    pub fn open_capped(
+        root: &Path,
+        options: DatasetOptions,
+        max_train_times: Option<usize>,
+    ) -> Result<Self, DataError> {
         if !root.is_dir() {
             return Err(DataError::request(root, "data folder does not exist"));
         }
-        let mut splits = BTreeMap::new();
-        for split in Split::ALL {
-            let required = matches!(split, Split::Train | Split::Test);
-            if !required && !root.join(split.json_name()).exists() {
-                continue;
+        let dnerf = root.join(Split::Train.json_name());
+        let (format, mut splits, masks) = if !dnerf.exists() && root.join(POSES_BOUNDS).exists() {
+            let p = read_plenoptic(root)?;
+            (Format::Plenoptic, p.splits, p.masks)
+        } else if dnerf.exists() || root.join(Split::Test.json_name()).exists() {
+            let mut splits = BTreeMap::new();
+            for split in Split::ALL {
+                let required = matches!(split, Split::Train | Split::Test);
+                if !required && !root.join(split.json_name()).exists() {
+                    continue;
+                }
+                splits.insert(split, read_split(root, split)?);
             }
-            splits.insert(split, read_split(root, split)?);
+            (Format::DNerf, splits, Vec::new())
+        } else {
+            return Err(DataError::request(
+                root,
+                "neither transforms_train.json (D-NeRF) nor poses_bounds.npy (Plenoptic Video) found",
+            ));
+        };
+        if let (Some(m), Some(train)) = (max_train_times, splits.get_mut(&Split::Train)) {
+            keep_times(train, m);
         }
         let train = &splits[&Split::Train];
         let bounds = match train.scene_bounds {
@@ -125,11 +174,18 @@ impl Dataset {
         };
         Ok(Dataset {
             root: root.to_path_buf(),
+            format,
             background: options.background,
             splits,
             bounds,
+            masks,
             cache: Mutex::new(HashMap::new()),
         })
+    }
+
+    /// The format the folder was read as.
+    pub fn format(&self) -> Format {
+        self.format
     }
 
     /// The data folder.
@@ -290,6 +346,41 @@ impl Dataset {
         Ok(downsample_flow(&full, k))
     }
 
+    /// Moving-object coverage of `test` frame `index` at `scale` (`[H, W, 1]`, the
+    /// fraction of each pixel that sees a moving object, box-averaged over the `k x k`
+    /// source pixels), or `None` when the data set has no masks (only generated
+    /// Plenoptic Video scenes have them, `cam00/masks/`).
+    pub fn moving_mask(&self, index: usize, scale: f64) -> Result<Option<Image>, DataError> {
+        let k = self.factor(Split::Test, scale)?;
+        let frame = self.frame(Split::Test, index)?;
+        let Some(Some(path)) = self.masks.get(index) else {
+            return Ok(None);
+        };
+        let full = decode_rgba(path)?;
+        if (full.width, full.height) != (frame.camera.width, frame.camera.height) {
+            return Err(DataError::Image {
+                path: path.display().to_string(),
+                message: format!(
+                    "mask is {}x{} but the test frames are {}x{}",
+                    full.width, full.height, frame.camera.width, frame.camera.height
+                ),
+            });
+        }
+        let grey: Vec<f32> = full.data.chunks_exact(4).map(|p| p[0]).collect();
+        let (w, h) = (full.width as usize, full.height as usize);
+        let data = box_downsample(&grey, w, h, 1, k as usize).ok_or_else(|| DataError::Scale {
+            path: path.display().to_string(),
+            scale,
+            message: format!("factor {k} does not divide {w}x{h}"),
+        })?;
+        Ok(Some(Image {
+            width: full.width / k,
+            height: full.height / k,
+            channels: 1,
+            data,
+        }))
+    }
+
     fn frame(&self, split: Split, index: usize) -> Result<&super::dnerf::Frame, DataError> {
         let meta = self.split(split)?;
         meta.frames.get(index).ok_or_else(|| {
@@ -389,4 +480,23 @@ impl Dataset {
         }
         Ok(())
     }
+}
+
+/// Keeps the views of `meta` at no more than `m` of its distinct times, evenly spread
+/// (see [`Dataset::open_capped`]).
+fn keep_times(meta: &mut SplitMeta, m: usize) {
+    let mut times: Vec<f64> = meta.frames.iter().map(|f| f.time).collect();
+    times.sort_by(f64::total_cmp);
+    times.dedup();
+    let n = times.len();
+    if m >= n {
+        return;
+    }
+    let kept: Vec<f64> = match m {
+        0 | 1 => vec![times[0]],
+        _ => (0..m)
+            .map(|j| times[(j as f64 * (n - 1) as f64 / (m - 1) as f64).round() as usize])
+            .collect(),
+    };
+    meta.frames.retain(|f| kept.contains(&f.time));
 }

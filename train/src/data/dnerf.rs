@@ -296,7 +296,7 @@ fn matrix4(json: &Path, field: &str, v: Option<&Value>) -> Result<DMat4, DataErr
 
 /// A camera-to-world matrix must be invertible and rigid: last row `0 0 0 1` and an
 /// orthonormal 3x3 block (`|R^T R - I| < 1e-3` entrywise, `det R > 0`).
-fn check_rigid(json: &Path, field: &str, m: &DMat4) -> Result<(), DataError> {
+pub(crate) fn check_rigid(json: &Path, field: &str, m: &DMat4) -> Result<(), DataError> {
     let det = m.determinant();
     if det.abs() < 1e-9 {
         return Err(DataError::field(
@@ -333,7 +333,7 @@ fn check_rigid(json: &Path, field: &str, m: &DMat4) -> Result<(), DataError> {
     Ok(())
 }
 
-fn parse_bounds(json: &Path, v: &Value) -> Result<Aabb, DataError> {
+pub(crate) fn parse_bounds(json: &Path, v: &Value) -> Result<Aabb, DataError> {
     let field = "scene_bounds";
     let pair = v
         .as_array()

@@ -1,7 +1,8 @@
-//! Data: the D-NeRF loader, multi-scale ground truth, the built-in synthetic dynamic
+//! Data: the D-NeRF and Plenoptic Video loaders, multi-scale ground truth, the built-in synthetic dynamic
 //! scene generator and the data-set summary (DESIGN.md section 7).
 //!
 //! - [`dnerf`]: `transforms_{train,val,test}.json` parsing, OpenGL to OpenCV cameras.
+//! - [`n3dv`]: Plenoptic Video `poses_bounds.npy` and `camXX/images/`, LLFF to OpenCV.
 //! - [`downsample`]: integer box downsampling of premultiplied RGBA, then compositing.
 //! - [`dataset`]: [`Dataset`], views at any integer-ratio scale, cached per scale.
 //! - [`synthetic`]: the procedural alias-prone scene behind `maaf generate`.
@@ -15,10 +16,11 @@ pub mod error;
 pub mod flow;
 pub mod image;
 pub mod inspect;
+pub mod n3dv;
 pub mod synthetic;
 
 pub use bounds::Aabb;
-pub use dataset::{BLACK, Dataset, DatasetOptions, View, WHITE};
+pub use dataset::{BLACK, Dataset, DatasetOptions, Format, View, WHITE};
 pub use dnerf::{Frame, Split, SplitMeta};
 pub use error::DataError;
 pub use image::Image;

@@ -10,9 +10,15 @@
 //!   cameras) to just in front of them (about 1.9 units): f/d changes about 3x;
 //! - a tilted striped box spinning, a propeller of two thin bars, a bouncing striped ball.
 //!
+//! The `approach` scene ([`approach`]) is built for the multi-view rig
+//! ([`multiview`]): the same static set, with movers whose distance to the cameras
+//! changes 3 to 4 times over the sequence.
+//!
 //! Cameras sit on a spherical cap 4 units from the target (0, 0, 0.6), azimuth within
 //! 60 degrees of the front (-y), elevation 12 to 50 degrees, field of view 50 degrees.
 
+pub mod approach;
+pub mod multiview;
 pub mod render;
 pub mod rig;
 pub mod scene;
@@ -24,10 +30,11 @@ use self::scene::{Motion, Object, Path, Scene, Shape, Texture};
 use super::bounds::Aabb;
 use super::error::DataError;
 
+pub use multiview::{MultiviewOptions, generate_multiview};
 pub use write::{GenerateOptions, GenerateSummary, Rig, generate};
 
 /// Names of the built-in scenes (`--scene`).
-pub const SCENES: &[&str] = &["dolly"];
+pub const SCENES: &[&str] = &["dolly", "approach"];
 
 /// The default scene name.
 pub const DEFAULT_SCENE: &str = "dolly";
@@ -36,6 +43,7 @@ pub const DEFAULT_SCENE: &str = "dolly";
 pub fn build_scene(name: &str) -> Result<Scene, DataError> {
     match name {
         "dolly" => Ok(dolly()),
+        "approach" => Ok(approach::approach()),
         _ => Err(DataError::Request {
             path: "--scene".into(),
             message: format!(
@@ -66,7 +74,8 @@ pub fn scene_bounds(scene: &Scene) -> Aabb {
     }
 }
 
-fn dolly() -> Scene {
+/// The static set both scenes share: floor disk, backdrop and the comb of thin bars.
+fn static_set() -> Vec<Object> {
     let fixed = |p: DVec3| Motion::fixed(p, DQuat::IDENTITY);
     let mut objects = vec![
         Object {
@@ -90,6 +99,12 @@ fn dolly() -> Scene {
             texture: Texture::Plain([0.55, 0.08, 0.08]),
         });
     }
+    objects
+}
+
+fn dolly() -> Scene {
+    let fixed = |p: DVec3| Motion::fixed(p, DQuat::IDENTITY);
+    let mut objects = static_set();
     objects.push(Object {
         name: "flyer",
         shape: Shape::Sphere(0.3),

@@ -105,6 +105,7 @@ const REFINE_RANGE: f64 = 1.0 / 128.0;
 struct PixelSamples {
     sum: [f64; 3],
     covered: u32,
+    moving: u32,
     total: u32,
     busy: bool,
 }
@@ -122,6 +123,11 @@ impl PixelSamples {
             (c / self.total as f64) as f32,
         ]
     }
+
+    /// Fraction of the pixel's samples that see a moving object.
+    fn moving_fraction(&self) -> f32 {
+        (self.moving as f64 / self.total as f64) as f32
+    }
 }
 
 /// Renders straight RGBA `[H, W, 4]` of the scene at time `t` seen by `cam`, with up to
@@ -136,11 +142,25 @@ impl PixelSamples {
 /// between all 4 coarse samples covers little of that pixel, so the error this leaves is
 /// small and unstructured (noise, not aliasing); `n = 2` or less disables refinement.
 pub fn render_rgba(scene: &Scene, cam: &Camera, t: f64, n: u32, seed: u64) -> Image {
+    render_layers(scene, cam, t, n, seed).0
+}
+
+/// [`render_rgba`] plus the moving-object coverage of every pixel from the same samples:
+/// a `[H, W, 1]` image whose value is the fraction of the pixel's samples that hit an
+/// object whose motion is not static (`Motion::is_static`); rays that hit nothing count
+/// as static. It is `0` on static pixels, `1` inside a moving object and in between on
+/// its silhouette, and box-downsamples to the coverage of the larger pixel.
+pub fn render_layers(scene: &Scene, cam: &Camera, t: f64, n: u32, seed: u64) -> (Image, Image) {
     let posed = scene.at(t);
     let (w, h) = (cam.width as usize, cam.height as usize);
     let (tw, lists) = tile_lists(&posed, cam);
     let rays = RayGen::new(cam);
     let org = posed.from_origin(rays.origin);
+    let moves: Vec<bool> = scene
+        .objects
+        .iter()
+        .map(|o| !o.motion.is_static())
+        .collect();
     let n = n.max(1) as usize;
     let salt = seed as i64;
     let sample_pixel = |x: usize, y: usize, m: usize, pass: i64| -> PixelSamples {
@@ -178,6 +198,7 @@ pub fn render_rgba(scene: &Scene, cam: &Camera, t: f64, n: u32, seed: u64) -> Im
                             hi[k] = hi[k].max(c[k]);
                         }
                         out.covered += 1;
+                        out.moving += u32::from(moves[hit.object]);
                         match first_obj {
                             None => first_obj = Some(hit.object),
                             Some(o) if o != hit.object => mixed = true,
@@ -201,22 +222,28 @@ pub fn render_rgba(scene: &Scene, cam: &Camera, t: f64, n: u32, seed: u64) -> Im
         }
     });
     let mut data = vec![0.0f32; w * h * 4];
-    data.par_chunks_mut(w * 4).enumerate().for_each(|(y, row)| {
-        for x in 0..w {
-            let s = if n > coarse && first[y * w + x].busy {
-                sample_pixel(x, y, n, 1)
-            } else {
-                first[y * w + x]
-            };
-            row[x * 4..x * 4 + 4].copy_from_slice(&s.rgba());
-        }
-    });
-    Image {
+    let mut mask = vec![0.0f32; w * h];
+    data.par_chunks_mut(w * 4)
+        .zip(mask.par_chunks_mut(w))
+        .enumerate()
+        .for_each(|(y, (row, mrow))| {
+            for x in 0..w {
+                let s = if n > coarse && first[y * w + x].busy {
+                    sample_pixel(x, y, n, 1)
+                } else {
+                    first[y * w + x]
+                };
+                row[x * 4..x * 4 + 4].copy_from_slice(&s.rgba());
+                mrow[x] = s.moving_fraction();
+            }
+        });
+    let image = |channels, data| Image {
         width: cam.width,
         height: cam.height,
-        channels: 4,
+        channels,
         data,
-    }
+    };
+    (image(4, data), image(1, mask))
 }
 
 /// The surface seen through the centre of pixel `(x, y)` at time `t`, if any.

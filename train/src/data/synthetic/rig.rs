@@ -43,14 +43,45 @@ pub fn cap_position(azimuth_deg: f64, elevation_deg: f64) -> DVec3 {
 /// A pinhole camera of `size x size` pixels at `eye` looking at [`TARGET`], with
 /// `f = size / (2 tan(CAMERA_ANGLE_X / 2))` and the principal point at the centre.
 pub fn camera_at(eye: DVec3, size: u32) -> Result<Camera, DataError> {
-    let f = focal_from_angle(size, CAMERA_ANGLE_X);
-    let c = 0.5 * size as f64;
-    Camera::from_camera_to_world(size, size, f, f, c, c, look_at(eye, TARGET)).map_err(|e| {
+    camera_wh(eye, size, size)
+}
+
+/// A pinhole camera of `width x height` pixels at `eye` looking at [`TARGET`], with
+/// square pixels, `f = width / (2 tan(CAMERA_ANGLE_X / 2))` and the principal point at
+/// the centre `(width / 2, height / 2)`.
+pub fn camera_wh(eye: DVec3, width: u32, height: u32) -> Result<Camera, DataError> {
+    let f = focal_from_angle(width, CAMERA_ANGLE_X);
+    let (cx, cy) = (0.5 * width as f64, 0.5 * height as f64);
+    Camera::from_camera_to_world(width, height, f, f, cx, cy, look_at(eye, TARGET)).map_err(|e| {
         DataError::Request {
             path: "<generator>".into(),
             message: format!("camera at {eye:?}: {e}"),
         }
     })
+}
+
+/// Azimuth half-range of the multi-view arc, degrees either side of the front.
+pub const ARC_AZIMUTH_DEG: f64 = 45.0;
+
+/// The `n` fixed cameras of the multi-view rig, like the Plenoptic Video rig (a row of
+/// cameras facing the scene): index 0 is the held-out test camera `cam00` at the centre
+/// of the arc (azimuth 0, elevation 17 degrees); cameras `1..n` are evenly spread over
+/// azimuth `[-ARC_AZIMUTH_DEG, ARC_AZIMUTH_DEG]`, elevation alternating 12 and 22
+/// degrees, so none coincides with `cam00` (the nearest is 5 degrees, 0.35 units, away).
+pub fn arc_positions(n: usize) -> Vec<DVec3> {
+    let train = n.saturating_sub(1);
+    let mut out = vec![cap_position(0.0, 17.0)];
+    out.extend((0..train).map(|i| {
+        let s = if train > 1 {
+            i as f64 / (train - 1) as f64
+        } else {
+            0.5
+        };
+        let e = if i % 2 == 0 { 12.0 } else { 22.0 };
+        cap_position(-ARC_AZIMUTH_DEG + 2.0 * ARC_AZIMUTH_DEG * s, e)
+    }));
+    out.truncate(n);
+    out
 }
 
 /// `n` random cap positions (uniform in azimuth and in `sin(elevation)`, i.e. uniform in
