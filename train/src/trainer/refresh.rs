@@ -6,7 +6,8 @@ use maaf_filter::{FilterKind, FilterState, MotionCurves, static_nu};
 
 use super::{Trainer, log_line};
 
-fn centres(t: &Tensor<f32>) -> Vec<[f32; 3]> {
+/// Rows of an `[N, 3]` tensor as points (the observation table's input).
+pub(super) fn centres(t: &Tensor<f32>) -> Vec<[f32; 3]> {
     t.data()
         .chunks_exact(3)
         .map(|c| [c[0], c[1], c[2]])

@@ -10,6 +10,7 @@ use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_pcg::Pcg64;
 
+use super::refresh::centres;
 use super::{Trainer, log_line, plan_densify};
 use crate::forward::forward;
 
@@ -103,14 +104,7 @@ impl Trainer {
                     camera.width,
                     camera.height,
                 );
-                let centres: Vec<[f32; 3]> = fwd
-                    .deformed
-                    .means
-                    .value()
-                    .data()
-                    .chunks_exact(3)
-                    .map(|c| [c[0], c[1], c[2]])
-                    .collect();
+                let centres = centres(&fwd.deformed.means.value());
                 // The frame index is valid and the row count matches by construction.
                 let _ =
                     self.observations
