@@ -134,7 +134,7 @@ impl ObservationTable {
             }
             let centres = centres_at(t);
             for &f in &order[start..end] {
-                self.record_with(f, &viewers[f], &centres)?;
+                self.record_with(f, &viewers[f], &centres, None)?;
             }
             start = end;
         }
@@ -152,7 +152,24 @@ impl ObservationTable {
         cfg: &FilterConfig,
     ) -> Result<(), FilterError> {
         let viewer = Viewer::new(camera, cfg);
-        self.record_with(frame, &viewer, centres)
+        self.record_with(frame, &viewer, centres, None)
+    }
+
+    /// [`Self::record_centres`] for the Gaussians with `present[n]` set; the others
+    /// get an empty slot for `frame`: a 4D Gaussian that does not exist at the frame's
+    /// time (its temporal opacity leaves nothing to draw) is not observed there, as
+    /// Mip-Splatting's indicator `1_n(p)` counts only primitives the view can see.
+    pub fn record_present(
+        &mut self,
+        frame: usize,
+        camera: &Camera,
+        centres: &[[f32; 3]],
+        present: &[bool],
+        cfg: &FilterConfig,
+    ) -> Result<(), FilterError> {
+        self.check_frame(frame, present.len())?;
+        let viewer = Viewer::new(camera, cfg);
+        self.record_with(frame, &viewer, centres, Some(present))
     }
 
     /// Low-level recorder: `depths[n]` is Gaussian `n`'s camera-space depth in frame
@@ -199,6 +216,7 @@ impl ObservationTable {
         frame: usize,
         viewer: &Viewer,
         centres: &[[f32; 3]],
+        present: Option<&[bool]>,
     ) -> Result<(), FilterError> {
         self.check_frame(frame, centres.len())?;
         let f = self.times.len();
@@ -209,8 +227,14 @@ impl ObservationTable {
         self.slots
             .par_chunks_mut(f)
             .zip(centres.par_iter())
-            .for_each(|(row, &p)| {
-                row[frame] = viewer.sampling_rate(p).unwrap_or(0.0);
+            .enumerate()
+            .for_each(|(n, (row, &p))| {
+                let seen = present.is_none_or(|m| m[n]);
+                row[frame] = if seen {
+                    viewer.sampling_rate(p).unwrap_or(0.0)
+                } else {
+                    0.0
+                };
             });
         Ok(())
     }

@@ -389,6 +389,28 @@ fn incremental_recorder_equals_full_pass_when_fresh() {
             assert!((a - b).abs() <= 1e-6 * a.abs(), "{a} vs {b}");
         }
     }
+    // record_present: flagged rows as record_centres, the others empty.
+    let present: Vec<bool> = (0..50).map(|n| n % 3 != 0).collect();
+    let mut part = ObservationTable::for_frames(&frames, 50);
+    for (f, fr) in frames.iter().enumerate() {
+        part.record_present(f, &cameras[fr.camera], &deform(fr.time), &present, &cfg)
+            .expect("record");
+    }
+    for (n, &seen) in present.iter().enumerate() {
+        if seen {
+            assert_eq!(part.row(n), full.row(n), "row {n}");
+        } else {
+            assert!(part.row(n).iter().all(|&x| x == 0.0), "row {n} not empty");
+        }
+    }
+    assert!(
+        full.row(0).iter().any(|&x| x > 0.0),
+        "row 0 is seen somewhere"
+    );
+    assert!(
+        part.record_present(0, &cameras[0], &deform(0.0), &present[..3], &cfg)
+            .is_err()
+    );
     assert!(
         inc.record_centres(20, &cameras[0], &deform(0.0), &cfg)
             .is_err()

@@ -10,7 +10,7 @@ use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_pcg::Pcg64;
 
-use super::refresh::centres;
+use super::refresh::{centres, present_mask};
 use super::{Trainer, log_line, plan_densify};
 use crate::forward::forward;
 
@@ -105,10 +105,15 @@ impl Trainer {
                     camera.height,
                 );
                 let centres = centres(&fwd.deformed.means.value());
+                let present = present_mask(&fwd.deformed.opacity.value());
                 // The frame index is valid and the row count matches by construction.
-                let _ =
-                    self.observations
-                        .record_centres(vi, &camera, &centres, &self.config.filter);
+                let _ = self.observations.record_present(
+                    vi,
+                    &camera,
+                    &centres,
+                    &present,
+                    &self.config.filter,
+                );
                 self.last_terms = eval
                     .terms
                     .iter()
