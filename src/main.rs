@@ -44,6 +44,9 @@ enum Command {
     Report(cli::report::ReportArgs),
     /// PSNR, SSIM and LPIPS of two images (the conventions of `maaf eval`).
     Compare(cli::compare::CompareArgs),
+    /// Time one training step phase by phase at several Gaussian counts, against this
+    /// machine's measured GEMM and copy rates.
+    Bench(cli::bench::BenchArgs),
 }
 
 /// Runs the command; errors print as one line (file, field, reason) and exit with 1.
@@ -66,6 +69,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::RenderVideo(args) => cli::render::run_video(&args)?,
         Command::Report(args) => cli::report::run(&args)?,
         Command::Compare(args) => cli::compare::run(&args)?,
+        Command::Bench(args) => cli::bench::run(&args)?,
         Command::Info => {
             println!("maaf {}", env!("CARGO_PKG_VERSION"));
             println!(

@@ -4,10 +4,12 @@ use std::cell::{Ref, RefCell};
 use std::collections::HashMap;
 use std::marker::PhantomData;
 use std::ops::Range;
+use std::time::Instant;
 
 use smallvec::SmallVec;
 
 use crate::op::{BackwardCtx, Op};
+use crate::profile::OpProfile;
 use crate::{Float, Tensor};
 
 /// A value recorded on a tape. Cheap to copy; all arithmetic on it is recorded.
@@ -108,6 +110,7 @@ struct Inner<T: Float> {
     params: HashMap<String, usize>,
     validate: bool,
     first_error: Option<TapeError>,
+    profile: Option<OpProfile>,
 }
 
 /// A reverse-mode tape over tensors of `T` (DESIGN.md section 2). Build one per
@@ -133,6 +136,7 @@ impl<T: Float> Tape<T> {
                 params: HashMap::new(),
                 validate: false,
                 first_error: None,
+                profile: None,
             }),
         }
     }
@@ -142,6 +146,17 @@ impl<T: Float> Tape<T> {
     /// by [`Tape::check_finite`] and [`Tape::backward`].
     pub fn set_validate(&self, on: bool) {
         self.inner.borrow_mut().validate = on;
+    }
+
+    /// Turns on profile mode: the wall time of every op's forward and backward is
+    /// summed by op name; read it with [`Tape::op_profile`].
+    pub fn set_profile(&self, on: bool) {
+        self.inner.borrow_mut().profile = on.then(OpProfile::default);
+    }
+
+    /// The op times recorded so far in profile mode (`None` when it is off).
+    pub fn op_profile(&self) -> Option<OpProfile> {
+        self.inner.borrow().profile.clone()
     }
 
     /// Whether validate mode is on.
@@ -212,6 +227,7 @@ impl<T: Float> Tape<T> {
                 op.name()
             );
         }
+        let started = self.inner.borrow().profile.is_some().then(Instant::now);
         let (outputs, saved) = {
             let inner = self.inner.borrow();
             let values: SmallVec<[&Tensor<T>; 4]> =
@@ -219,6 +235,9 @@ impl<T: Float> Tape<T> {
             op.forward(&values)
         };
         let mut inner = self.inner.borrow_mut();
+        if let (Some(t0), Some(profile)) = (started, inner.profile.as_mut()) {
+            profile.add_forward(op.name(), t0.elapsed().as_secs_f64());
+        }
         let requires_grad = inputs.iter().any(|v| inner.nodes[v.id].requires_grad);
         if inner.validate && inner.first_error.is_none() {
             for (output, t) in outputs.iter().enumerate() {
@@ -292,6 +311,18 @@ impl<T: Float> Tape<T> {
     /// receives the sum of both paths.
     pub fn backward_from(&self, seeds: &[(Var<'_, T>, Tensor<T>)]) -> Result<Grads<T>, TapeError> {
         self.check_finite()?;
+        let mut profile = self.inner.borrow_mut().profile.take();
+        let result = self.sweep(seeds, &mut profile);
+        self.inner.borrow_mut().profile = profile;
+        result
+    }
+
+    /// The reverse sweep of [`Tape::backward_from`]; adds backward times to `profile`.
+    fn sweep(
+        &self,
+        seeds: &[(Var<'_, T>, Tensor<T>)],
+        profile: &mut Option<OpProfile>,
+    ) -> Result<Grads<T>, TapeError> {
         let inner = self.inner.borrow();
         let mut grads: Vec<Option<Tensor<T>>> = (0..inner.nodes.len()).map(|_| None).collect();
         for (var, seed) in seeds {
@@ -344,9 +375,13 @@ impl<T: Float> Tape<T> {
                 .map(|o| &inner.nodes[o].value)
                 .collect();
             let name = || record.op.name();
+            let started = profile.is_some().then(Instant::now);
             let input_grads = record
                 .op
                 .backward(&inputs, &outputs, &grad_outputs, &needs_grad);
+            if let (Some(t0), Some(p)) = (started, profile.as_mut()) {
+                p.add_backward(name(), t0.elapsed().as_secs_f64());
+            }
             for (o, g) in record.outputs.clone().zip(grad_outputs) {
                 grads[o] = Some(g);
             }

@@ -242,3 +242,20 @@ fn compare_counts_mismatches_and_treats_nan_as_mismatch() {
         .passed()
     );
 }
+
+#[test]
+fn profile_mode_counts_every_op_by_name_and_is_off_by_default() {
+    let tape = Tape::<f64>::new();
+    assert!(tape.op_profile().is_none());
+    tape.set_profile(true);
+    let x = tape.param("x", Tensor::from_vec(vec![1.0, 2.0, 3.0], &[3]));
+    let loss = (x.square() + x.square()).sum();
+    tape.backward(loss).expect("finite");
+    let profile = tape.op_profile().expect("profile mode is on");
+    let square = profile.ops.get("square").expect("square recorded");
+    assert_eq!(square.calls, 2);
+    assert!(square.forward >= 0.0 && square.backward > 0.0);
+    assert_eq!(profile.ops.get("sum").map(|t| t.calls), Some(1));
+    let (f, b) = profile.seconds_where(|n| n == "square");
+    assert_eq!((f, b), (square.forward, square.backward));
+}

@@ -1,5 +1,6 @@
 //! Subcommand implementations of the `maaf` binary, one file per command.
 
+pub mod bench;
 pub mod compare;
 pub mod demo;
 pub mod eval;

@@ -1,6 +1,7 @@
 //! maaf-train: data, representations, the training pipeline, evaluation and reports.
 //! `docs/architecture.md` says how the modules fit and where things plug in.
 
+pub mod bench;
 pub mod data;
 mod error;
 pub mod eval;

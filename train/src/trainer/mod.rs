@@ -15,7 +15,7 @@ mod step;
 mod timings;
 
 use maaf_autodiff::optim::{Adam, AdamConfig};
-use maaf_autodiff::{PerGaussian, Tensor};
+use maaf_autodiff::{OpProfile, PerGaussian, Tensor};
 use maaf_filter::{CameraTime, FilterState, ObservationTable};
 use maaf_splat::Camera;
 use rand::{RngExt, SeedableRng};
@@ -58,6 +58,9 @@ pub struct Trainer {
     pub last_reset: Option<usize>,
     /// Wall time per phase.
     pub timings: Timings,
+    /// Wall time per tape op, summed over steps, when set to `Some` (off by default:
+    /// the step benchmark turns it on).
+    pub op_profile: Option<OpProfile>,
     /// Values of every term at the last step (name, value), for logging.
     pub last_terms: Vec<(String, f64)>,
     /// Whether the filter has been computed (at the first step, unless a checkpoint
@@ -174,6 +177,7 @@ impl Trainer {
             skipped_steps: 0,
             last_reset: None,
             timings: Timings::default(),
+            op_profile: None,
             last_terms: Vec::new(),
             filter_ready: false,
             background: data.background(),

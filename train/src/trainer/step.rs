@@ -58,6 +58,7 @@ impl Trainer {
         let (time, camera) = (self.views[vi].time, self.cameras[vi].clone());
         let tape = Tape::new();
         tape.set_validate(self.config.validate);
+        tape.set_profile(self.op_profile.is_some());
 
         let settings = self.render_settings(it);
         let params = self.model.params().bind(&tape);
@@ -129,6 +130,9 @@ impl Trainer {
             }
         }
         let t4 = Instant::now();
+        if let (Some(total), Some(step)) = (self.op_profile.as_mut(), tape.op_profile()) {
+            total.merge(&step);
+        }
         self.timings.field_mlp += fwd.deform_seconds;
         self.timings.render_forward += fwd.render_seconds + (t2 - t_obj).as_secs_f64();
         self.timings.backward += (t3 - t2).as_secs_f64();

@@ -1,0 +1,63 @@
+//! `maaf bench`: the step benchmark of [`maaf_train::bench`] at several Gaussian
+//! counts, as a markdown table with each phase's fraction of this machine's peak.
+
+use std::path::PathBuf;
+
+use maaf_train::bench::{StepBenchOptions, bench_step, format_table, measure_peak};
+use maaf_train::eval::load_run;
+
+/// Arguments of `maaf bench`.
+#[derive(clap::Args, Debug)]
+pub struct BenchArgs {
+    /// A trained run (`maaf train --out RUN`) whose model, resized to each count, is
+    /// timed on its training views.
+    #[arg(long)]
+    pub run: PathBuf,
+    /// The run's data set (default: the one recorded in the run).
+    #[arg(long)]
+    pub data: Option<PathBuf>,
+    /// Gaussian counts to time, comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "10000,30000,60000")]
+    pub gaussians: Vec<usize>,
+    /// Timed iterations per count.
+    #[arg(long, default_value_t = 20)]
+    pub iters: usize,
+    /// Untimed iterations before timing.
+    #[arg(long, default_value_t = 5)]
+    pub warmup: usize,
+    /// Also list the ten slowest tape ops per count.
+    #[arg(long)]
+    pub ops: bool,
+}
+
+/// Runs the benchmark and prints the table.
+pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
+    anyhow::ensure!(args.iters > 0, "--iters must be at least 1");
+    let data = super::eval::open_run_data(&args.run, args.data.as_deref(), None)?;
+    let opts = StepBenchOptions {
+        iterations: args.iters,
+        warmup: args.warmup,
+        ..StepBenchOptions::default()
+    };
+    let peak = measure_peak();
+    let mut runs = Vec::new();
+    for &n in &args.gaussians {
+        anyhow::ensure!(n > 0, "--gaussians: counts must be positive");
+        let trainer = load_run(&args.run, &data)?;
+        let (bench, profile) = bench_step(trainer, n, &opts)?;
+        if args.ops {
+            println!("slowest ops at N = {n} (ms per iteration, forward / backward):");
+            for (name, t) in profile.by_total().into_iter().take(10) {
+                let per = |s: f64| 1e3 * s / args.iters as f64;
+                println!(
+                    "  {name:<28} {:8.2} {:8.2}",
+                    per(t.forward),
+                    per(t.backward)
+                );
+            }
+        }
+        runs.push(bench);
+    }
+    println!("{}", format_table(&runs, &peak));
+    Ok(())
+}
