@@ -9,6 +9,7 @@ use maaf_autodiff::op::{BackwardCtx, Op};
 use maaf_autodiff::ops::concat;
 use maaf_autodiff::{Float, Tensor, Var};
 use maaf_splat::GaussianVars;
+use maaf_splat::compositing::support_sigmas;
 
 use super::SaroModel;
 use crate::models::Bound;
@@ -133,23 +134,40 @@ impl<'t, T: Float> Bound<'t, T> for SaroBound<'t, T> {
                 sh: self.sh,
             };
         };
-        let tape = self.xyz.tape();
-        let pe = time_embedding::<T>(
-            d.t_centre_detached.iter().map(|&m| time - m),
-            self.time_freqs,
-        );
-        let h = concat(&[d.features, tape.constant(pe)], 1);
-        let dx = d.motion.forward(h);
-        let r = d.rot.forward(h);
-        let means = self.xyz + dx;
-        let quats = self.rotation + r.slice(1, 0, 4);
-        let scales = (self.log_scale + r.slice(1, 4, 7)).exp();
         // w(t) = exp(-4 ((t - mu_t) / l)^2), gradient to mu_t and (via l) the field.
         let dt = d.t_centre.scale(-1.0).add_scalar(time);
         let w = (dt / d.lifespan).square().scale(-4.0).exp();
         let opacity = self.opacity * w;
+        // The residual MLPs run only for the Gaussians that exist at t: one whose
+        // opacity o(t) has no support (`255 o <= 1`) is never drawn (the 2D and 3D
+        // filters only lower opacity), so its residuals are zero and its gradients
+        // are exactly those of the full evaluation.
+        let present = present_rows(&opacity.value());
+        let features = if present.len() == self.n {
+            d.features
+        } else {
+            d.features.gather_rows(&present)
+        };
+        let tape = self.xyz.tape();
+        let pe = time_embedding::<T>(
+            present.iter().map(|&i| time - d.t_centre_detached[i]),
+            self.time_freqs,
+        );
+        let h = concat(&[features, tape.constant(pe)], 1);
+        let all_rows = |v: Var<'t, T>| {
+            if present.len() == self.n {
+                v
+            } else {
+                v.scatter_add_rows(&present, self.n)
+            }
+        };
+        let dx = all_rows(d.motion.forward(h));
+        let r = all_rows(d.rot.forward(h));
+        let means = self.xyz + dx;
+        let quats = self.rotation + r.slice(1, 0, 4);
+        let scales = (self.log_scale + r.slice(1, 4, 7)).exp();
         let sh = match &d.sh {
-            Some(m) => self.sh + m.forward(h).reshape(&[self.n, self.k, 3]),
+            Some(m) => self.sh + all_rows(m.forward(h)).reshape(&[self.n, self.k, 3]),
             None => self.sh,
         };
         GaussianVars {
@@ -167,6 +185,18 @@ impl<'t, T: Float> Bound<'t, T> for SaroBound<'t, T> {
             None => Vec::new(),
         }
     }
+}
+
+/// Rows whose opacity `o` can reach the image: `sqrt(2 ln(255 o))` sigma of support
+/// is positive ([`maaf_splat::compositing::support_sigmas`], the renderer's own rule).
+pub fn present_rows<T: Float>(opacity: &Tensor<T>) -> Vec<usize> {
+    opacity
+        .data()
+        .iter()
+        .enumerate()
+        .filter(|&(_, &o)| support_sigmas(o.to_f64()) > 0.0)
+        .map(|(i, _)| i)
+        .collect()
 }
 
 /// `||x||_2` over all elements, with the subgradient 0 at x = 0 (as
