@@ -70,6 +70,13 @@ pub struct TrainConfig {
     pub checkpoint_every: usize,
     /// Log a row to log.csv every this many iterations.
     pub log_every: usize,
+    /// Record the validation PSNR (`val_psnr` in log.csv) every this many iterations
+    /// (0 = never); it is logged on the row of that iteration, so a multiple of
+    /// `log_every`.
+    pub val_every: usize,
+    /// Held-back views the validation PSNR averages (evenly spaced over the val split,
+    /// else the test split).
+    pub val_views: usize,
     /// Scan every forward value and cotangent for NaN/Inf (slower; names the op).
     pub validate: bool,
     /// The 4D representation: its kind (`"kind": "saro"`) and settings.
@@ -91,6 +98,8 @@ impl Default for TrainConfig {
             sh_degree_every: 1000,
             checkpoint_every: 5000,
             log_every: 100,
+            val_every: 500,
+            val_views: 3,
             validate: false,
             model: ModelConfig::default(),
             filter: FilterConfig::default(),

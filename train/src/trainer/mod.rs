@@ -13,6 +13,7 @@ mod refresh;
 mod run;
 mod step;
 mod timings;
+mod validation;
 
 use maaf_autodiff::optim::{Adam, AdamConfig};
 use maaf_autodiff::{OpProfile, PerGaussian, Tensor};
@@ -67,6 +68,7 @@ pub struct Trainer {
     /// restored it).
     filter_ready: bool,
     views: Vec<View>,
+    held_out: Vec<validation::HeldOut>,
     gts: Vec<Tensor<f32>>,
     cameras: Vec<Camera>,
     shots: Vec<CameraTime>,
@@ -167,6 +169,7 @@ impl Trainer {
             .collect();
         let gts = views.iter().map(|v| v.image.to_tensor()).collect();
         let objective = Objective::for_model(config.lambda_dssim, model.as_ref());
+        let held_out = validation::held_out_views(data, config.val_views, config.train_scale)?;
         Ok(Trainer {
             adam: Adam::new(AdamConfig::default()),
             filter: FilterState::None { rows: n },
@@ -184,6 +187,7 @@ impl Trainer {
             config,
             model,
             views,
+            held_out,
             gts,
             cameras,
             shots,

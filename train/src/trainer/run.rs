@@ -69,7 +69,7 @@ fn log_header(trainer: &Trainer) -> String {
         header.push(',');
         header.push_str(&name);
     }
-    header.push_str(",total,num_gaussians,elapsed_seconds,skipped_steps");
+    header.push_str(",total,num_gaussians,elapsed_seconds,skipped_steps,val_psnr");
     header
 }
 
@@ -112,6 +112,7 @@ fn run_trainer(mut trainer: Trainer, out: &Path, resume: bool) -> Result<RunSumm
     );
     let start = Instant::now();
     let before = trainer.timings.total();
+    let mut val_seconds = 0.0;
     let ckpt_every = trainer.config.checkpoint_every.max(1);
     while trainer.iteration < total {
         trainer.step();
@@ -131,10 +132,20 @@ fn run_trainer(mut trainer: Trainer, out: &Path, resume: bool) -> Result<RunSumm
                     .map_or(f64::NAN, |(_, v)| *v);
                 row.push_str(&format!(",{v:.6e}"));
             }
+            // Validation renders are not training time: left out of `elapsed`.
+            let elapsed = before + start.elapsed().as_secs_f64() - val_seconds;
+            let val_every = trainer.config.val_every;
+            let val = if (val_every > 0 && it.is_multiple_of(val_every)) || it == total {
+                let t0 = Instant::now();
+                let psnr = trainer.validation_psnr();
+                val_seconds += t0.elapsed().as_secs_f64();
+                psnr.map_or(String::new(), |p| format!("{p:.4}"))
+            } else {
+                String::new()
+            };
             row.push_str(&format!(
-                ",{loss:.6e},{},{:.3},{}\n",
+                ",{loss:.6e},{},{elapsed:.3},{},{val}\n",
                 trainer.num_gaussians(),
-                before + start.elapsed().as_secs_f64(),
                 trainer.skipped_steps
             ));
             log.write_all(row.as_bytes())

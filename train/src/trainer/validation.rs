@@ -1,0 +1,81 @@
+//! Validation during training: a few held-back views rendered every `val_every`
+//! iterations, their mean PSNR logged as `val_psnr` in `log.csv`, so quality can be
+//! drawn against training time without a separate evaluation (issue: speed against
+//! accuracy as curves). Outside the tape and the optimiser: the run is unchanged.
+
+use maaf_autodiff::{Tape, Tensor};
+use maaf_splat::Camera;
+
+use super::Trainer;
+use crate::Error;
+use crate::data::{Dataset, Split};
+use crate::forward::forward;
+use crate::metrics::psnr;
+
+/// A held-back view at the training scale.
+pub(super) struct HeldOut {
+    camera: Camera,
+    time: f64,
+    gt: Tensor<f32>,
+}
+
+/// `count` views evenly spaced over the validation split (the test split when the
+/// data set has no validation views), at `scale`; empty when `count` is 0.
+pub(super) fn held_out_views(
+    data: &Dataset,
+    count: usize,
+    scale: f64,
+) -> Result<Vec<HeldOut>, Error> {
+    if count == 0 {
+        return Ok(Vec::new());
+    }
+    let split = if data.len(Split::Val) > 0 {
+        Split::Val
+    } else {
+        Split::Test
+    };
+    let len = data.len(split);
+    let count = count.min(len);
+    (0..count)
+        .map(|k| {
+            let view = data
+                .view(split, k * len / count, scale)
+                .map_err(|e| Error::Input(e.to_string()))?;
+            Ok(HeldOut {
+                camera: view.camera.clone(),
+                time: view.time,
+                gt: view.image.to_tensor(),
+            })
+        })
+        .collect()
+}
+
+impl Trainer {
+    /// Mean PSNR (dB) of the held-back views rendered now, with the render settings
+    /// of the current iteration; `None` without held-back views.
+    pub fn validation_psnr(&self) -> Option<f64> {
+        if self.held_out.is_empty() {
+            return None;
+        }
+        let settings = self.render_settings(self.iteration.max(1));
+        let sum: f64 = self
+            .held_out
+            .iter()
+            .map(|v| {
+                let tape = Tape::new();
+                let params = self.model.params().bind_constants(&tape);
+                let out = forward(
+                    self.model.as_ref(),
+                    &params,
+                    &self.filter,
+                    &v.camera,
+                    v.time,
+                    &settings,
+                );
+                let image = out.render.image.value().clone();
+                psnr(&image, &v.gt).unwrap_or(f64::NAN)
+            })
+            .sum();
+        Some(sum / self.held_out.len() as f64)
+    }
+}
