@@ -196,6 +196,12 @@ fn set_train(t: &TempDir, frames: &[String]) {
     std::fs::write(t.0.join("transforms_train.json"), split_json(frames)).expect("write");
 }
 
+/// The open error after replacing `transforms_train.json` by `text` as it is.
+fn err_with_train_json(t: &TempDir, text: &str) -> String {
+    std::fs::write(t.0.join("transforms_train.json"), text).expect("write");
+    open_err(&t.0)
+}
+
 /// The open error after replacing the train split by one frame `./train/r_000` at
 /// t = 0 with the given transform matrix.
 fn err_with_matrix(t: &TempDir, matrix: &str) -> String {
@@ -272,19 +278,9 @@ fn non_numeric_values_name_the_field() {
         &msg,
         &["transforms_train.json", "frames[0].transform_matrix[1][2]"],
     );
-    std::fs::write(
-        t.0.join("transforms_train.json"),
-        "{\"camera_angle_x\": \"wide\", \"frames\": []}",
-    )
-    .expect("w");
-    let msg = open_err(&t.0);
+    let msg = err_with_train_json(&t, "{\"camera_angle_x\": \"wide\", \"frames\": []}");
     assert_mentions(&msg, &["camera_angle_x", "expected a number"]);
-    std::fs::write(
-        t.0.join("transforms_train.json"),
-        "{\"camera_angle_x\": 0.6, \"frames\": [",
-    )
-    .expect("w");
-    let msg = open_err(&t.0);
+    let msg = err_with_train_json(&t, "{\"camera_angle_x\": 0.6, \"frames\": [");
     assert_mentions(&msg, &["transforms_train.json", "not valid JSON"]);
 }
 
