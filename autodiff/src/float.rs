@@ -217,6 +217,21 @@ fn row_block(m: usize) -> usize {
     }
 }
 
+/// The sizes `(m, k, n)` of `C [m x n] = A [m x k] B [k x n]`; panics naming the three
+/// shapes when they do not chain.
+fn gemm_dims<T>(a: &MatRef<'_, T>, b: &MatRef<'_, T>, c: &MatMut<'_, T>) -> (usize, usize, usize) {
+    let (m, k) = (a.rows, a.cols);
+    let n = b.cols;
+    assert!(
+        b.rows == k && c.rows == m && c.cols == n,
+        "gemm: shapes {m}x{k} * {}x{n} -> {}x{}",
+        b.rows,
+        c.rows,
+        c.cols
+    );
+    (m, k, n)
+}
+
 /// `C = alpha A B + beta C`, split into blocks that depend on the shapes only:
 /// - C with at least two [`row_block`]s of rows, stored by rows (`rs >= n cs`):
 ///   blocks of rows of C, each one single-threaded product, in parallel;
@@ -231,15 +246,7 @@ pub(crate) fn gemm_blocked<T: Float>(
     beta: T,
     c: MatMut<'_, T>,
 ) {
-    let (m, k) = a.dims();
-    let n = b.cols;
-    assert!(
-        b.rows == k && c.rows == m && c.cols == n,
-        "gemm: shapes {m}x{k} * {}x{n} -> {}x{}",
-        b.rows,
-        c.rows,
-        c.cols
-    );
+    let (m, k, n) = gemm_dims(&a, &b, &c);
     if m * k * n < PARALLEL_MIN_MACS {
         return T::gemm_serial(alpha, a, b, beta, c);
     }
@@ -309,15 +316,7 @@ macro_rules! impl_float {
                 beta: Self,
                 c: MatMut<'_, Self>,
             ) {
-                let (m, k) = a.dims();
-                let n = b.cols;
-                assert!(
-                    b.rows == k && c.rows == m && c.cols == n,
-                    "gemm: shapes {m}x{k} * {}x{n} -> {}x{}",
-                    b.rows,
-                    c.rows,
-                    c.cols
-                );
+                let (m, k, n) = gemm_dims(&a, &b, &c);
                 if m == 0 || n == 0 {
                     return;
                 }

@@ -1,7 +1,10 @@
 //! D-NeRF loader: the real mutant scene, multi-scale views and every bad-input error.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 
+use common::TempDir;
 use glam::DVec3;
 use maaf_train::data::{DataError, Dataset, DatasetOptions, Split, WHITE};
 
@@ -138,29 +141,6 @@ fn mutant_views_are_decoded_once_per_scale() {
 
 // ---------- bad input on a tiny hand-made data set ----------
 
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(tag: &str) -> Self {
-        use std::sync::atomic::{AtomicUsize, Ordering};
-        static N: AtomicUsize = AtomicUsize::new(0);
-        let p = std::env::temp_dir().join(format!(
-            "maaf-data-{tag}-{}-{}",
-            std::process::id(),
-            N.fetch_add(1, Ordering::SeqCst)
-        ));
-        let _ = std::fs::remove_dir_all(&p);
-        std::fs::create_dir_all(&p).expect("temp dir");
-        TempDir(p)
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
 fn write_png(path: &Path, w: u32, h: u32) {
     std::fs::create_dir_all(path.parent().expect("parent")).expect("mkdir");
     let img = image::RgbaImage::from_fn(w, h, |x, y| {
@@ -216,6 +196,27 @@ fn set_train(t: &TempDir, frames: &[String]) {
     std::fs::write(t.0.join("transforms_train.json"), split_json(frames)).expect("write");
 }
 
+/// The open error after replacing `transforms_train.json` by `text` as it is.
+fn err_with_train_json(t: &TempDir, text: &str) -> String {
+    std::fs::write(t.0.join("transforms_train.json"), text).expect("write");
+    open_err(&t.0)
+}
+
+/// The open error after replacing the train split by one frame `./train/r_000` at
+/// t = 0 with the given transform matrix.
+fn err_with_matrix(t: &TempDir, matrix: &str) -> String {
+    set_train(t, &[frame("./train/r_000", "0.0", matrix)]);
+    open_err(&t.0)
+}
+
+/// Asserts that the error message `msg` mentions every one of `parts`.
+fn assert_mentions(msg: &str, parts: &[&str]) {
+    assert!(
+        parts.iter().all(|p| msg.contains(p)),
+        "{msg:?} should mention all of {parts:?}"
+    );
+}
+
 #[test]
 fn tiny_data_set_loads() {
     let t = tiny("ok");
@@ -233,10 +234,7 @@ fn missing_json_names_the_file() {
     let t = tiny("nojson");
     std::fs::remove_file(t.0.join("transforms_test.json")).expect("rm");
     let msg = open_err(&t.0);
-    assert!(
-        msg.contains("transforms_test.json") && msg.contains("cannot read"),
-        "{msg}"
-    );
+    assert_mentions(&msg, &["transforms_test.json", "cannot read"]);
 }
 
 #[test]
@@ -250,22 +248,22 @@ fn missing_time_and_matrix_name_the_field() {
         ],
     );
     let msg = open_err(&t.0);
-    assert!(
-        msg.contains("transforms_train.json")
-            && msg.contains("frames[1].time")
-            && msg.contains("missing"),
-        "{msg}"
+    assert_mentions(
+        &msg,
+        &["transforms_train.json", "frames[1].time", "missing"],
     );
     set_train(
         &t,
         &["{\"file_path\": \"./train/r_000\", \"time\": 0.0}".to_string()],
     );
     let msg = open_err(&t.0);
-    assert!(
-        msg.contains("transforms_train.json")
-            && msg.contains("frames[0].transform_matrix")
-            && msg.contains("missing"),
-        "{msg}"
+    assert_mentions(
+        &msg,
+        &[
+            "transforms_train.json",
+            "frames[0].transform_matrix",
+            "missing",
+        ],
     );
 }
 
@@ -274,43 +272,16 @@ fn non_numeric_values_name_the_field() {
     let t = tiny("nonnum");
     set_train(&t, &[frame("./train/r_000", "\"zero\"", GOOD_MATRIX)]);
     let msg = open_err(&t.0);
-    assert!(
-        msg.contains("frames[0].time") && msg.contains("expected a number"),
-        "{msg}"
+    assert_mentions(&msg, &["frames[0].time", "expected a number"]);
+    let msg = err_with_matrix(&t, "[[1,0,0,0],[0,1,\"x\",0],[0,0,1,4],[0,0,0,1]]");
+    assert_mentions(
+        &msg,
+        &["transforms_train.json", "frames[0].transform_matrix[1][2]"],
     );
-    set_train(
-        &t,
-        &[frame(
-            "./train/r_000",
-            "0.0",
-            "[[1,0,0,0],[0,1,\"x\",0],[0,0,1,4],[0,0,0,1]]",
-        )],
-    );
-    let msg = open_err(&t.0);
-    assert!(
-        msg.contains("transforms_train.json") && msg.contains("frames[0].transform_matrix[1][2]"),
-        "{msg}"
-    );
-    std::fs::write(
-        t.0.join("transforms_train.json"),
-        "{\"camera_angle_x\": \"wide\", \"frames\": []}",
-    )
-    .expect("w");
-    let msg = open_err(&t.0);
-    assert!(
-        msg.contains("camera_angle_x") && msg.contains("expected a number"),
-        "{msg}"
-    );
-    std::fs::write(
-        t.0.join("transforms_train.json"),
-        "{\"camera_angle_x\": 0.6, \"frames\": [",
-    )
-    .expect("w");
-    let msg = open_err(&t.0);
-    assert!(
-        msg.contains("transforms_train.json") && msg.contains("not valid JSON"),
-        "{msg}"
-    );
+    let msg = err_with_train_json(&t, "{\"camera_angle_x\": \"wide\", \"frames\": []}");
+    assert_mentions(&msg, &["camera_angle_x", "expected a number"]);
+    let msg = err_with_train_json(&t, "{\"camera_angle_x\": 0.6, \"frames\": [");
+    assert_mentions(&msg, &["transforms_train.json", "not valid JSON"]);
 }
 
 #[test]
@@ -321,10 +292,7 @@ fn undecodable_png_names_the_file() {
     bytes.extend_from_slice(b"this is not a png body");
     std::fs::write(t.0.join("train/r_001.png"), &bytes).expect("w");
     let msg = open_err(&t.0);
-    assert!(
-        msg.contains("r_001.png") && msg.contains("does not decode"),
-        "{msg}"
-    );
+    assert_mentions(&msg, &["r_001.png", "does not decode"]);
 
     // A PNG whose header is fine but whose pixel data is cut off: found when decoding.
     let t = tiny("truncpng");
@@ -333,10 +301,7 @@ fn undecodable_png_names_the_file() {
     let data = Dataset::open(&t.0, DatasetOptions::default()).expect("headers are fine");
     let err = data.view(Split::Train, 1, 1.0).expect_err("pixels are not");
     let msg = err.to_string();
-    assert!(
-        msg.contains("r_001.png") && msg.contains("does not decode"),
-        "{msg}"
-    );
+    assert_mentions(&msg, &["r_001.png", "does not decode"]);
 }
 
 #[test]
@@ -344,43 +309,19 @@ fn mixed_image_sizes_name_the_frame() {
     let t = tiny("sizes");
     write_png(&t.0.join("train/r_001.png"), 8, 4);
     let msg = open_err(&t.0);
-    assert!(
-        msg.contains("transforms_train.json")
-            && msg.contains("frames[1].file_path")
-            && msg.contains("8x4"),
-        "{msg}"
+    assert_mentions(
+        &msg,
+        &["transforms_train.json", "frames[1].file_path", "8x4"],
     );
 }
 
 #[test]
 fn non_invertible_matrix_names_the_field() {
     let t = tiny("singular");
-    set_train(
-        &t,
-        &[frame(
-            "./train/r_000",
-            "0.0",
-            "[[1,0,0,0],[0,0,0,0],[0,0,1,4],[0,0,0,1]]",
-        )],
-    );
-    let msg = open_err(&t.0);
-    assert!(
-        msg.contains("frames[0].transform_matrix") && msg.contains("not invertible"),
-        "{msg}"
-    );
-    set_train(
-        &t,
-        &[frame(
-            "./train/r_000",
-            "0.0",
-            "[[2,0,0,0],[0,2,0,0],[0,0,2,4],[0,0,0,1]]",
-        )],
-    );
-    let msg = open_err(&t.0);
-    assert!(
-        msg.contains("frames[0].transform_matrix") && msg.contains("not a rotation"),
-        "{msg}"
-    );
+    let msg = err_with_matrix(&t, "[[1,0,0,0],[0,0,0,0],[0,0,1,4],[0,0,0,1]]");
+    assert_mentions(&msg, &["frames[0].transform_matrix", "not invertible"]);
+    let msg = err_with_matrix(&t, "[[2,0,0,0],[0,2,0,0],[0,0,2,4],[0,0,0,1]]");
+    assert_mentions(&msg, &["frames[0].transform_matrix", "not a rotation"]);
 }
 
 #[test]
@@ -391,10 +332,12 @@ fn scale_not_dividing_the_size_is_refused() {
         .view(Split::Train, 0, 1.0 / 3.0)
         .expect_err("3 does not divide 4")
         .to_string();
-    assert!(
-        msg.contains("transforms_train.json")
-            && msg.contains("factor 3 does not divide the image size 4x4"),
-        "{msg}"
+    assert_mentions(
+        &msg,
+        &[
+            "transforms_train.json",
+            "factor 3 does not divide the image size 4x4",
+        ],
     );
     assert_eq!(data.cached_images(), 0);
 }

@@ -3,8 +3,9 @@
 //! at pixel centres, the movers' distance to the cameras changes several-fold, and the
 //! folder is written atomically.
 
-use std::path::PathBuf;
+mod common;
 
+use common::TempDir;
 use maaf_train::data::downsample::{composite_premultiplied, premultiply};
 use maaf_train::data::synthetic::render::{forward_flow, render_layers, trace_pixel};
 use maaf_train::data::synthetic::rig::{arc_positions, camera_wh};
@@ -13,29 +14,6 @@ use maaf_train::data::synthetic::{
     MultiviewOptions, build_scene, generate_multiview, scene_bounds,
 };
 use maaf_train::data::{Dataset, DatasetOptions, Format, Split, WHITE};
-
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(tag: &str) -> Self {
-        use std::sync::atomic::{AtomicUsize, Ordering};
-        static N: AtomicUsize = AtomicUsize::new(0);
-        let p = std::env::temp_dir().join(format!(
-            "maaf-mv-{tag}-{}-{}",
-            std::process::id(),
-            N.fetch_add(1, Ordering::SeqCst)
-        ));
-        let _ = std::fs::remove_dir_all(&p);
-        std::fs::create_dir_all(&p).expect("temp dir");
-        TempDir(p)
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
 
 fn tiny() -> MultiviewOptions {
     MultiviewOptions {

@@ -2,34 +2,14 @@
 //! gives the expected camera centres, viewing directions, focal (half-size frames) and
 //! times; every bad input gets one line naming the file and field.
 
-use std::path::{Path, PathBuf};
+mod common;
 
+use std::path::Path;
+
+use common::TempDir;
 use glam::DVec3;
 use maaf_train::data::{DataError, Dataset, DatasetOptions, Format, Split};
 use npyz::WriterBuilder;
-
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(tag: &str) -> Self {
-        use std::sync::atomic::{AtomicUsize, Ordering};
-        static N: AtomicUsize = AtomicUsize::new(0);
-        let p = std::env::temp_dir().join(format!(
-            "maaf-n3dv-{tag}-{}-{}",
-            std::process::id(),
-            N.fetch_add(1, Ordering::SeqCst)
-        ));
-        let _ = std::fs::remove_dir_all(&p);
-        std::fs::create_dir_all(&p).expect("temp dir");
-        TempDir(p)
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
 
 /// A hand-made camera: centre and LLFF axes (down, right, back) in world coordinates.
 struct HandCam {

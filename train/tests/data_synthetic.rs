@@ -1,8 +1,11 @@
 //! The synthetic generator: round trip through the loader, exact flow, atomic writes,
 //! converged supersampling, and the claims the scene makes (f/d changes several-fold).
 
-use std::path::{Path, PathBuf};
+mod common;
 
+use std::path::Path;
+
+use common::TempDir;
 use maaf_splat::Camera;
 use maaf_train::data::downsample::{box_downsample, composite_premultiplied, premultiply};
 use maaf_train::data::inspect::inspect;
@@ -11,29 +14,6 @@ use maaf_train::data::synthetic::rig;
 use maaf_train::data::synthetic::write::image_salt;
 use maaf_train::data::synthetic::{GenerateOptions, Rig, build_scene, generate};
 use maaf_train::data::{Dataset, DatasetOptions, Split};
-
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(tag: &str) -> Self {
-        use std::sync::atomic::{AtomicUsize, Ordering};
-        static N: AtomicUsize = AtomicUsize::new(0);
-        let p = std::env::temp_dir().join(format!(
-            "maaf-synth-{tag}-{}-{}",
-            std::process::id(),
-            N.fetch_add(1, Ordering::SeqCst)
-        ));
-        let _ = std::fs::remove_dir_all(&p);
-        std::fs::create_dir_all(&p).expect("temp dir");
-        TempDir(p)
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
 
 fn tiny_options(size: u32) -> GenerateOptions {
     GenerateOptions {

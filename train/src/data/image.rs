@@ -94,19 +94,24 @@ pub fn encode_rgba_png(img: &Image, path: &Path) -> Result<(), DataError> {
             format!("PNG writer expects 4 channels, got {}", img.channels),
         ));
     }
+    write_quantised_png(img, path, image::ExtendedColorType::Rgba8, "PNG")
+}
+
+/// Writes an image with values in `[0, 1]` as an 8-bit PNG of colour type `color`
+/// (whose channel count is the image's), `round(255 clamp(v, 0, 1))` per value; `what`
+/// names the file kind in the error.
+pub(crate) fn write_quantised_png(
+    img: &Image,
+    path: &Path,
+    color: image::ExtendedColorType,
+    what: &str,
+) -> Result<(), DataError> {
     let bytes: Vec<u8> = img
         .data
         .iter()
         .map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8)
         .collect();
-    write_png(
-        path,
-        &bytes,
-        img.width,
-        img.height,
-        image::ExtendedColorType::Rgba8,
-        "PNG",
-    )
+    write_png(path, &bytes, img.width, img.height, color, what)
 }
 
 /// Writes raw pixel bytes as a PNG with fast compression; `what` names the file kind

@@ -6,6 +6,7 @@ use std::path::Path;
 use std::sync::OnceLock;
 
 use plotters::coord::Shift;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use plotters::style::{FontStyle, register_font};
 
@@ -108,6 +109,45 @@ fn e2s<E: std::fmt::Display>(e: E) -> String {
     e.to_string()
 }
 
+/// The report's charts: f64 x and y axes on the bitmap backend.
+type Chart<'a, 'b> =
+    ChartContext<'a, BitMapBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+
+/// A chart over `x0..x1` by `y0..y1` on `area` with a caption of `caption_size` px, a
+/// 14 px margin, 55 px for the x labels and `y_label_area` px for the y labels.
+fn new_chart<'a, 'b>(
+    area: &'a Area<'b>,
+    caption: &str,
+    caption_size: u32,
+    y_label_area: u32,
+    (x0, x1): (f64, f64),
+    (y0, y1): (f64, f64),
+) -> Result<Chart<'a, 'b>, String> {
+    ChartBuilder::on(area)
+        .caption(caption, text(caption_size))
+        .margin(14)
+        .x_label_area_size(55)
+        .y_label_area_size(y_label_area)
+        .build_cartesian_2d(x0..x1, y0..y1)
+        .map_err(e2s)
+}
+
+/// Draws the series legend of `chart` at `position`: white at 85 % opacity, a black
+/// border, 15 px labels.
+fn draw_legend<'a, 'b: 'a>(
+    chart: &mut Chart<'a, 'b>,
+    position: SeriesLabelPosition,
+) -> Result<(), String> {
+    chart
+        .configure_series_labels()
+        .position(position)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font(text(15))
+        .draw()
+        .map_err(e2s)
+}
+
 /// PSNR (left) and SSIM (right) against the render scale (log2 axis), one line per run.
 pub fn quality_vs_scale(runs: &[ReportRun], path: &Path) -> Result<(), Error> {
     let scales = super::all_scales(runs);
@@ -125,13 +165,14 @@ pub fn quality_vs_scale(runs: &[ReportRun], path: &Path) -> Result<(), Error> {
             // Room below the lines for the legend.
             let (y0, y1) = widen((y0, y1), 0.45, 0.0);
             let name = if p == 0 { "PSNR (dB)" } else { "SSIM" };
-            let mut chart = ChartBuilder::on(area)
-                .caption(format!("{name} vs render scale"), text(24))
-                .margin(14)
-                .x_label_area_size(55)
-                .y_label_area_size(70)
-                .build_cartesian_2d(x0..x1, y0..y1)
-                .map_err(e2s)?;
+            let mut chart = new_chart(
+                area,
+                &format!("{name} vs render scale"),
+                24,
+                70,
+                (x0, x1),
+                (y0, y1),
+            )?;
             chart
                 .configure_mesh()
                 .x_desc("render scale relative to training (log axis)")
@@ -177,14 +218,7 @@ pub fn quality_vs_scale(runs: &[ReportRun], path: &Path) -> Result<(), Error> {
                     .draw_series(pts.iter().map(|&q| Circle::new(q, 5, c.filled())))
                     .map_err(e2s)?;
             }
-            chart
-                .configure_series_labels()
-                .position(SeriesLabelPosition::LowerLeft)
-                .background_style(WHITE.mix(0.85))
-                .border_style(BLACK)
-                .label_font(text(15))
-                .draw()
-                .map_err(e2s)?;
+            draw_legend(&mut chart, SeriesLabelPosition::LowerLeft)?;
         }
         Ok(())
     })
@@ -205,13 +239,7 @@ fn scatter_panel(
     } else {
         x0
     };
-    let mut chart = ChartBuilder::on(area)
-        .caption(title, text(22))
-        .margin(14)
-        .x_label_area_size(55)
-        .y_label_area_size(70)
-        .build_cartesian_2d(x0..x1, y0..y1)
-        .map_err(e2s)?;
+    let mut chart = new_chart(area, title, 22, 70, (x0, x1), (y0, y1))?;
     chart
         .configure_mesh()
         .x_desc(x_desc)
@@ -231,14 +259,7 @@ fn scatter_panel(
             .label(r.label.clone())
             .legend(move |(px, py)| Circle::new((px + 12, py), 6, c.filled()));
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::LowerRight)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font(text(15))
-        .draw()
-        .map_err(e2s)?;
+    draw_legend(&mut chart, SeriesLabelPosition::LowerRight)?;
     Ok(())
 }
 
@@ -329,16 +350,14 @@ pub fn nu_over_time(run: &ReportRun, path: &Path) -> Result<(), Error> {
                 0.3,
             );
             let y0 = y0.max(0.0);
-            let mut chart = ChartBuilder::on(area)
-                .caption(
-                    format!("{} Gaussian (#{})", capitalise(&g.label), g.index),
-                    text(22),
-                )
-                .margin(14)
-                .x_label_area_size(55)
-                .y_label_area_size(80)
-                .build_cartesian_2d(x0..x1, y0..y1)
-                .map_err(e2s)?;
+            let mut chart = new_chart(
+                area,
+                &format!("{} Gaussian (#{})", capitalise(&g.label), g.index),
+                22,
+                80,
+                (x0, x1),
+                (y0, y1),
+            )?;
             chart
                 .configure_mesh()
                 .x_desc("time t")
@@ -368,14 +387,7 @@ pub fn nu_over_time(run: &ReportRun, path: &Path) -> Result<(), Error> {
                 .legend(move |(x, y)| {
                     PathElement::new(vec![(x, y), (x + 24, y)], red.stroke_width(3))
                 });
-            chart
-                .configure_series_labels()
-                .position(SeriesLabelPosition::UpperRight)
-                .background_style(WHITE.mix(0.85))
-                .border_style(BLACK)
-                .label_font(text(15))
-                .draw()
-                .map_err(e2s)?;
+            draw_legend(&mut chart, SeriesLabelPosition::UpperRight)?;
         }
         Ok(())
     })

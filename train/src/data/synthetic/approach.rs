@@ -18,7 +18,7 @@
 use glam::{DQuat, DVec3};
 
 use super::scene::{Motion, Object, Path, Scene, Shape, Texture};
-use super::static_set;
+use super::{lit, propeller, static_set};
 
 /// Builds the `approach` scene (see the module doc).
 pub fn approach() -> Scene {
@@ -58,30 +58,6 @@ pub fn approach() -> Scene {
             b: [0.92, 0.92, 0.88],
         },
     });
-    let hub = DVec3::new(1.0, -0.2, 0.9);
-    for k in 0..2 {
-        objects.push(Object {
-            name: "propeller bar",
-            shape: Shape::Box(DVec3::new(0.008, 0.008, 0.45)),
-            motion: Motion {
-                base: hub,
-                path: Path::Still,
-                axis: DVec3::Y,
-                turns: 2.0,
-                phase: k as f64 * std::f64::consts::FRAC_PI_2,
-                rest: DQuat::IDENTITY,
-            },
-            texture: Texture::Plain([0.10, 0.45, 0.15]),
-        });
-    }
-    objects.push(Object {
-        name: "hub",
-        shape: Shape::Sphere(0.04),
-        motion: Motion::fixed(hub, DQuat::IDENTITY),
-        texture: Texture::Plain([0.2, 0.2, 0.2]),
-    });
-    Scene {
-        objects,
-        light: DVec3::new(0.4, -0.6, 0.75).normalize(),
-    }
+    objects.extend(propeller(DVec3::new(1.0, -0.2, 0.9)));
+    lit(objects)
 }

@@ -103,7 +103,6 @@ fn static_set() -> Vec<Object> {
 }
 
 fn dolly() -> Scene {
-    let fixed = |p: DVec3| Motion::fixed(p, DQuat::IDENTITY);
     let mut objects = static_set();
     objects.push(Object {
         name: "flyer",
@@ -140,28 +139,7 @@ fn dolly() -> Scene {
             b: [0.92, 0.92, 0.88],
         },
     });
-    let hub = DVec3::new(-0.95, -0.35, 1.0);
-    for k in 0..2 {
-        objects.push(Object {
-            name: "propeller bar",
-            shape: Shape::Box(DVec3::new(0.008, 0.008, 0.45)),
-            motion: Motion {
-                base: hub,
-                path: Path::Still,
-                axis: DVec3::Y,
-                turns: 2.0,
-                phase: k as f64 * std::f64::consts::FRAC_PI_2,
-                rest: DQuat::IDENTITY,
-            },
-            texture: Texture::Plain([0.10, 0.45, 0.15]),
-        });
-    }
-    objects.push(Object {
-        name: "hub",
-        shape: Shape::Sphere(0.04),
-        motion: fixed(hub),
-        texture: Texture::Plain([0.2, 0.2, 0.2]),
-    });
+    objects.extend(propeller(DVec3::new(-0.95, -0.35, 1.0)));
     objects.push(Object {
         name: "bouncer",
         shape: Shape::Sphere(0.18),
@@ -183,6 +161,37 @@ fn dolly() -> Scene {
             b: [0.97, 0.97, 0.97],
         },
     });
+    lit(objects)
+}
+
+/// A propeller both scenes share: two 0.016-wide bars 0.9 long, a quarter turn apart,
+/// spinning two turns about the y axis through `hub`, and the small sphere at the hub.
+fn propeller(hub: DVec3) -> [Object; 3] {
+    let bar = |k: u32| Object {
+        name: "propeller bar",
+        shape: Shape::Box(DVec3::new(0.008, 0.008, 0.45)),
+        motion: Motion {
+            base: hub,
+            path: Path::Still,
+            axis: DVec3::Y,
+            turns: 2.0,
+            phase: k as f64 * std::f64::consts::FRAC_PI_2,
+            rest: DQuat::IDENTITY,
+        },
+        texture: Texture::Plain([0.10, 0.45, 0.15]),
+    };
+    let hub = Object {
+        name: "hub",
+        shape: Shape::Sphere(0.04),
+        motion: Motion::fixed(hub, DQuat::IDENTITY),
+        texture: Texture::Plain([0.2, 0.2, 0.2]),
+    };
+    [bar(0), bar(1), hub]
+}
+
+/// The scene of `objects` under the light both scenes share, from
+/// `(0.4, -0.6, 0.75)` normalised (above, in front, to the right).
+fn lit(objects: Vec<Object>) -> Scene {
     Scene {
         objects,
         light: DVec3::new(0.4, -0.6, 0.75).normalize(),

@@ -26,12 +26,12 @@ use serde_json::json;
 
 use super::render::{forward_flow, render_layers, render_rgba};
 use super::rig::{arc_positions, camera_wh};
-use super::write::{GenerateSummary, image_salt};
+use super::write::{GenerateSummary, image_salt, write_folder};
 use super::{build_scene, scene::Scene, scene_bounds};
 use crate::data::bounds::Aabb;
 use crate::data::error::DataError;
 use crate::data::flow::write_flow;
-use crate::data::image::{Image, encode_rgba_png, write_png};
+use crate::data::image::{Image, encode_rgba_png, write_quantised_png};
 use crate::data::n3dv::{POSES_BOUNDS, PoseRow, SCENE_JSON, encode_poses_bounds};
 
 /// What [`generate_multiview`] writes (see the module doc for the defaults).
@@ -116,15 +116,7 @@ pub fn generate_multiview(
         .into_iter()
         .map(|p| camera_wh(p, opts.width, opts.height))
         .collect::<Result<Vec<_>, _>>()?;
-    let tmp = maaf_io::temp_sibling(out);
-    let _ = std::fs::remove_dir_all(&tmp);
-    let result = write_all(&tmp, &scene, &cams, opts, progress).and_then(|()| {
-        maaf_io::replace_dir(&tmp, out).map_err(|e| DataError::io(out, "cannot move into place", e))
-    });
-    if result.is_err() {
-        let _ = std::fs::remove_dir_all(&tmp);
-    }
-    result?;
+    write_folder(out, |tmp| write_all(tmp, &scene, &cams, opts, progress))?;
     let f = opts.frames;
     Ok(GenerateSummary {
         out: out.to_path_buf(),
@@ -231,17 +223,5 @@ fn pose_row(cam: &Camera, bounds: &Aabb) -> PoseRow {
 
 /// Writes a `[H, W, 1]` coverage in `[0, 1]` as an 8-bit grey PNG, `round(255 v)`.
 fn write_mask(mask: &Image, path: &Path) -> Result<(), DataError> {
-    let bytes: Vec<u8> = mask
-        .data
-        .iter()
-        .map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8)
-        .collect();
-    write_png(
-        path,
-        &bytes,
-        mask.width,
-        mask.height,
-        image::ExtendedColorType::L8,
-        "mask PNG",
-    )
+    write_quantised_png(mask, path, image::ExtendedColorType::L8, "mask PNG")
 }

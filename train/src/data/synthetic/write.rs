@@ -3,9 +3,9 @@
 //! Layout of the output folder:
 //! `transforms_{train,val,test,video}.json`, `{train,val,test,video}/r_NNN.png`
 //! (straight RGBA, 8 bit) and `video/flow_NNN.png` (forward flow from video frame `NNN`
-//! to `NNN + 1`, KITTI 16-bit PNG, see [`crate::data::flow`]). Everything is written into a temporary
-//! folder next to the target and renamed into place at the end, so a failure leaves
-//! nothing half-written.
+//! to `NNN + 1`, KITTI 16-bit PNG, see [`crate::data::flow`]). Everything is written into a
+//! temporary sibling of the target and swapped in by `maaf_io::replace_dir`
+//! ([`write_folder`]), so a failure leaves nothing half-written.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -150,18 +150,13 @@ pub fn generate(
             "already exists; choose another --out or pass --force".into()
         ));
     }
-    let name = out
-        .file_name()
-        .ok_or_else(|| bad("--out must name a folder".into()))?
-        .to_string_lossy()
-        .to_string();
-    let parent = match out.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
+    if out.file_name().is_none() {
+        return Err(bad("--out must name a folder".into()));
+    }
+    let parent = maaf_io::parent_of(out);
     if !parent.is_dir() {
         return Err(DataError::request(
-            &parent,
+            parent,
             "parent folder of --out does not exist",
         ));
     }
@@ -221,38 +216,39 @@ pub fn generate(
         })
         .collect();
 
-    let tmp = parent.join(format!(".{name}.tmp-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&tmp);
-    let result = write_all(
-        &tmp,
-        &scene,
-        opts,
-        frames,
-        [&train, &val, &test, &video],
-        progress,
-    )
-    .and_then(|()| {
-        if out.exists() {
-            // --force: move the old folder aside first so the swap is a rename.
-            let old = parent.join(format!(".{name}.old-{}", std::process::id()));
-            std::fs::rename(out, &old).map_err(|e| DataError::io(out, "cannot replace", e))?;
-            std::fs::rename(&tmp, out)
-                .map_err(|e| DataError::io(out, "cannot move into place", e))?;
-            let _ = std::fs::remove_dir_all(&old);
-            Ok(())
-        } else {
-            std::fs::rename(&tmp, out).map_err(|e| DataError::io(out, "cannot move into place", e))
-        }
-    });
-    if result.is_err() {
-        let _ = std::fs::remove_dir_all(&tmp);
-    }
-    result?;
+    write_folder(out, |tmp| {
+        write_all(
+            tmp,
+            &scene,
+            opts,
+            frames,
+            [&train, &val, &test, &video],
+            progress,
+        )
+    })?;
     Ok(GenerateSummary {
         out: out.to_path_buf(),
         counts: [train.len(), val.len(), test.len(), video.len()],
         seconds: start.elapsed().as_secs_f64(),
     })
+}
+
+/// Writes a folder crash-safely: `write` fills a fresh [`maaf_io::temp_sibling`] of
+/// `out`, which [`maaf_io::replace_dir`] then swaps in for `out` (replacing an existing
+/// one); on any failure the temporary folder is removed and `out` is left as it was.
+pub(crate) fn write_folder(
+    out: &Path,
+    write: impl FnOnce(&Path) -> Result<(), DataError>,
+) -> Result<(), DataError> {
+    let tmp = maaf_io::temp_sibling(out);
+    let _ = std::fs::remove_dir_all(&tmp);
+    let result = write(&tmp).and_then(|()| {
+        maaf_io::replace_dir(&tmp, out).map_err(|e| DataError::io(out, "cannot move into place", e))
+    });
+    if result.is_err() {
+        let _ = std::fs::remove_dir_all(&tmp);
+    }
+    result
 }
 
 fn write_all(
@@ -319,7 +315,8 @@ fn write_all(
             path: path.display().to_string(),
             message: e.to_string(),
         })?;
-        std::fs::write(&path, text).map_err(|e| DataError::io(&path, "cannot write", e))?;
+        maaf_io::write_atomic(&path, text.as_bytes())
+            .map_err(|e| DataError::io(&path, "cannot write", e))?;
     }
     Ok(())
 }

@@ -15,16 +15,17 @@
 //! `u` maps to `u / k` exactly). Scales above 1 (zoom-in beyond the source) have no
 //! ground truth and are refused.
 
+mod cache;
+
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 
 use maaf_splat::Camera;
-use rayon::prelude::*;
 
 use super::bounds::{Aabb, bounds_from_cameras};
 use super::dnerf::{Split, SplitMeta, read_split};
-use super::downsample::{box_downsample, composite_premultiplied, premultiply};
+use super::downsample::box_downsample;
 use super::error::DataError;
 use super::flow::{downsample_flow, read_flow};
 use super::image::{Image, decode_rgba};
@@ -389,96 +390,6 @@ impl Dataset {
                 format!("view {index} out of range ({} views)", meta.frames.len()),
             )
         })
-    }
-
-    fn cached_view(&self, split: Split, index: usize, k: u32) -> Result<View, DataError> {
-        let frame = self.frame(split, index)?;
-        let image = self
-            .cache
-            .lock()
-            .ok()
-            .and_then(|c| c.get(&(split, k, index)).cloned())
-            .ok_or_else(|| DataError::request(&frame.file, "image cache lost an entry"))?;
-        Ok(View {
-            split,
-            index,
-            image,
-            camera: frame.camera.scaled(1.0 / k as f64),
-            time: frame.time,
-        })
-    }
-
-    /// Decodes the listed views once each and inserts every missing factor.
-    fn load(&self, split: Split, indices: &[usize], ks: &[u32]) -> Result<(), DataError> {
-        let meta = self.split(split)?;
-        let missing: Vec<(usize, Vec<u32>)> = {
-            let cache = self
-                .cache
-                .lock()
-                .map_err(|_| DataError::request(&meta.json, "image cache poisoned"))?;
-            indices
-                .iter()
-                .map(|&i| {
-                    let ks: Vec<u32> = ks
-                        .iter()
-                        .copied()
-                        .filter(|&k| !cache.contains_key(&(split, k, i)))
-                        .collect();
-                    (i, ks)
-                })
-                .filter(|(_, ks)| !ks.is_empty())
-                .collect()
-        };
-        let background = self.background;
-        let decoded: Vec<Vec<(CacheKey, Arc<Image>)>> =
-            missing
-                .par_iter()
-                .map(|(i, ks)| {
-                    let frame = self.frame(split, *i)?;
-                    let mut rgba = decode_rgba(&frame.file)?;
-                    if (rgba.width, rgba.height) != (meta.width, meta.height) {
-                        return Err(DataError::field(
-                            &meta.json,
-                            format!("frames[{i}].file_path"),
-                            format!(
-                                "{} decodes to {}x{} but the split is {}x{}",
-                                frame.file.display(),
-                                rgba.width,
-                                rgba.height,
-                                meta.width,
-                                meta.height
-                            ),
-                        ));
-                    }
-                    premultiply(&mut rgba.data);
-                    let (w, h) = (rgba.width as usize, rgba.height as usize);
-                    ks.iter()
-                        .map(|&k| {
-                            let small = box_downsample(&rgba.data, w, h, 4, k as usize)
-                                .ok_or_else(|| DataError::Scale {
-                                    path: meta.json.display().to_string(),
-                                    scale: 1.0 / k as f64,
-                                    message: format!("factor {k} does not divide {w}x{h}"),
-                                })?;
-                            let img = Image {
-                                width: rgba.width / k,
-                                height: rgba.height / k,
-                                channels: 3,
-                                data: composite_premultiplied(&small, background),
-                            };
-                            Ok(((split, k, *i), Arc::new(img)))
-                        })
-                        .collect()
-                })
-                .collect::<Result<_, DataError>>()?;
-        let mut cache = self
-            .cache
-            .lock()
-            .map_err(|_| DataError::request(&meta.json, "image cache poisoned"))?;
-        for (key, img) in decoded.into_iter().flatten() {
-            cache.entry(key).or_insert(img);
-        }
-        Ok(())
     }
 }
 

@@ -1,0 +1,117 @@
+//! The image cache of [`Dataset`]: decoding each view once, box-downsampling it to every
+//! requested factor (premultiplied, then composited on the background) in parallel, and
+//! handing out cached views.
+
+use std::sync::Arc;
+
+use rayon::prelude::*;
+
+use super::{CacheKey, Dataset, View};
+use crate::data::dnerf::Split;
+use crate::data::downsample::{box_downsample, composite_premultiplied, premultiply};
+use crate::data::error::DataError;
+use crate::data::image::{Image, decode_rgba};
+
+impl Dataset {
+    /// The cached image of view `index` at factor `k` as a [`View`] with its camera
+    /// scaled by `1 / k`; [`Dataset::load`] must have filled that entry.
+    pub(super) fn cached_view(
+        &self,
+        split: Split,
+        index: usize,
+        k: u32,
+    ) -> Result<View, DataError> {
+        let frame = self.frame(split, index)?;
+        let image = self
+            .cache
+            .lock()
+            .ok()
+            .and_then(|c| c.get(&(split, k, index)).cloned())
+            .ok_or_else(|| DataError::request(&frame.file, "image cache lost an entry"))?;
+        Ok(View {
+            split,
+            index,
+            image,
+            camera: frame.camera.scaled(1.0 / k as f64),
+            time: frame.time,
+        })
+    }
+
+    /// Decodes the listed views once each and inserts every missing factor.
+    pub(super) fn load(
+        &self,
+        split: Split,
+        indices: &[usize],
+        ks: &[u32],
+    ) -> Result<(), DataError> {
+        let meta = self.split(split)?;
+        let missing: Vec<(usize, Vec<u32>)> = {
+            let cache = self
+                .cache
+                .lock()
+                .map_err(|_| DataError::request(&meta.json, "image cache poisoned"))?;
+            indices
+                .iter()
+                .map(|&i| {
+                    let ks: Vec<u32> = ks
+                        .iter()
+                        .copied()
+                        .filter(|&k| !cache.contains_key(&(split, k, i)))
+                        .collect();
+                    (i, ks)
+                })
+                .filter(|(_, ks)| !ks.is_empty())
+                .collect()
+        };
+        let background = self.background;
+        let decoded: Vec<Vec<(CacheKey, Arc<Image>)>> =
+            missing
+                .par_iter()
+                .map(|(i, ks)| {
+                    let frame = self.frame(split, *i)?;
+                    let mut rgba = decode_rgba(&frame.file)?;
+                    if (rgba.width, rgba.height) != (meta.width, meta.height) {
+                        return Err(DataError::field(
+                            &meta.json,
+                            format!("frames[{i}].file_path"),
+                            format!(
+                                "{} decodes to {}x{} but the split is {}x{}",
+                                frame.file.display(),
+                                rgba.width,
+                                rgba.height,
+                                meta.width,
+                                meta.height
+                            ),
+                        ));
+                    }
+                    premultiply(&mut rgba.data);
+                    let (w, h) = (rgba.width as usize, rgba.height as usize);
+                    ks.iter()
+                        .map(|&k| {
+                            let small = box_downsample(&rgba.data, w, h, 4, k as usize)
+                                .ok_or_else(|| DataError::Scale {
+                                    path: meta.json.display().to_string(),
+                                    scale: 1.0 / k as f64,
+                                    message: format!("factor {k} does not divide {w}x{h}"),
+                                })?;
+                            let img = Image {
+                                width: rgba.width / k,
+                                height: rgba.height / k,
+                                channels: 3,
+                                data: composite_premultiplied(&small, background),
+                            };
+                            Ok(((split, k, *i), Arc::new(img)))
+                        })
+                        .collect()
+                })
+                .collect::<Result<_, DataError>>()?;
+        let mut cache = self
+            .cache
+            .lock()
+            .map_err(|_| DataError::request(&meta.json, "image cache poisoned"))?;
+        for (key, img) in decoded.into_iter().flatten() {
+            cache.entry(key).or_insert(img);
+        }
+        Ok(())
+    }
+}

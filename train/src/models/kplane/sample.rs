@@ -1,0 +1,203 @@
+//! [`PlaneSample`], the differentiable lookup of the six planes: the taps of one
+//! trilinear (bilinear x mip level) lookup, the 2x2 box pyramid, and the op whose
+//! backward is the transpose of the same taps followed by the pyramid's adjoint.
+
+use std::sync::Arc;
+
+use maaf_autodiff::op::{BackwardCtx, Op};
+use maaf_autodiff::{Float, Tensor};
+
+use super::{FieldQuery, KPlaneField, PLANE_AXES, PLANE_NAMES, PlaneGeom};
+
+/// Up to 8 (pyramid texel, weight) taps: 4 bilinear taps on each of two levels.
+type Taps = [(usize, f64); 8];
+
+/// Taps of one lookup of a plane: point (u, v) in \[0,1]^2 (clamped at the border),
+/// mip level `level` (clamped to the pyramid). Returns the number of taps used.
+fn plane_taps(g: &PlaneGeom, u: f64, v: f64, level: f64, taps: &mut Taps) -> usize {
+    let max_level = (g.levels - 1) as f64;
+    let level = if level.is_nan() {
+        0.0
+    } else {
+        level.clamp(0.0, max_level)
+    };
+    let l0 = level.floor() as usize;
+    let f = level - l0 as f64;
+    let mut count = 0;
+    let mut add_level = |l: usize, wl: f64, count: &mut usize| {
+        let (w, h) = g.dims(l);
+        let off = g.offset(l);
+        let x = u * w as f64 - 0.5;
+        let y = v * h as f64 - 0.5;
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        let clampi = |i: f64, n: usize| (i.max(0.0) as usize).min(n - 1);
+        let (ix0, ix1) = (clampi(x0, w), clampi(x0 + 1.0, w));
+        let (iy0, iy1) = (clampi(y0, h), clampi(y0 + 1.0, h));
+        for (iy, wy) in [(iy0, 1.0 - fy), (iy1, fy)] {
+            for (ix, wx) in [(ix0, 1.0 - fx), (ix1, fx)] {
+                taps[*count] = (off + iy * w + ix, wl * wx * wy);
+                *count += 1;
+            }
+        }
+    };
+    add_level(l0, 1.0 - f, &mut count);
+    if f > 0.0 && l0 + 1 < g.levels {
+        add_level(l0 + 1, f, &mut count);
+    }
+    count
+}
+
+/// The (u, v, level) at which Gaussian `i` looks up plane `p`.
+pub(super) fn lookup(q: &FieldQuery, i: usize, p: usize) -> (f64, f64, f64) {
+    let (a, b) = PLANE_AXES[p];
+    let c = &q.coords[i];
+    let level = if b == 3 {
+        0.0
+    } else {
+        q.levels[i][a].min(q.levels[i][b])
+    };
+    (c[a], c[b], level)
+}
+
+/// Parent -> children of the 2x2 box pyramid: calls `f(parent, child)` for the four
+/// children of every texel of level `l` (l >= 1), indices into the whole pyramid.
+fn for_each_child(g: &PlaneGeom, l: usize, mut f: impl FnMut(usize, usize)) {
+    let (w, h) = g.dims(l);
+    let (wc, hc) = g.dims(l - 1);
+    let (off, offc) = (g.offset(l), g.offset(l - 1));
+    for j in 0..h {
+        for i in 0..w {
+            for cj in [(2 * j).min(hc - 1), (2 * j + 1).min(hc - 1)] {
+                for ci in [(2 * i).min(wc - 1), (2 * i + 1).min(wc - 1)] {
+                    f(off + j * w + i, offc + cj * wc + ci);
+                }
+            }
+        }
+    }
+}
+
+/// Mip pyramid of a plane \[H, W, C]: level 0 is the plane, level l the 2x2 box mean
+/// of level l-1 (nvdiffrast's mip construction for power-of-two textures).
+pub fn build_pyramid<T: Float>(g: &PlaneGeom, plane: &[T], c: usize) -> Vec<T> {
+    let mut pyr = vec![T::zero(); g.pyramid_texels() * c];
+    pyr[..plane.len()].copy_from_slice(plane);
+    let quarter = T::of(0.25);
+    for l in 1..g.levels {
+        for_each_child(g, l, |parent, child| {
+            for k in 0..c {
+                let v = pyr[child * c + k] * quarter;
+                pyr[parent * c + k] += v;
+            }
+        });
+    }
+    pyr
+}
+
+/// Sums the six plane lookups of every Gaussian: output \[N, C]. Inputs: the six planes
+/// in [`PLANE_NAMES`] order. The query is a constant of the op (detached).
+pub struct PlaneSample {
+    query: Arc<FieldQuery>,
+    geoms: [PlaneGeom; 6],
+    channels: usize,
+    /// Test-only corruption of the backward (negative control of the gradchecks).
+    corrupt_backward: bool,
+}
+
+impl PlaneSample {
+    /// The op for `field`'s layout and a detached `query`.
+    pub fn new(field: &KPlaneField, query: Arc<FieldQuery>) -> Self {
+        PlaneSample {
+            query,
+            geoms: std::array::from_fn(|p| field.geom(p)),
+            channels: field.config.channels,
+            corrupt_backward: false,
+        }
+    }
+
+    /// The same op with a deliberately wrong backward (drops the second mip level's
+    /// taps), for negative controls.
+    #[cfg(test)]
+    pub(crate) fn corrupted(mut self) -> Self {
+        self.corrupt_backward = true;
+        self
+    }
+}
+
+impl<T: Float> Op<T> for PlaneSample {
+    type Saved = ();
+
+    fn name(&self) -> String {
+        "kplane_sample".into()
+    }
+
+    fn forward(&self, inputs: &[&Tensor<T>]) -> (Vec<Tensor<T>>, ()) {
+        assert_eq!(inputs.len(), 6, "kplane_sample: needs the six planes");
+        let c = self.channels;
+        let n = self.query.coords.len();
+        let mut out = vec![T::zero(); n * c];
+        let mut taps: Taps = [(0, 0.0); 8];
+        for (p, g) in self.geoms.iter().enumerate() {
+            assert_eq!(
+                inputs[p].shape(),
+                &[g.height, g.width, c],
+                "kplane_sample: plane {} has the wrong shape",
+                PLANE_NAMES[p]
+            );
+            let pyr = build_pyramid(g, inputs[p].data(), c);
+            for (i, row) in out.chunks_exact_mut(c).enumerate() {
+                let (u, v, level) = lookup(&self.query, i, p);
+                let used = plane_taps(g, u, v, level, &mut taps);
+                for &(texel, w) in &taps[..used] {
+                    let w = T::of(w);
+                    let src = &pyr[texel * c..(texel + 1) * c];
+                    for (o, &s) in row.iter_mut().zip(src) {
+                        *o += w * s;
+                    }
+                }
+            }
+        }
+        (vec![Tensor::from_vec(out, &[n, c])], ())
+    }
+
+    fn backward(&self, ctx: &BackwardCtx<'_, T, ()>) -> Vec<Option<Tensor<T>>> {
+        let c = self.channels;
+        let g_out = ctx.grad_outputs[0].data();
+        let mut taps: Taps = [(0, 0.0); 8];
+        let quarter = T::of(0.25);
+        (0..6)
+            .map(|p| {
+                if !ctx.needs_grad[p] {
+                    return None;
+                }
+                let g = &self.geoms[p];
+                let mut gp = vec![T::zero(); g.pyramid_texels() * c];
+                for (i, gi) in g_out.chunks_exact(c).enumerate() {
+                    let (u, v, level) = lookup(&self.query, i, p);
+                    let mut used = plane_taps(g, u, v, level, &mut taps);
+                    if self.corrupt_backward {
+                        used = used.min(4);
+                    }
+                    for &(texel, w) in &taps[..used] {
+                        let w = T::of(w);
+                        for (d, &s) in gp[texel * c..(texel + 1) * c].iter_mut().zip(gi) {
+                            *d += w * s;
+                        }
+                    }
+                }
+                // Adjoint of the pyramid: coarsest level first, so a parent's total
+                // cotangent reaches its children before they pass it further down.
+                for l in (1..g.levels).rev() {
+                    for_each_child(g, l, |parent, child| {
+                        for k in 0..c {
+                            let v = gp[parent * c + k] * quarter;
+                            gp[child * c + k] += v;
+                        }
+                    });
+                }
+                gp.truncate(g.width * g.height * c);
+                Some(Tensor::from_vec(gp, &[g.height, g.width, c]))
+            })
+            .collect()
+    }
+}
