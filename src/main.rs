@@ -34,7 +34,8 @@ enum Command {
     Train(cli::train::TrainArgs),
     /// Render a static 3DGS PLY from a camera JSON to a PNG or float32 NPY image.
     RenderPly(cli::render_ply::RenderPlyArgs),
-    /// Evaluate a trained run at several scales (PSNR, SSIM) and write RUN/eval.json.
+    /// Evaluate a trained run at several scales (PSNR, SSIM, LPIPS; --temporal: W-Temporal
+    /// Error, W-SSIM, W-LPIPS) and write RUN/eval.json.
     Eval(cli::eval::EvalArgs),
     /// Render one image of a trained run at a time from a data-set view or camera JSON.
     Render(cli::render::RenderArgs),
@@ -44,6 +45,8 @@ enum Command {
     Report(cli::report::ReportArgs),
     /// PSNR, SSIM and LPIPS of two images (the conventions of `maaf eval`).
     Compare(cli::compare::CompareArgs),
+    /// Export a trained run at a time (or N frames) as standard 3DGS PLY.
+    ExportPly(cli::export_ply::ExportPlyArgs),
 }
 
 /// Runs the command; errors print as one line (file, field, reason) and exit with 1.
@@ -66,6 +69,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::RenderVideo(args) => cli::render::run_video(&args)?,
         Command::Report(args) => cli::report::run(&args)?,
         Command::Compare(args) => cli::compare::run(&args)?,
+        Command::ExportPly(args) => cli::export_ply::run(&args)?,
         Command::Info => {
             println!("maaf {}", env!("CARGO_PKG_VERSION"));
             println!(

@@ -3,6 +3,7 @@
 pub mod compare;
 pub mod demo;
 pub mod eval;
+pub mod export_ply;
 pub mod generate;
 pub mod inspect;
 pub mod render;
