@@ -160,7 +160,7 @@ pub fn warp_error_over_time(runs: &[ReportRun], path: &Path) -> Result<bool, Err
                 }
                 chart
                     .configure_series_labels()
-                    .position(SeriesLabelPosition::UpperRight)
+                    .position(SeriesLabelPosition::UpperMiddle)
                     .background_style(WHITE.mix(0.85))
                     .border_style(BLACK)
                     .label_font(text(13))
