@@ -34,7 +34,8 @@ enum Command {
     Train(cli::train::TrainArgs),
     /// Render a static 3DGS PLY from a camera JSON to a PNG or float32 NPY image.
     RenderPly(cli::render_ply::RenderPlyArgs),
-    /// Evaluate a trained run at several scales (PSNR, SSIM) and write RUN/eval.json.
+    /// Evaluate a trained run at several scales (PSNR, SSIM, LPIPS; --temporal: W-Temporal
+    /// Error, W-SSIM, W-LPIPS) and write RUN/eval.json.
     Eval(cli::eval::EvalArgs),
     /// Render one image of a trained run at a time from a data-set view or camera JSON.
     Render(cli::render::RenderArgs),
@@ -47,6 +48,8 @@ enum Command {
     /// Time one training step phase by phase at several Gaussian counts, against this
     /// machine's measured GEMM and copy rates.
     Bench(cli::bench::BenchArgs),
+    /// Export a trained run at a time (or N frames) as standard 3DGS PLY.
+    ExportPly(cli::export_ply::ExportPlyArgs),
 }
 
 /// Runs the command; errors print as one line (file, field, reason) and exit with 1.
@@ -70,6 +73,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Report(args) => cli::report::run(&args)?,
         Command::Compare(args) => cli::compare::run(&args)?,
         Command::Bench(args) => cli::bench::run(&args)?,
+        Command::ExportPly(args) => cli::export_ply::run(&args)?,
         Command::Info => {
             println!("maaf {}", env!("CARGO_PKG_VERSION"));
             println!(

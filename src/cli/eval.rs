@@ -1,4 +1,5 @@
-//! `maaf eval`: multi-scale evaluation of a trained run (writes `RUN/eval.json`).
+//! `maaf eval`: multi-scale evaluation of a trained run (writes `RUN/eval.json`),
+//! optionally with temporal stability (`--temporal`).
 
 use std::path::{Path, PathBuf};
 
@@ -33,6 +34,11 @@ pub struct EvalArgs {
     /// Background the data is composited on (default: RUN/data.json's, else white).
     #[arg(long, value_enum)]
     pub background: Option<BackgroundArg>,
+    /// Also measure temporal stability (W-Temporal Error, W-SSIM, W-LPIPS) of a
+    /// fixed-camera video at each scale, with exact flow (when the data has it) and
+    /// model flow.
+    #[arg(long)]
+    pub temporal: bool,
 }
 
 /// `--split` values.
@@ -88,6 +94,7 @@ pub fn run(args: &EvalArgs) -> anyhow::Result<()> {
         split: args.split.into(),
         max_views: args.max_views,
         save_images: !args.no_images,
+        temporal: args.temporal,
     };
     let report = evaluate_run(&args.run, &data, &options)?;
     println!(
@@ -99,23 +106,32 @@ pub fn run(args: &EvalArgs) -> anyhow::Result<()> {
         report.model_bytes as f64 / 1e6,
         report.filter_bytes as f64 / 1e6
     );
-    println!("| scale | size | PSNR | SSIM |");
-    println!("|---|---|---|---|");
+    let opt = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.4}"));
+    println!("| scale | size | PSNR | SSIM | LPIPS | W-Temporal Error | W-SSIM | W-LPIPS | flow |");
+    println!("|---|---|---|---|---|---|---|---|---|");
     for s in &report.scales {
         println!(
-            "| {} | {}x{} | {:.2} | {:.4} |",
+            "| {} | {}x{} | {:.2} | {:.4} | {} | {} | {} | {} | {} |",
             scale_label(s.scale),
             s.width,
             s.height,
             s.psnr,
-            s.ssim
+            s.ssim,
+            opt(s.lpips),
+            opt(s.warp_error),
+            opt(s.w_ssim),
+            opt(s.w_lpips),
+            s.flow.as_deref().unwrap_or("-")
         );
     }
     println!(
-        "| avg | | {:.2} | {:.4} |",
+        "| avg | | {:.2} | {:.4} | | | | | |",
         report.mean_psnr(),
         report.mean_ssim()
     );
+    if let Some(note) = report.scales.iter().find_map(|s| s.lpips_note.as_ref()) {
+        println!("LPIPS missing at some scale: {note}");
+    }
     println!("wrote {}", args.run.join("eval.json").display());
     Ok(())
 }

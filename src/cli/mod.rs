@@ -4,6 +4,7 @@ pub mod bench;
 pub mod compare;
 pub mod demo;
 pub mod eval;
+pub mod export_ply;
 pub mod generate;
 pub mod inspect;
 pub mod render;

@@ -90,7 +90,7 @@ fn eval_writes_the_contract_and_refuses_bad_input() {
         [50, 100, 200]
     );
 
-    // eval.json: exactly the contract keys, lpips and warp_error null.
+    // eval.json: exactly the contract keys, LPIPS filled, temporal fields null.
     let text = std::fs::read_to_string(run.join("eval.json")).expect("eval.json");
     let v: serde_json::Value = serde_json::from_str(&text).expect("json");
     let mut keys: Vec<&str> = v
@@ -131,16 +131,25 @@ fn eval_writes_the_contract_and_refuses_bad_input() {
         assert_eq!(
             k,
             [
+                "flow",
                 "height",
                 "lpips",
+                "lpips_note",
                 "psnr",
                 "scale",
                 "ssim",
+                "temporal",
+                "w_lpips",
+                "w_ssim",
                 "warp_error",
                 "width"
             ]
         );
-        assert!(s["lpips"].is_null() && s["warp_error"].is_null());
+        // The committed LPIPS weights load; no --temporal, so no temporal metrics.
+        let lpips = s["lpips"].as_f64().expect("lpips");
+        assert!(lpips > 0.0 && lpips < 1.5 && s["lpips_note"].is_null(), "{s}");
+        assert!(s["warp_error"].is_null() && s["flow"].is_null());
+        assert_eq!(s["temporal"], serde_json::json!([]));
         let psnr = s["psnr"].as_f64().expect("psnr");
         let ssim = s["ssim"].as_f64().expect("ssim");
         assert!(psnr > 5.0 && psnr < 60.0, "psnr {psnr}");

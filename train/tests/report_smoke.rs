@@ -12,14 +12,13 @@ fn fake_run(dir: &Path, filter: &str, psnr_at: impl Fn(f64) -> f64, seconds: f64
     std::fs::create_dir_all(dir.join("eval")).expect("mkdir");
     let scales = [0.25, 0.5, 1.0, 2.0, 4.0]
         .iter()
-        .map(|&s| ScaleResult {
-            scale: s,
-            width: (100.0 * s) as u32,
-            height: (100.0 * s) as u32,
-            psnr: psnr_at(s),
-            ssim: 0.9 - 0.01 * (s.log2().abs()),
-            lpips: None,
-            warp_error: None,
+        .map(|&s| {
+            ScaleResult::new(
+                s,
+                ((100.0 * s) as u32, (100.0 * s) as u32),
+                psnr_at(s),
+                0.9 - 0.01 * (s.log2().abs()),
+            )
         })
         .collect();
     let report = EvalReport {

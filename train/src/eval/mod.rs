@@ -14,16 +14,20 @@
 //! Nothing is overwritten on error: outputs go to a temporary folder that replaces
 //! `RUN/eval/` only when complete, then `eval.json` is written atomically.
 
+pub mod export;
+pub mod flow;
 pub mod images;
 pub mod render;
+pub mod report;
+pub mod temporal;
 
 use std::path::Path;
 use std::time::Instant;
 
 use maaf_autodiff::{PerGaussian, Tensor};
 use maaf_filter::{AnalysisExport, FilterState};
+use maaf_lpips::Lpips;
 use rayon::prelude::*;
-use serde::{Deserialize, Serialize};
 
 use crate::data::{Dataset, Split};
 use crate::metrics::{ImageMetrics, error_map, image_metrics, mean_metrics};
@@ -31,6 +35,7 @@ use crate::trainer::Trainer;
 use crate::{Error, write_atomic};
 
 pub use render::{load_run, render_image, run_camera};
+pub use report::{EvalReport, ScaleResult, TemporalResult, scale_label, trim_float};
 
 /// The paper's evaluation scales relative to the training scale: 1/4x, 1/2x (zoom-out),
 /// 1x, 2x and 4x (zoom-in).
@@ -47,6 +52,9 @@ pub struct EvalOptions {
     pub max_views: Option<usize>,
     /// Save 8-bit renders and error maps as PNG (metrics are computed either way).
     pub save_images: bool,
+    /// Also measure temporal stability of a fixed-camera video at every scale
+    /// ([`temporal::evaluate_temporal`]: W-Temporal Error, W-SSIM, W-LPIPS).
+    pub temporal: bool,
 }
 
 impl Default for EvalOptions {
@@ -56,98 +64,9 @@ impl Default for EvalOptions {
             split: Split::Test,
             max_views: None,
             save_images: true,
+            temporal: false,
         }
     }
-}
-
-/// Metrics at one evaluation scale (an entry of `eval.json`'s `scales`).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ScaleResult {
-    /// Scale relative to the training scale.
-    pub scale: f64,
-    /// Rendered width, pixels.
-    pub width: u32,
-    /// Rendered height, pixels.
-    pub height: u32,
-    /// Mean over views of the per-image PSNR, dB (data range 1).
-    pub psnr: f64,
-    /// Mean over views of the per-image SSIM (scikit-image convention).
-    pub ssim: f64,
-    /// LPIPS: `null` (no weights offline; a later issue may fill it).
-    pub lpips: Option<f64>,
-    /// Flow-warped temporal error: `null` until the temporal-stability issue lands.
-    pub warp_error: Option<f64>,
-}
-
-/// `RUN/eval.json`: exactly the field names of the DESIGN.md section 8 contract.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct EvalReport {
-    /// Representation name (`saro`).
-    pub model: String,
-    /// Filter: `none`, `mip3d` or `motion`.
-    pub filter: String,
-    /// Training scale relative to the source images.
-    pub train_scale: f64,
-    /// Iterations trained.
-    pub iterations: usize,
-    /// Training wall time, seconds (all phases, summed over resumed sessions).
-    pub train_seconds: f64,
-    /// Number of Gaussians.
-    pub num_gaussians: usize,
-    /// Bytes of the representation's parameters (`num_scalars * 4`).
-    pub model_bytes: u64,
-    /// Bytes of the filter state (`bytes_per_gaussian * num_gaussians`).
-    pub filter_bytes: u64,
-    /// Background colour the renders and ground truth are composited on.
-    pub background: [f32; 3],
-    /// Whether renders were quantised to 8 bits before the metrics (always `false`).
-    pub quantized_8bit: bool,
-    /// One entry per evaluation scale, in the order asked.
-    pub scales: Vec<ScaleResult>,
-}
-
-impl EvalReport {
-    /// Mean PSNR over the scales (the "Avg." column of the paper's tables).
-    pub fn mean_psnr(&self) -> f64 {
-        mean(self.scales.iter().map(|s| s.psnr))
-    }
-
-    /// Mean SSIM over the scales.
-    pub fn mean_ssim(&self) -> f64 {
-        mean(self.scales.iter().map(|s| s.ssim))
-    }
-
-    /// Model plus filter bytes.
-    pub fn total_bytes(&self) -> u64 {
-        self.model_bytes + self.filter_bytes
-    }
-
-    /// Reads `RUN/eval.json`.
-    pub fn read(run: &Path) -> Result<Self, Error> {
-        let path = run.join("eval.json");
-        let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
-        serde_json::from_str(&text)
-            .map_err(|e| Error::Input(format!("{}: not an eval.json: {e}", path.display())))
-    }
-}
-
-fn mean(values: impl Iterator<Item = f64>) -> f64 {
-    let (s, n) = values.fold((0.0, 0usize), |(s, n), v| (s + v, n + 1));
-    if n == 0 { f64::NAN } else { s / n as f64 }
-}
-
-/// Folder name of a scale's outputs: `1x`, `2x`, `0.5x`, `0.25x`.
-pub fn scale_label(scale: f64) -> String {
-    format!("{}x", trim_float(scale))
-}
-
-/// `0.5` -> `0.5`, `2.0` -> `2`: the shortest decimal spelling of a scale.
-pub fn trim_float(v: f64) -> String {
-    let s = format!("{v:.6}");
-    let s = s.trim_end_matches('0').trim_end_matches('.');
-    s.to_string()
 }
 
 /// One resolved evaluation scale: relative, source-relative, output size.
@@ -221,6 +140,10 @@ struct ViewResult {
     index: usize,
     time: f64,
     metrics: ImageMetrics,
+    /// LPIPS of the view, or why there is none.
+    lpips: Result<f64, String>,
+    /// Wall seconds spent in LPIPS for this view.
+    lpips_seconds: f64,
 }
 
 /// Renders, measures and (optionally) saves every view at one scale into `dir`.
@@ -230,6 +153,7 @@ fn evaluate_scale(
     split: Split,
     scale: &ResolvedScale,
     options: &EvalOptions,
+    lpips: &Result<Lpips, String>,
     dir: &Path,
 ) -> Result<Vec<ViewResult>, Error> {
     let mut views = data
@@ -251,19 +175,21 @@ fn evaluate_scale(
         let part: Vec<ViewResult> = chunk
             .par_iter()
             .zip(rendered.par_iter())
-            .map(|(v, image)| measure_view(v, image, scale, options, dir))
+            .map(|(v, image)| measure_view(v, image, scale, options, lpips, dir))
             .collect::<Result<_, _>>()?;
         results.extend(part);
     }
     Ok(results)
 }
 
-/// Metrics of one rendered view, plus its PNGs when asked.
+/// Metrics of one rendered view (LPIPS when the model loaded), plus its PNGs when
+/// asked.
 fn measure_view(
     v: &crate::data::View,
     image: &Tensor<f32>,
     scale: &ResolvedScale,
     options: &EvalOptions,
+    lpips: &Result<Lpips, String>,
     dir: &Path,
 ) -> Result<ViewResult, Error> {
     let gt = v.image.to_tensor();
@@ -274,6 +200,12 @@ fn measure_view(
             scale_label(scale.relative)
         ))
     })?;
+    let start = Instant::now();
+    let lpips = match lpips {
+        Ok(model) => model.distance(image, &gt).map_err(|e| e.to_string()),
+        Err(reason) => Err(reason.clone()),
+    };
+    let lpips_seconds = start.elapsed().as_secs_f64();
     if options.save_images {
         let err = error_map(image, &gt).map_err(|e| Error::Input(e.to_string()))?;
         images::save_png(
@@ -289,6 +221,8 @@ fn measure_view(
         index: v.index,
         time: v.time,
         metrics,
+        lpips,
+        lpips_seconds,
     })
 }
 
@@ -408,6 +342,8 @@ pub fn evaluate_trainer(
     }
     let scales = resolve_scales(data, split, trainer.config.train_scale, &options.scales)?;
     let mut report = run_report(trainer, data);
+    // LPIPS is optional: without weights every scale gets `lpips: null` and the reason.
+    let lpips = Lpips::load_default().map_err(|e| e.to_string());
 
     let final_dir = run.join("eval");
     let tmp_dir = maaf_io::temp_sibling(&final_dir);
@@ -422,37 +358,65 @@ pub fn evaluate_trainer(
             let start = Instant::now();
             let dir = tmp_dir.join(scale_label(s.relative));
             std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
-            let views = evaluate_scale(trainer, data, split, s, options, &dir)?;
+            let views = evaluate_scale(trainer, data, split, s, options, &lpips, &dir)?;
             let per: Vec<ImageMetrics> = views.iter().map(|v| v.metrics).collect();
             let m =
                 mean_metrics(&per).ok_or_else(|| Error::Input("no views were evaluated".into()))?;
-            let mut csv = String::from("view,time,psnr,ssim\n");
+            let mut csv = String::from("view,time,psnr,ssim,lpips\n");
             for v in &views {
+                let l = v
+                    .lpips
+                    .as_ref()
+                    .map_or(String::new(), |l| format!("{l:.6}"));
                 csv.push_str(&format!(
-                    "{},{},{:.6},{:.6}\n",
+                    "{},{},{:.6},{:.6},{l}\n",
                     v.index, v.time, v.metrics.psnr, v.metrics.ssim
                 ));
             }
             write_atomic(&dir.join("metrics.csv"), csv.as_bytes())?;
+            let mut result = ScaleResult::new(s.relative, (s.width, s.height), m.psnr, m.ssim);
+            match views
+                .iter()
+                .map(|v| v.lpips.clone())
+                .collect::<Result<Vec<f64>, String>>()
+            {
+                Ok(values) => result.lpips = Some(report::mean(values.into_iter())),
+                Err(reason) => result.lpips_note = Some(reason),
+            }
+            let lpips_seconds: f64 = views.iter().map(|v| v.lpips_seconds).sum();
             eprintln!(
-                "maaf: eval {:>5} {}x{}: PSNR {:.2} dB  SSIM {:.4}  ({} views, {:.1} s)",
+                "maaf: eval {:>5} {}x{}: PSNR {:.2} dB  SSIM {:.4}  LPIPS {}  ({} views, {:.1} s; LPIPS {:.2} s per view)",
                 scale_label(s.relative),
                 s.width,
                 s.height,
                 m.psnr,
                 m.ssim,
+                result.lpips.map_or("-".to_string(), |l| format!("{l:.4}")),
                 views.len(),
-                start.elapsed().as_secs_f64()
+                start.elapsed().as_secs_f64(),
+                lpips_seconds / views.len() as f64
             );
-            report.scales.push(ScaleResult {
-                scale: s.relative,
-                width: s.width,
-                height: s.height,
-                psnr: m.psnr,
-                ssim: m.ssim,
-                lpips: None,
-                warp_error: None,
-            });
+            if options.temporal {
+                let start = Instant::now();
+                let model = lpips.as_ref().ok();
+                result.temporal = temporal::evaluate_temporal(trainer, data, s.source, model)?;
+                temporal::set_primary(&mut result);
+                eprintln!(
+                    "maaf: temporal {:>5}: {} ({:.1} s)",
+                    scale_label(s.relative),
+                    result
+                        .temporal
+                        .iter()
+                        .map(|t| format!(
+                            "{} flow: W-error {:.4} W-SSIM {:.4}",
+                            t.flow, t.warp_error, t.w_ssim
+                        ))
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                    start.elapsed().as_secs_f64()
+                );
+            }
+            report.scales.push(result);
         }
         if let Some(export) = filter_analysis(trainer) {
             write_atomic(
@@ -472,69 +436,4 @@ pub fn evaluate_trainer(
         serde_json::to_vec_pretty(&report).map_err(|e| Error::Input(format!("eval.json: {e}")))?;
     write_atomic(&run.join("eval.json"), &json)?;
     Ok(report)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn labels() {
-        assert_eq!(scale_label(1.0), "1x");
-        assert_eq!(scale_label(0.25), "0.25x");
-        assert_eq!(scale_label(4.0), "4x");
-        assert_eq!(trim_float(0.125), "0.125");
-    }
-
-    #[test]
-    fn report_has_the_contract_fields() {
-        let r = EvalReport {
-            model: "saro".into(),
-            filter: "motion".into(),
-            train_scale: 0.25,
-            iterations: 1,
-            train_seconds: 1.0,
-            num_gaussians: 2,
-            model_bytes: 3,
-            filter_bytes: 4,
-            background: [1.0; 3],
-            quantized_8bit: false,
-            scales: vec![ScaleResult {
-                scale: 4.0,
-                width: 8,
-                height: 8,
-                psnr: 30.0,
-                ssim: 0.9,
-                lpips: None,
-                warp_error: None,
-            }],
-        };
-        let v: serde_json::Value =
-            serde_json::from_slice(&serde_json::to_vec(&r).expect("json")).expect("value");
-        let keys: Vec<&str> = v
-            .as_object()
-            .expect("object")
-            .keys()
-            .map(String::as_str)
-            .collect();
-        let mut want = vec![
-            "model",
-            "filter",
-            "train_scale",
-            "iterations",
-            "train_seconds",
-            "num_gaussians",
-            "model_bytes",
-            "filter_bytes",
-            "background",
-            "quantized_8bit",
-            "scales",
-        ];
-        want.sort_unstable();
-        let mut got = keys.clone();
-        got.sort_unstable();
-        assert_eq!(got, want);
-        assert!(v["scales"][0]["lpips"].is_null());
-        assert!(v["scales"][0]["warp_error"].is_null());
-    }
 }

@@ -31,7 +31,7 @@ const PALETTE: [RGBColor; 6] = [
 ];
 
 /// Colour of run `i`: by filter when it is one of the three, else by position.
-fn colour(run: &ReportRun, i: usize) -> RGBColor {
+pub(super) fn colour(run: &ReportRun, i: usize) -> RGBColor {
     match run.eval.filter.as_str() {
         "none" => PALETTE[0],
         "mip3d" => PALETTE[1],
@@ -58,7 +58,7 @@ fn plot_err(path: &Path) -> impl Fn(String) -> Error + '_ {
 type Area<'a> = DrawingArea<BitMapBackend<'a>, Shift>;
 
 /// Draws a `width x height` chart with `draw` and writes it to `path` as PNG.
-fn save_chart(
+pub(super) fn save_chart(
     path: &Path,
     (width, height): (u32, u32),
     draw: impl FnOnce(&Area<'_>) -> Result<(), String>,
@@ -78,7 +78,7 @@ fn save_chart(
 }
 
 /// `(lo, hi)` of `values` padded by `pad` of the span (or a unit when flat).
-fn padded_range(values: impl Iterator<Item = f64>, pad: f64) -> (f64, f64) {
+pub(super) fn padded_range(values: impl Iterator<Item = f64>, pad: f64) -> (f64, f64) {
     let (lo, hi) = values
         .filter(|v| v.is_finite())
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
@@ -101,11 +101,11 @@ fn widen((lo, hi): (f64, f64), below: f64, above: f64) -> (f64, f64) {
     (lo - below * span, hi + above * span)
 }
 
-fn text(size: u32) -> TextStyle<'static> {
+pub(super) fn text(size: u32) -> TextStyle<'static> {
     (FAMILY, size).into_font().color(&BLACK)
 }
 
-fn e2s<E: std::fmt::Display>(e: E) -> String {
+pub(super) fn e2s<E: std::fmt::Display>(e: E) -> String {
     e.to_string()
 }
 

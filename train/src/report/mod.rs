@@ -8,6 +8,7 @@
 //! and, for motion-filter runs, `eval/filter_analysis.json`. No data set is needed.
 
 pub mod charts;
+pub mod temporal;
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -207,8 +208,9 @@ pub fn all_scales(runs: &[ReportRun]) -> Vec<f64> {
 }
 
 /// Writes `OUT/report.md` and the charts (`quality_vs_scale.png`,
-/// `quality_vs_time.png`, `quality_vs_size.png`, and `nu_t.png` when a motion run
-/// has a nu(t) export) for the evaluated runs in `runs`. Every file is written
+/// `quality_vs_time.png`, `quality_vs_size.png`, `warp_error_over_time.png` when a
+/// run has temporal metrics, and `nu_t.png` when a motion run has a nu(t) export),
+/// the LPIPS table and the Tab. 3-shaped temporal tables for the evaluated runs in `runs`. Every file is written
 /// atomically; `OUT` is created if needed.
 pub fn write_report(runs: &[PathBuf], out: &Path) -> Result<ReportOutput, Error> {
     let runs = load_runs(runs)?;
@@ -229,6 +231,10 @@ pub fn write_report(runs: &[PathBuf], out: &Path) -> Result<ReportOutput, Error>
     let size_png = out.join("quality_vs_size.png");
     charts::quality_vs_size(&runs, &size_png)?;
     charts.push(size_png);
+    let warp_png = out.join("warp_error_over_time.png");
+    if temporal::warp_error_over_time(&runs, &warp_png)? {
+        charts.push(warp_png);
+    }
     match runs.iter().find(|r| r.analysis.is_some()) {
         Some(r) => {
             let nu_png = out.join("nu_t.png");
@@ -278,6 +284,15 @@ pub fn write_report(runs: &[PathBuf], out: &Path) -> Result<ReportOutput, Error>
     if zoom_in.len() > 1 && zoom_out.len() > 1 {
         md.push_str("\n## All scales\n\n");
         md.push_str(&metrics_table(&runs, &scales));
+    }
+    md.push_str("\n## LPIPS (AlexNet, lin v0.1; lower is better)\n\n");
+    md.push_str(&temporal::lpips_table(&runs, &scales));
+    let tab3 = temporal::temporal_tables(&runs);
+    if !tab3.is_empty() {
+        md.push_str(
+            "\n## Temporal stability (Tab. 3 layout; fixed-camera video, frame t+1 warped onto t)\n\n",
+        );
+        md.push_str(&tab3);
     }
     md.push_str("\n## Cost\n\n");
     md.push_str(&cost_table(&runs));

@@ -1,0 +1,73 @@
+//! `maaf export-ply`: the deformed, filtered Gaussians of a trained run at a time as a
+//! standard 3DGS PLY (`--time T --out F.ply`), or a sequence of `N` frames over the
+//! data set's time range (`--frames N --out DIR`: `frame_NNNN.ply` + `frames.json`).
+
+use std::path::PathBuf;
+
+use anyhow::bail;
+use maaf_train::eval::export::{export_frame, export_sequence};
+use maaf_train::eval::load_run;
+
+use super::BackgroundArg;
+use super::eval::open_run_data;
+
+/// Arguments of `maaf export-ply`.
+#[derive(clap::Args, Debug)]
+pub struct ExportPlyArgs {
+    /// Run directory written by `maaf train`.
+    #[arg(long)]
+    pub run: PathBuf,
+    /// Data folder the run was trained on (default: the one in RUN/data.json).
+    #[arg(long)]
+    pub data: Option<PathBuf>,
+    /// Time of the single frame to export (writes the PLY file --out).
+    #[arg(long, conflicts_with = "frames", required_unless_present = "frames")]
+    pub time: Option<f64>,
+    /// Export N frames evenly spaced over the data set's time range into the folder
+    /// --out.
+    #[arg(long)]
+    pub frames: Option<usize>,
+    /// Output PLY file (--time) or folder (--frames).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Background of the run's data (only used to open the data set).
+    #[arg(long, value_enum)]
+    pub background: Option<BackgroundArg>,
+}
+
+/// Runs `maaf export-ply`.
+pub fn run(args: &ExportPlyArgs) -> anyhow::Result<()> {
+    let data = open_run_data(&args.run, args.data.as_deref(), args.background)?;
+    let trainer = load_run(&args.run, &data)?;
+    match (args.time, args.frames) {
+        (Some(t), _) => {
+            if !t.is_finite() {
+                bail!("--time {t}: must be a finite number");
+            }
+            export_frame(&trainer, t, &args.out)?;
+            let bytes = std::fs::metadata(&args.out).map_or(0, |m| m.len());
+            println!(
+                "wrote {} ({} Gaussians at t = {t}, {:.2} MB)",
+                args.out.display(),
+                trainer.num_gaussians(),
+                bytes as f64 / 1e6
+            );
+        }
+        (None, Some(n)) => {
+            let paths = export_sequence(&trainer, data.time_range(), n, &args.out)?;
+            let bytes: u64 = paths
+                .iter()
+                .filter_map(|p| std::fs::metadata(p).ok())
+                .map(|m| m.len())
+                .sum();
+            println!(
+                "wrote {} frames to {} ({:.2} MB in all)",
+                paths.len(),
+                args.out.display(),
+                bytes as f64 / 1e6
+            );
+        }
+        (None, None) => bail!("give --time T or --frames N"),
+    }
+    Ok(())
+}

@@ -1,0 +1,174 @@
+//! The report's LPIPS table and its temporal-stability part: a table shaped like the
+//! paper's Tab. 3 per scale (W-Temporal Error, W-SSIM, W-LPIPS per run and flow) and
+//! the supplementary's chart of the warping error `E_warp` over time.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use plotters::prelude::*;
+
+use super::charts::{colour, e2s, padded_range, save_chart, text};
+use super::{ReportRun, scale_header};
+use crate::Error;
+use crate::eval::TemporalResult;
+
+/// One line of the chart: run index (for its colour), run, `(t, E_warp)` points.
+type Series<'a> = (usize, &'a ReportRun, Vec<(f64, f64)>);
+
+fn cell(v: Option<f64>, digits: usize) -> String {
+    v.map_or("-".to_string(), |v| format!("{v:.digits$}"))
+}
+
+/// A markdown table of mean LPIPS per scale (lower is better), one row per run;
+/// `-` where a scale has none (its `lpips_note` says why).
+pub fn lpips_table(runs: &[ReportRun], scales: &[f64]) -> String {
+    let mut t = String::from("| Method |");
+    for s in scales {
+        let _ = write!(t, " LPIPS {} |", scale_header(*s));
+    }
+    t.push_str("\n|---|");
+    for _ in scales {
+        t.push_str("---:|");
+    }
+    t.push('\n');
+    for r in runs {
+        let _ = write!(t, "| {} |", r.label);
+        for &s in scales {
+            let v = r.eval.scales.iter().find(|x| (x.scale - s).abs() < 1e-9);
+            let _ = write!(t, " {} |", cell(v.and_then(|x| x.lpips), 4));
+        }
+        t.push('\n');
+    }
+    t
+}
+
+/// Scales at which any run has temporal metrics, ascending.
+pub fn temporal_scales(runs: &[ReportRun]) -> Vec<f64> {
+    let mut v: Vec<f64> = runs
+        .iter()
+        .flat_map(|r| r.eval.scales.iter())
+        .filter(|s| !s.temporal.is_empty())
+        .map(|s| s.scale)
+        .collect();
+    v.sort_by(f64::total_cmp);
+    v.dedup_by(|a, b| (*a - *b).abs() < 1e-9);
+    v
+}
+
+/// The temporal entries of `run` at scale `s`.
+fn entries(run: &ReportRun, s: f64) -> &[TemporalResult] {
+    run.eval
+        .scales
+        .iter()
+        .find(|x| (x.scale - s).abs() < 1e-9)
+        .map_or(&[], |x| x.temporal.as_slice())
+}
+
+/// One Tab. 3-shaped markdown table per scale with temporal metrics: a row per run
+/// and flow with W-Temporal Error (sum over t of `E_warp`, lower is better), W-SSIM
+/// (higher is better) and W-LPIPS (lower is better). Empty when no run has any.
+pub fn temporal_tables(runs: &[ReportRun]) -> String {
+    let mut md = String::new();
+    for s in temporal_scales(runs) {
+        let _ = writeln!(md, "### {}\n", scale_header(s));
+        md.push_str(
+            "| Method | Flow | Camera | Frames | W-Temporal Error | W-SSIM | W-LPIPS |\n|---|---|---|---:|---:|---:|---:|\n",
+        );
+        for r in runs {
+            for t in entries(r, s) {
+                let _ = writeln!(
+                    md,
+                    "| {} | {} | {} | {} | {:.4} | {:.4} | {} |",
+                    r.label,
+                    t.flow,
+                    t.camera,
+                    t.times.len(),
+                    t.warp_error,
+                    t.w_ssim,
+                    cell(t.w_lpips, 4)
+                );
+            }
+        }
+        md.push('\n');
+    }
+    md
+}
+
+/// The warping error over time: one panel per (flow, scale), rows by flow (`exact`
+/// then `model`) and columns by scale, a line per run of `E_warp(I_t, I_{t+1})`
+/// against `t`. Returns `false` (and writes nothing) when no run has temporal metrics.
+pub fn warp_error_over_time(runs: &[ReportRun], path: &Path) -> Result<bool, Error> {
+    let scales = temporal_scales(runs);
+    let flows: Vec<&str> = ["exact", "model"]
+        .into_iter()
+        .filter(|f| {
+            runs.iter().any(|r| {
+                scales
+                    .iter()
+                    .any(|&s| entries(r, s).iter().any(|t| t.flow == *f))
+            })
+        })
+        .collect();
+    if scales.is_empty() || flows.is_empty() {
+        return Ok(false);
+    }
+    let size = (520 * scales.len() as u32, 420 * flows.len() as u32);
+    save_chart(path, size, |root| {
+        let panels = root.split_evenly((flows.len(), scales.len()));
+        for (fi, flow) in flows.iter().enumerate() {
+            for (si, &s) in scales.iter().enumerate() {
+                let area = &panels[fi * scales.len() + si];
+                let series: Vec<Series<'_>> = runs
+                    .iter()
+                    .enumerate()
+                    .filter_map(|(i, r)| {
+                        let t = entries(r, s).iter().find(|t| t.flow == *flow)?;
+                        let pts = t.times.iter().zip(&t.per_step).map(|(&x, &y)| (x, y));
+                        Some((i, r, pts.collect()))
+                    })
+                    .collect();
+                let all = || series.iter().flat_map(|(_, _, p)| p.iter());
+                let (x0, x1) = padded_range(all().map(|p| p.0), 0.02);
+                let (_, y1) = padded_range(all().map(|p| p.1), 0.35);
+                let mut chart = ChartBuilder::on(area)
+                    .caption(format!("{} flow, {}", flow, scale_header(s)), text(20))
+                    .margin(12)
+                    .x_label_area_size(45)
+                    .y_label_area_size(75)
+                    .build_cartesian_2d(x0..x1, 0.0..y1.max(1e-9))
+                    .map_err(e2s)?;
+                chart
+                    .configure_mesh()
+                    .x_desc("time t (step t -> t+1)")
+                    .y_desc("E_warp")
+                    .label_style(text(14))
+                    .axis_desc_style(text(15))
+                    .x_labels(6)
+                    .y_labels(6)
+                    .y_label_formatter(&|y| format!("{y:.4}"))
+                    .draw()
+                    .map_err(e2s)?;
+                for (i, r, pts) in &series {
+                    let c = colour(r, *i);
+                    chart
+                        .draw_series(LineSeries::new(pts.clone(), c.stroke_width(2)))
+                        .map_err(e2s)?
+                        .label(r.label.clone())
+                        .legend(move |(x, y)| {
+                            PathElement::new(vec![(x, y), (x + 22, y)], c.stroke_width(3))
+                        });
+                }
+                chart
+                    .configure_series_labels()
+                    .position(SeriesLabelPosition::UpperMiddle)
+                    .background_style(WHITE.mix(0.85))
+                    .border_style(BLACK)
+                    .label_font(text(13))
+                    .draw()
+                    .map_err(e2s)?;
+            }
+        }
+        Ok(())
+    })?;
+    Ok(true)
+}
