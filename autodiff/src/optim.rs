@@ -2,12 +2,7 @@
 
 use std::collections::HashMap;
 
-use rayon::prelude::*;
-
 use crate::{Float, PerGaussian, Tensor};
-
-/// Elements per parallel task of an Adam update.
-const PARALLEL_CHUNK: usize = 1 << 14;
 
 /// A learning rate as a function of the iteration.
 #[derive(Clone, Debug, PartialEq)]
@@ -176,27 +171,18 @@ impl<T: Float> Adam<T> {
         let wd = T::of(weight_decay);
         let decay = weight_decay != 0.0;
         let (m, v) = (state.m.data_mut(), state.v.data_mut());
-        let update = |(((p, &g), m), v): (((&mut T, &T), &mut T), &mut T)| {
+        for (((p, &g), m), v) in param
+            .data_mut()
+            .iter_mut()
+            .zip(grad.data())
+            .zip(m.iter_mut())
+            .zip(v.iter_mut())
+        {
             let g = if decay { g + wd * *p } else { g };
             *m = b1 * *m + (one - b1) * g;
             *v = b2 * *v + (one - b2) * g * g;
             *p -= step * *m / ((*v * inv_c2).sqrt() + eps);
-        };
-        // Element-wise, so splitting over threads gives the same values.
-        let chunk = PARALLEL_CHUNK;
-        param
-            .data_mut()
-            .par_chunks_mut(chunk)
-            .zip(grad.data().par_chunks(chunk))
-            .zip(m.par_chunks_mut(chunk))
-            .zip(v.par_chunks_mut(chunk))
-            .for_each(|(((p, g), m), v)| {
-                p.iter_mut()
-                    .zip(g)
-                    .zip(m.iter_mut())
-                    .zip(v.iter_mut())
-                    .for_each(update);
-            });
+        }
     }
 
     /// The moments of `name`, for resizing with its parameter or checkpointing.
