@@ -73,6 +73,8 @@ impl Plan {
             init_points: self.init_points,
             checkpoint_every: iterations,
             log_every: (iterations / 100).max(1),
+            // Ten validation points per run: the report's quality-vs-time curves.
+            val_every: (iterations / 100).max(1) * 10,
             sh_degree_every: (iterations / 20).max(1),
             ..TrainConfig::default()
         };

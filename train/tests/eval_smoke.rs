@@ -147,7 +147,10 @@ fn eval_writes_the_contract_and_refuses_bad_input() {
         );
         // The committed LPIPS weights load; no --temporal, so no temporal metrics.
         let lpips = s["lpips"].as_f64().expect("lpips");
-        assert!(lpips > 0.0 && lpips < 1.5 && s["lpips_note"].is_null(), "{s}");
+        assert!(
+            lpips > 0.0 && lpips < 1.5 && s["lpips_note"].is_null(),
+            "{s}"
+        );
         assert!(s["warp_error"].is_null() && s["flow"].is_null());
         assert_eq!(s["temporal"], serde_json::json!([]));
         let psnr = s["psnr"].as_f64().expect("psnr");

@@ -268,3 +268,46 @@ fn one_plan_resizes_every_container_in_lock_step() {
     assert_eq!(t.skipped_steps, 0);
     assert_eq!(t.num_gaussians(), m);
 }
+
+/// `val_psnr` is logged every `val_every` iterations (and at the end) and leaves the
+/// training itself unchanged: the same seed with validation off gives the same
+/// parameters.
+#[test]
+fn validation_psnr_is_logged_and_changes_nothing() {
+    let Some(data) = mutant() else { return };
+    let base = std::env::temp_dir().join(format!("maaf-val-{}", std::process::id()));
+    let run = |val_every: usize, name: &str| {
+        let mut c = tiny_config(FilterKind::Motion);
+        c.iterations = 50;
+        c.log_every = 10;
+        c.val_every = val_every;
+        c.val_views = 2;
+        let out = base.join(name);
+        maaf_train::trainer::train_run(&data, c, &out, false).expect("run");
+        let model = load_checkpoint(&data, &out.join("model")).expect("model");
+        let log = std::fs::read_to_string(out.join("log.csv")).expect("log");
+        (model, log)
+    };
+    let (mut with, log) = run(20, "with");
+    let (mut without, log_off) = run(0, "without");
+    assert_eq!(params(&mut with), params(&mut without));
+    let rows: Vec<Vec<&str>> = log.lines().map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows[0].last(), Some(&"val_psnr"));
+    let logged: Vec<&str> = rows[1..]
+        .iter()
+        .filter(|r| !r.last().expect("cells").is_empty())
+        .map(|r| r[0])
+        .collect();
+    assert_eq!(logged, ["20", "40", "50"]);
+    for r in &rows[1..] {
+        if let Ok(p) = r.last().expect("cells").parse::<f64>() {
+            assert!(p > 5.0 && p < 60.0, "val_psnr {p}");
+        }
+    }
+    // With validation off no row has a value.
+    assert!(
+        log_off.lines().skip(1).all(|l| l.ends_with(',')),
+        "{log_off}"
+    );
+    let _ = std::fs::remove_dir_all(&base);
+}

@@ -55,7 +55,7 @@ fn plot_err(path: &Path) -> impl Fn(String) -> Error + '_ {
     move |e| Error::Input(format!("{}: drawing the chart failed: {e}", path.display()))
 }
 
-type Area<'a> = DrawingArea<BitMapBackend<'a>, Shift>;
+pub(super) type Area<'a> = DrawingArea<BitMapBackend<'a>, Shift>;
 
 /// Draws a `width x height` chart with `draw` and writes it to `path` as PNG.
 pub(super) fn save_chart(
@@ -110,12 +110,12 @@ pub(super) fn e2s<E: std::fmt::Display>(e: E) -> String {
 }
 
 /// The report's charts: f64 x and y axes on the bitmap backend.
-type Chart<'a, 'b> =
+pub(super) type Chart<'a, 'b> =
     ChartContext<'a, BitMapBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
 
 /// A chart over `x0..x1` by `y0..y1` on `area` with a caption of `caption_size` px, a
 /// 14 px margin, 55 px for the x labels and `y_label_area` px for the y labels.
-fn new_chart<'a, 'b>(
+pub(super) fn new_chart<'a, 'b>(
     area: &'a Area<'b>,
     caption: &str,
     caption_size: u32,
@@ -134,7 +134,7 @@ fn new_chart<'a, 'b>(
 
 /// Draws the series legend of `chart` at `position`: white at 85 % opacity, a black
 /// border, 15 px labels.
-fn draw_legend<'a, 'b: 'a>(
+pub(super) fn draw_legend<'a, 'b: 'a>(
     chart: &mut Chart<'a, 'b>,
     position: SeriesLabelPosition,
 ) -> Result<(), String> {

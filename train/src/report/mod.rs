@@ -1,13 +1,15 @@
 //! `maaf report`: a markdown comparison of evaluated runs shaped like the paper's
 //! Tab. 2 (PSNR / SSIM per scale and their average, one row per run; zoom-in and
 //! zoom-out tables) plus PNG charts drawn with plotters and an embedded font:
-//! quality vs scale, quality vs training time, quality vs model size, and nu(t) of a
+//! quality vs scale, quality vs training time (and the validation PSNR logged during
+//! training as curves), quality vs model size, and nu(t) of a
 //! static and a moving Gaussian (the paper's f/d-over-time figure).
 //!
 //! Inputs are run directories holding `eval.json` (from [`crate::eval::evaluate_run`])
 //! and, for motion-filter runs, `eval/filter_analysis.json`. No data set is needed.
 
 pub mod charts;
+pub mod curves;
 pub mod temporal;
 
 use std::fmt::Write as _;
@@ -228,6 +230,10 @@ pub fn write_report(runs: &[PathBuf], out: &Path) -> Result<ReportOutput, Error>
     let time_png = out.join("quality_vs_time.png");
     charts::quality_vs_time(&runs, &time_png)?;
     charts.push(time_png);
+    let val_png = out.join("val_psnr_vs_time.png");
+    if curves::validation_psnr_vs_time(&runs, &val_png)? {
+        charts.push(val_png);
+    }
     let size_png = out.join("quality_vs_size.png");
     charts::quality_vs_size(&runs, &size_png)?;
     charts.push(size_png);

@@ -71,8 +71,8 @@ pub struct TrainConfig {
     /// Log a row to log.csv every this many iterations.
     pub log_every: usize,
     /// Record the validation PSNR (`val_psnr` in log.csv) every this many iterations
-    /// (0 = never); it is logged on the row of that iteration, so a multiple of
-    /// `log_every`.
+    /// and at the last one (0 = never); it goes on that iteration's log row, so use a
+    /// multiple of `log_every`.
     pub val_every: usize,
     /// Held-back views the validation PSNR averages (evenly spaced over the val split,
     /// else the test split).

@@ -135,7 +135,7 @@ fn run_trainer(mut trainer: Trainer, out: &Path, resume: bool) -> Result<RunSumm
             // Validation renders are not training time: left out of `elapsed`.
             let elapsed = before + start.elapsed().as_secs_f64() - val_seconds;
             let val_every = trainer.config.val_every;
-            let val = if (val_every > 0 && it.is_multiple_of(val_every)) || it == total {
+            let val = if val_every > 0 && (it.is_multiple_of(val_every) || it == total) {
                 let t0 = Instant::now();
                 let psnr = trainer.validation_psnr();
                 val_seconds += t0.elapsed().as_secs_f64();
