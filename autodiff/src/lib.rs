@@ -19,6 +19,7 @@
 
 pub mod check;
 mod float;
+mod grads;
 pub mod nn;
 pub mod op;
 pub mod ops;
@@ -30,8 +31,9 @@ mod tape;
 mod tensor;
 
 pub use float::{Float, MatMut, MatRef};
+pub use grads::Grads;
 pub use op::{BackwardCtx, Op};
 pub use per_gaussian::PerGaussian;
 pub use profile::{OpProfile, OpTime};
-pub use tape::{Grads, Tape, TapeError, Var};
+pub use tape::{Tape, TapeError, Var};
 pub use tensor::Tensor;

@@ -8,6 +8,7 @@ use std::time::Instant;
 
 use smallvec::SmallVec;
 
+use crate::grads::Grads;
 use crate::op::{BackwardCtx, Op};
 use crate::profile::OpProfile;
 use crate::{Float, Tensor};
@@ -464,39 +465,5 @@ impl<'t, T: Float> Var<'t, T> {
     pub fn detach(self) -> Var<'t, T> {
         let value = self.value().clone();
         self.tape.constant(value)
-    }
-}
-
-/// Gradients from one reverse sweep, keyed by node and by parameter name.
-#[derive(Debug)]
-pub struct Grads<T: Float> {
-    by_node: Vec<Option<Tensor<T>>>,
-    params: HashMap<String, usize>,
-}
-
-impl<T: Float> Grads<T> {
-    /// dL/d`var`, or `None` when no path leads from `var` to the loss or `var` is constant.
-    pub fn wrt(&self, var: Var<'_, T>) -> Option<&Tensor<T>> {
-        self.by_node.get(var.id).and_then(Option::as_ref)
-    }
-
-    /// dL/d(parameter `name`), or `None` when the loss does not depend on it.
-    pub fn param(&self, name: &str) -> Option<&Tensor<T>> {
-        self.params
-            .get(name)
-            .and_then(|&id| self.by_node[id].as_ref())
-    }
-
-    /// Removes and returns the gradient of parameter `name`.
-    pub fn take_param(&mut self, name: &str) -> Option<Tensor<T>> {
-        let id = *self.params.get(name)?;
-        self.by_node[id].take()
-    }
-
-    /// Names of the parameters registered on the tape, sorted.
-    pub fn param_names(&self) -> Vec<&str> {
-        let mut names: Vec<&str> = self.params.keys().map(String::as_str).collect();
-        names.sort_unstable();
-        names
     }
 }
