@@ -38,6 +38,17 @@ pub fn support_sigmas(o: f64) -> f64 {
     if p > 0.0 { (2.0 * p).sqrt() } else { 0.0 }
 }
 
+/// Per Gaussian of (deformed) opacity `opacity`, whether the renderer can draw it:
+/// its support [`support_sigmas`] is positive (`255 o > 1`). The 2D and 3D filters
+/// only lower opacity, so a Gaussian flagged false is never drawn, whatever the
+/// camera.
+pub fn drawable<T: Float>(opacity: &[T]) -> Vec<bool> {
+    opacity
+        .iter()
+        .map(|&o| support_sigmas(o.to_f64()) > 0.0)
+        .collect()
+}
+
 /// How alpha is cut off.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum AlphaCutoff {

@@ -3,7 +3,6 @@
 
 use maaf_autodiff::Tensor;
 use maaf_filter::{FilterKind, FilterState, MotionCurves, static_nu};
-use maaf_splat::compositing::support_sigmas;
 
 use super::{Trainer, log_line};
 
@@ -12,17 +11,6 @@ pub(super) fn centres(t: &Tensor<f32>) -> Vec<[f32; 3]> {
     t.data()
         .chunks_exact(3)
         .map(|c| [c[0], c[1], c[2]])
-        .collect()
-}
-
-/// Per row of an opacity tensor, whether the renderer can draw it (positive support,
-/// [`maaf_splat::compositing::support_sigmas`]): a Gaussian absent at a step's time
-/// is not observed in that frame ([`maaf_filter::ObservationTable::record_present`]).
-pub(super) fn present_mask(opacity: &Tensor<f32>) -> Vec<bool> {
-    opacity
-        .data()
-        .iter()
-        .map(|&o| support_sigmas(f64::from(o)) > 0.0)
         .collect()
 }
 

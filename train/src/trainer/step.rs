@@ -5,12 +5,13 @@ use std::time::Instant;
 
 use maaf_autodiff::{Tape, Tensor};
 use maaf_filter::FilterKind;
+use maaf_splat::compositing::drawable;
 use maaf_splat::{Filter2d, RenderSettings};
 use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_pcg::Pcg64;
 
-use super::refresh::{centres, present_mask};
+use super::refresh::centres;
 use super::{Trainer, log_line, plan_densify};
 use crate::forward::forward;
 
@@ -106,7 +107,8 @@ impl Trainer {
                     camera.height,
                 );
                 let centres = centres(&fwd.deformed.means.value());
-                let present = present_mask(&fwd.deformed.opacity.value());
+                // A Gaussian absent at this time is not observed in this frame.
+                let present = drawable(fwd.deformed.opacity.value().data());
                 // The frame index is valid and the row count matches by construction.
                 let _ = self.observations.record_present(
                     vi,

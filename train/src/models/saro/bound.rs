@@ -9,7 +9,7 @@ use maaf_autodiff::op::{BackwardCtx, Op};
 use maaf_autodiff::ops::concat;
 use maaf_autodiff::{Float, Tensor, Var};
 use maaf_splat::GaussianVars;
-use maaf_splat::compositing::support_sigmas;
+use maaf_splat::compositing::drawable;
 
 use super::SaroModel;
 use crate::models::Bound;
@@ -187,15 +187,13 @@ impl<'t, T: Float> Bound<'t, T> for SaroBound<'t, T> {
     }
 }
 
-/// Rows whose opacity `o` can reach the image: `sqrt(2 ln(255 o))` sigma of support
-/// is positive ([`maaf_splat::compositing::support_sigmas`], the renderer's own rule).
+/// Rows whose opacity `o` can reach the image ([`maaf_splat::compositing::drawable`],
+/// the renderer's own rule).
 pub fn present_rows<T: Float>(opacity: &Tensor<T>) -> Vec<usize> {
-    opacity
-        .data()
-        .iter()
+    drawable(opacity.data())
+        .into_iter()
         .enumerate()
-        .filter(|&(_, &o)| support_sigmas(o.to_f64()) > 0.0)
-        .map(|(i, _)| i)
+        .filter_map(|(i, d)| d.then_some(i))
         .collect()
 }
 
