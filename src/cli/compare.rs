@@ -10,18 +10,10 @@ use maaf_autodiff::Tensor;
 use maaf_lpips::Lpips;
 use maaf_train::data::downsample::{composite_premultiplied, premultiply};
 use maaf_train::data::image::decode_rgba;
-use maaf_train::data::{BLACK, WHITE};
 use maaf_train::metrics::{psnr, ssim};
 use serde_json::json;
 
-/// Background that transparent pixels are composited on.
-#[derive(clap::ValueEnum, Clone, Copy, Debug)]
-pub enum Background {
-    /// `[1, 1, 1]`, the data-set default (D-NeRF `white_bkgd`).
-    White,
-    /// `[0, 0, 0]`.
-    Black,
-}
+use super::BackgroundArg;
 
 /// Arguments of `maaf compare`.
 #[derive(clap::Args, Debug)]
@@ -34,8 +26,8 @@ pub struct CompareArgs {
     #[arg(long)]
     pub json: bool,
     /// Background for pixels with alpha < 1 (opaque images are unaffected).
-    #[arg(long, value_enum, default_value_t = Background::White)]
-    pub background: Background,
+    #[arg(long, value_enum, default_value_t = BackgroundArg::White)]
+    pub background: BackgroundArg,
 }
 
 /// An image file as an `[H, W, 3]` tensor on [0, 1], alpha composited on `bg`.
@@ -51,10 +43,7 @@ fn load_rgb(path: &Path, bg: [f32; 3]) -> anyhow::Result<Tensor<f32>> {
 
 /// Runs `maaf compare`.
 pub fn run(args: &CompareArgs) -> anyhow::Result<()> {
-    let bg = match args.background {
-        Background::White => WHITE,
-        Background::Black => BLACK,
-    };
+    let bg = args.background.rgb();
     let a = load_rgb(&args.a, bg)?;
     let b = load_rgb(&args.b, bg)?;
     if a.shape() != b.shape() {
