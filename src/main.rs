@@ -2,14 +2,8 @@
 
 use clap::{Parser, Subcommand};
 
+mod alloc;
 mod cli;
-
-/// The global allocator. A training step or a benchmark frame allocates and frees
-/// tens of megabytes of tensors; glibc's malloc hands the freed top of the heap back
-/// to the kernel and faults it in again on the next step (about 7000 page faults per
-/// 50k-Gaussian render). mimalloc keeps those pages mapped.
-#[global_allocator]
-static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 /// Alias-free 4D Gaussian splatting of dynamic scenes (motion-aware smoothing filter).
 #[derive(Parser)]
@@ -54,6 +48,7 @@ enum Command {
 
 /// Runs the command; errors print as one line (file, field, reason) and exit with 1.
 fn main() {
+    alloc::keep_freed_pages();
     if let Err(e) = run(Cli::parse()) {
         eprintln!("maaf: error: {e:#}");
         std::process::exit(1);
