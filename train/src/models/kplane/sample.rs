@@ -6,8 +6,12 @@ use std::sync::Arc;
 
 use maaf_autodiff::op::{BackwardCtx, Op};
 use maaf_autodiff::{Float, Tensor};
+use rayon::prelude::*;
 
 use super::{FieldQuery, KPlaneField, PLANE_AXES, PLANE_NAMES, PlaneGeom};
+
+/// Gaussians per rayon task of the forward lookup.
+pub(super) const ROWS_PER_TASK: usize = 2048;
 
 /// Up to 8 (pyramid texel, weight) taps: 4 bilinear taps on each of two levels.
 type Taps = [(usize, f64); 8];
@@ -135,8 +139,6 @@ impl<T: Float> Op<T> for PlaneSample {
         assert_eq!(inputs.len(), 6, "kplane_sample: needs the six planes");
         let c = self.channels;
         let n = self.query.coords.len();
-        let mut out = vec![T::zero(); n * c];
-        let mut taps: Taps = [(0, 0.0); 8];
         for (p, g) in self.geoms.iter().enumerate() {
             assert_eq!(
                 inputs[p].shape(),
@@ -144,18 +146,34 @@ impl<T: Float> Op<T> for PlaneSample {
                 "kplane_sample: plane {} has the wrong shape",
                 PLANE_NAMES[p]
             );
-            let pyr = build_pyramid(g, inputs[p].data(), c);
-            for (i, row) in out.chunks_exact_mut(c).enumerate() {
-                let (u, v, level) = lookup(&self.query, i, p);
-                let used = plane_taps(g, u, v, level, &mut taps);
-                for &(texel, w) in &taps[..used] {
-                    let w = T::of(w);
-                    let src = &pyr[texel * c..(texel + 1) * c];
-                    for (o, &s) in row.iter_mut().zip(src) {
-                        *o += w * s;
+        }
+        let pyramids: Vec<Vec<T>> = (0..6)
+            .into_par_iter()
+            .map(|p| build_pyramid(&self.geoms[p], inputs[p].data(), c))
+            .collect();
+        // Blocks of rows in parallel; inside a block one plane at a time (its pyramid
+        // stays in cache), so each row adds the planes' taps in plane order.
+        let mut out = vec![T::zero(); n * c];
+        if c > 0 {
+            out.par_chunks_mut(ROWS_PER_TASK * c)
+                .enumerate()
+                .for_each(|(chunk, rows)| {
+                    let mut taps: Taps = [(0, 0.0); 8];
+                    for (p, (g, pyr)) in self.geoms.iter().zip(&pyramids).enumerate() {
+                        for (r, row) in rows.chunks_exact_mut(c).enumerate() {
+                            let i = chunk * ROWS_PER_TASK + r;
+                            let (u, v, level) = lookup(&self.query, i, p);
+                            let used = plane_taps(g, u, v, level, &mut taps);
+                            for &(texel, w) in &taps[..used] {
+                                let w = T::of(w);
+                                let src = &pyr[texel * c..(texel + 1) * c];
+                                for (o, &s) in row.iter_mut().zip(src) {
+                                    *o += w * s;
+                                }
+                            }
+                        }
                     }
-                }
-            }
+                });
         }
         (vec![Tensor::from_vec(out, &[n, c])], ())
     }
@@ -163,15 +181,18 @@ impl<T: Float> Op<T> for PlaneSample {
     fn backward(&self, ctx: &BackwardCtx<'_, T, ()>) -> Vec<Option<Tensor<T>>> {
         let c = self.channels;
         let g_out = ctx.grad_outputs[0].data();
-        let mut taps: Taps = [(0, 0.0); 8];
         let quarter = T::of(0.25);
+        // Planes in parallel: each plane's cotangent is scattered by one task, in row
+        // order, so the sums do not depend on the thread count.
         (0..6)
+            .into_par_iter()
             .map(|p| {
                 if !ctx.needs_grad[p] {
                     return None;
                 }
                 let g = &self.geoms[p];
                 let mut gp = vec![T::zero(); g.pyramid_texels() * c];
+                let mut taps: Taps = [(0, 0.0); 8];
                 for (i, gi) in g_out.chunks_exact(c).enumerate() {
                     let (u, v, level) = lookup(&self.query, i, p);
                     let mut used = plane_taps(g, u, v, level, &mut taps);

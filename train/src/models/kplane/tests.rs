@@ -3,6 +3,7 @@
 
 use std::sync::Arc;
 
+use super::sample::ROWS_PER_TASK;
 use super::*;
 use maaf_autodiff::Tape;
 use maaf_autodiff::check::{GradcheckConfig, compare, gradcheck, tests_support::random_tensor};
@@ -82,4 +83,44 @@ fn plane_sample_passes_gradcheck_and_rejects_a_wrong_backward() {
         &cfg,
     );
     assert!(!bad.passed(), "the corrupted backward was not caught");
+}
+
+/// Forward value and plane gradients (cotangent: the output itself) of `n` random
+/// queries, in f32, under a pool of `threads` threads.
+fn run_threads(threads: usize, n: usize) -> (Vec<f32>, Vec<Vec<f32>>, Vec<f64>) {
+    let (field, planes, _) = fixture();
+    let means = random_tensor::<f64>(&[n, 3], -1.2, 3.2, 7).into_vec();
+    let times = random_tensor::<f64>(&[n], -0.1, 1.1, 8).into_vec();
+    let scales = random_tensor::<f64>(&[n, 3], -5.0, 1.0, 9).map(f64::exp);
+    let q = field.query(&means, &times, scales.data());
+    let want = reference_sample(&field, &planes, &q).into_vec();
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .expect("thread pool");
+    pool.install(|| {
+        let tape = Tape::<f32>::new();
+        let vars: Vec<_> = planes.iter().map(|p| tape.var(p.cast())).collect();
+        let out = tape.apply1(PlaneSample::new(&field, Arc::new(q)), &vars);
+        let loss = out.square().sum().scale(0.5);
+        let grads = tape.backward(loss).expect("finite");
+        let g = vars
+            .iter()
+            .map(|&v| grads.wrt(v).expect("plane gradient").data().to_vec())
+            .collect();
+        (out.value().data().to_vec(), g, want)
+    })
+}
+
+#[test]
+fn many_rows_match_the_reference_whatever_the_thread_count() {
+    // Several rayon chunks of rows, the last one partial.
+    let n = 3 * ROWS_PER_TASK + 17;
+    let (out1, g1, want) = run_threads(1, n);
+    for (i, (&o, &w)) in out1.iter().zip(&want).enumerate() {
+        assert!((o as f64 - w).abs() < 1e-5, "row value {i}: {o} vs {w}");
+    }
+    let (out3, g3, _) = run_threads(3, n);
+    assert_eq!(out1, out3);
+    assert_eq!(g1, g3);
 }
