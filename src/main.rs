@@ -44,6 +44,9 @@ enum Command {
     Bench(cli::bench::BenchArgs),
     /// Export a trained run at a time (or N frames) as standard 3DGS PLY.
     ExportPly(cli::export_ply::ExportPlyArgs),
+    /// Write an ablation grid as run folders plus a plain job list (jobs.txt: one
+    /// train-and-eval line per point, for bash, GNU parallel or array jobs).
+    Sweep(cli::sweep::SweepArgs),
 }
 
 /// Runs the command; errors print as one line (file, field, reason) and exit with 1.
@@ -69,6 +72,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Compare(args) => cli::compare::run(&args)?,
         Command::Bench(args) => cli::bench::run(&args)?,
         Command::ExportPly(args) => cli::export_ply::run(&args)?,
+        Command::Sweep(args) => cli::sweep::run(&args)?,
         Command::Info => {
             println!("maaf {}", env!("CARGO_PKG_VERSION"));
             println!(

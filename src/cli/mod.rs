@@ -10,6 +10,7 @@ pub mod inspect;
 pub mod render;
 pub mod render_ply;
 pub mod report;
+pub mod sweep;
 pub mod train;
 
 use maaf_train::data::{BLACK, WHITE};
