@@ -10,6 +10,7 @@ mod checkpoint;
 mod config;
 mod densify;
 mod refresh;
+mod resume;
 mod run;
 mod step;
 mod timings;
@@ -22,9 +23,10 @@ use maaf_splat::Camera;
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 
-pub use checkpoint::{load_checkpoint, save_checkpoint};
+pub use checkpoint::{checkpoint_iteration, load_checkpoint, save_checkpoint};
 pub use config::{DensifyConfig, TrainConfig};
 pub use densify::{DensifyPlan, DensifyStats, plan as plan_densify};
+pub use resume::{checkpoints_newest_first, load_newest, repair_run_dir, truncate_log};
 pub use run::{RunSummary, checkpoint_dir, train_run, train_run_with};
 pub use timings::Timings;
 
