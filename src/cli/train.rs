@@ -130,7 +130,13 @@ fn resumed_config(args: &TrainArgs, run: &Path) -> anyhow::Result<TrainConfig> {
         args.filter
             .map(FilterKind::from)
             .filter(|f| *f != config.filter.kind)
-            .map(|f| format!("--filter {f:?} (the run's is {:?})", config.filter.kind)),
+            .map(|f| {
+                format!(
+                    "--filter {} (the run's is {})",
+                    format!("{f:?}").to_lowercase(),
+                    format!("{:?}", config.filter.kind).to_lowercase()
+                )
+            }),
         args.train_scale
             .filter(|s| *s != config.train_scale)
             .map(|s| format!("--train-scale {s} (the run's is {})", config.train_scale)),

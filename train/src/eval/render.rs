@@ -80,7 +80,8 @@ pub fn load_run(run: &Path, data: &Dataset) -> Result<Trainer, Error> {
             run.display()
         )));
     }
-    let model = run.join("model");
+    // A swap of `model/` cut short by a kill leaves the old version parked: read it.
+    let model = maaf_io::readable_dir(&run.join("model")).unwrap_or_else(|| run.join("model"));
     if !model.join("state.json").is_file() || !model.join("tensors.safetensors").is_file() {
         return Err(Error::Input(format!(
             "{}: no trained model (expected {}/state.json and tensors.safetensors; train with `maaf train --out {}`)",

@@ -183,6 +183,12 @@ impl Trainer {
                 tensor(&st, &format!("param/{name}"), &blob_path).map_err(|e| e.to_string())
             })
             .map_err(|e| Error::Input(format!("{}: {e}", blob_path.display())))?;
+        if let Some((name, index, value)) = self.first_non_finite_param() {
+            return Err(Error::Input(format!(
+                "{}: parameter `{name}` is {value} at flat index {index}: the run diverged, this model cannot be used",
+                blob_path.display()
+            )));
+        }
         let n = state.num_gaussians;
         if self.model.num_gaussians() != n {
             return Err(Error::Input(format!(

@@ -9,6 +9,7 @@
 mod checkpoint;
 mod config;
 mod densify;
+mod health;
 mod refresh;
 mod resume;
 mod run;
@@ -57,6 +58,8 @@ pub struct Trainer {
     pub iteration: usize,
     /// Steps skipped because a value or gradient was not finite.
     pub skipped_steps: usize,
+    /// Why the last skipped step was skipped (the tape's message), if any was.
+    pub last_skip: Option<String>,
     /// Iteration of the last opacity reset (large-screen pruning starts after it).
     pub last_reset: Option<usize>,
     /// Wall time per phase.
@@ -180,6 +183,7 @@ impl Trainer {
             objective,
             iteration: 0,
             skipped_steps: 0,
+            last_skip: None,
             last_reset: None,
             timings: Timings::default(),
             op_profile: None,

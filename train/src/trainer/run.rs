@@ -132,6 +132,7 @@ fn run_trainer(mut trainer: Trainer, out: &Path, resume: bool) -> Result<RunSumm
     let ckpt_every = trainer.config.checkpoint_every.max(1);
     while trainer.iteration < total {
         trainer.step();
+        trainer.check_health()?;
         let it = trainer.iteration;
         let loss = trainer
             .last_terms
