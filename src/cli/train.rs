@@ -165,6 +165,12 @@ fn resumed_config(args: &TrainArgs, run: &Path) -> anyhow::Result<TrainConfig> {
 
 /// Runs `maaf train`.
 pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
+    if args.data.to_str().is_none() {
+        bail!(
+            "--data {}: the folder name is not valid UTF-8, which RUN/data.json cannot record; rename it",
+            args.data.display()
+        );
+    }
     let out = match (&args.out, &args.resume) {
         (Some(o), Some(r)) if o != r => bail!(
             "--out {} and --resume {} name different runs",
