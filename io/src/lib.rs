@@ -8,13 +8,22 @@
 //! is left behind to keep the disk full.
 //!
 //! Folders (checkpoints, evaluation outputs, generated data sets) are built under a
-//! temporary name ([`temp_sibling`]) and swapped in by [`replace_dir`]. Leftover
-//! temporaries of a killed process start with `.` and contain [`TEMP_MARK`];
-//! [`remove_stale_temps`] sweeps them on the next start.
+//! temporary name ([`temp_sibling`]) and swapped in by [`replace_dir`]: on Linux one
+//! atomic exchange of the two names, so the target always holds a complete version;
+//! elsewhere the old version is parked under a hidden name during the swap, where
+//! [`readable_dir`] finds it and [`recover_dir`] restores it. Leftover temporaries of
+//! a killed process start with `.` and contain [`TEMP_MARK`]; [`remove_stale_temps`]
+//! sweeps them on the next start. [`fault`] injects kills and full disks for tests.
 
 use std::fs::{self, File};
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
+
+mod dir;
+pub mod fault;
+
+pub use dir::{readable_dir, recover_dir, replace_dir};
+use fault::Step;
 
 /// Marker every temporary name contains (`.NAME.maaf-tmp-PID`).
 pub const TEMP_MARK: &str = ".maaf-tmp-";
@@ -46,16 +55,25 @@ pub fn sync_dir(dir: &Path) -> io::Result<()> {
 }
 
 /// Writes `bytes` to `path` atomically and durably: temporary sibling, `fsync`,
-/// rename over `path`, `fsync` of the folder. On error the temporary is removed and
-/// `path` is untouched.
+/// rename over `path`, `fsync` of the folder. On error (a full disk included) the
+/// temporary is removed and `path` is untouched.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> io::Result<()> {
     let tmp = temp_sibling(path);
     let result = (|| {
+        fault::step(Step::Meta, "create")?;
         let mut f = File::create(&tmp)?;
+        if let Err(e) = fault::step(Step::Data, "write") {
+            // An injected full disk: part of the bytes land, then the write fails.
+            f.write_all(&bytes[..bytes.len() / 2])?;
+            return Err(e);
+        }
         f.write_all(bytes)?;
+        fault::step(Step::Meta, "fsync")?;
         f.sync_all()?;
         drop(f);
+        fault::step(Step::Meta, "rename")?;
         fs::rename(&tmp, path)?;
+        fault::step(Step::Meta, "fsync folder")?;
         sync_dir(parent_of(path))
     })();
     if result.is_err() {
@@ -73,67 +91,11 @@ pub fn sync_tree(dir: &Path) -> io::Result<()> {
         if entry.file_type()?.is_dir() {
             sync_tree(&path)?;
         } else {
+            fault::step(Step::Meta, "fsync")?;
             File::open(&path)?.sync_all()?;
         }
     }
     sync_dir(dir)
-}
-
-/// Moves the complete folder `new` (a [`temp_sibling`] of `target`) into place as
-/// `target`. An existing `target` stays readable until the new one is in place: it is
-/// renamed aside to `.NAME.old.maaf-tmp-PID` first and removed only after the swap.
-/// Between the two renames a reader finds the old version under that name, which
-/// [`recover_dir`] restores if the process dies there.
-pub fn replace_dir(new: &Path, target: &Path) -> io::Result<()> {
-    sync_tree(new)?;
-    let parent = parent_of(target);
-    if target.exists() {
-        let old = old_sibling(target);
-        if old.exists() {
-            fs::remove_dir_all(&old)?;
-        }
-        fs::rename(target, &old)?;
-        fs::rename(new, target)?;
-        sync_dir(parent)?;
-        fs::remove_dir_all(&old)?;
-    } else {
-        fs::rename(new, target)?;
-        sync_dir(parent)?;
-    }
-    Ok(())
-}
-
-/// Where [`replace_dir`] parks the old version of `target` during the swap.
-fn old_sibling(target: &Path) -> PathBuf {
-    let name = target
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "out".into());
-    parent_of(target).join(format!(".{name}.old{TEMP_MARK}{}", std::process::id()))
-}
-
-/// If `target` is missing because a process died between the two renames of
-/// [`replace_dir`], puts the parked old version back. Returns whether it did.
-pub fn recover_dir(target: &Path) -> io::Result<bool> {
-    if target.exists() {
-        return Ok(false);
-    }
-    let Some(name) = target.file_name().map(|n| n.to_string_lossy().into_owned()) else {
-        return Ok(false);
-    };
-    let prefix = format!(".{name}.old{TEMP_MARK}");
-    let parent = parent_of(target);
-    let Ok(entries) = fs::read_dir(parent) else {
-        return Ok(false);
-    };
-    for entry in entries.flatten() {
-        if entry.file_name().to_string_lossy().starts_with(&prefix) {
-            fs::rename(entry.path(), target)?;
-            sync_dir(parent)?;
-            return Ok(true);
-        }
-    }
-    Ok(false)
 }
 
 /// Removes every leftover temporary (a name starting with `.` and containing
@@ -194,24 +156,29 @@ mod tests {
         assert_eq!(remove_stale_temps(&dir).expect("sweep"), 0, "no temp left");
     }
 
+    /// Child half of the full-disk test: writes `MAAF_IO_TARGET` under the parent's plan.
     #[test]
-    fn replace_dir_swaps_and_recover_restores_a_parked_folder() {
-        let dir = scratch("dir");
-        let target = dir.join("model");
-        for version in ["v1", "v2"] {
-            let tmp = temp_sibling(&target);
-            fs::create_dir_all(&tmp).expect("mkdir");
-            fs::write(tmp.join("f"), version).expect("write");
-            replace_dir(&tmp, &target).expect("replace");
-            assert_eq!(fs::read_to_string(target.join("f")).expect("read"), version);
+    fn child_writes_target() {
+        if let Ok(target) = std::env::var("MAAF_IO_TARGET") {
+            let err = write_atomic(Path::new(&target), &[7u8; 4096]).expect_err("full disk");
+            assert_eq!(err.kind(), io::ErrorKind::StorageFull);
         }
-        assert_eq!(fs::read_dir(&dir).expect("ls").count(), 1);
-        // A death between the two renames: the old version is parked, no target.
-        let parked = old_sibling(&target);
-        fs::rename(&target, &parked).expect("park");
-        assert!(recover_dir(&target).expect("recover"));
-        assert_eq!(fs::read_to_string(target.join("f")).expect("read"), "v2");
-        assert!(!recover_dir(&target).expect("nothing to do"));
+    }
+
+    #[test]
+    fn a_full_disk_keeps_the_old_file_and_leaves_no_partial_temp() {
+        let dir = scratch("enospc");
+        let f = dir.join("tensors");
+        write_atomic(&f, b"old").expect("write");
+        let status = std::process::Command::new(std::env::current_exe().expect("exe"))
+            .args(["--exact", "tests::child_writes_target"])
+            .env("MAAF_IO_TARGET", &f)
+            .env("MAAF_FAULT_ENOSPC_AT_WRITE", "1")
+            .status()
+            .expect("child");
+        assert!(status.success());
+        assert_eq!(fs::read(&f).expect("read"), b"old");
+        assert_eq!(fs::read_dir(&dir).expect("ls").count(), 1, "no temp left");
     }
 
     #[test]

@@ -59,6 +59,12 @@ pub struct Camera {
     pub world_to_camera: [[f64; 4]; 4],
 }
 
+/// Largest width or height a camera file may ask for, pixels.
+pub const MAX_SIDE: u32 = 16_384;
+/// Largest image a camera file may ask for, pixels (64 megapixels: about 770 MB of
+/// f32 RGB plus the renderer's per-pixel buffers).
+pub const MAX_PIXELS: u64 = 64_000_000;
+
 impl Camera {
     /// Builds a camera from a world-to-camera matrix and intrinsics, validating it.
     pub fn new(
@@ -141,6 +147,18 @@ impl Camera {
             return Err(bad(
                 "width/height",
                 format!("{}x{} is empty", self.width, self.height),
+            ));
+        }
+        if self.width > MAX_SIDE
+            || self.height > MAX_SIDE
+            || u64::from(self.width) * u64::from(self.height) > MAX_PIXELS
+        {
+            return Err(bad(
+                "width/height",
+                format!(
+                    "{}x{} is over the cap of {MAX_SIDE} px a side and {MAX_PIXELS} pixels",
+                    self.width, self.height
+                ),
             ));
         }
         for (field, v) in [("fx", self.fx), ("fy", self.fy)] {

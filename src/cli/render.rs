@@ -110,8 +110,24 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     {
         bail!("--time {t}: must be a finite number");
     }
-    let (_, trainer, camera, view_time) = setup(&args.camera)?;
+    let is_png = args
+        .out
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("png"));
+    if !is_png {
+        bail!(
+            "--out {}: maaf render writes PNG; give a file name ending in .png",
+            args.out.display()
+        );
+    }
+    let (data, trainer, camera, view_time) = setup(&args.camera)?;
     let time = args.time.or(view_time).unwrap_or(0.0);
+    let (t0, t1) = data.time_range();
+    if !(t0..=t1).contains(&time) {
+        eprintln!(
+            "maaf: warning: --time {time} is outside the data's time range [{t0}, {t1}]: the model extrapolates"
+        );
+    }
     let settings = trainer.render_settings(trainer.iteration);
     let image = render_image(&trainer, &camera, time, &settings);
     save_png(&to_rgb8(&image)?, &args.out)?;

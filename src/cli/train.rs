@@ -1,6 +1,6 @@
 //! `maaf train`: train a 4D Gaussian model on a D-NeRF-format data set.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use maaf_filter::FilterKind;
@@ -39,7 +39,8 @@ pub struct TrainArgs {
     /// JSON file with a full or partial TrainConfig (flags override it).
     #[arg(long)]
     pub config: Option<PathBuf>,
-    /// Continue the run in this directory from its last saved model.
+    /// Continue the run in this directory from its newest complete checkpoint, with its
+    /// settings (only --iters may change the budget; absent, the run's is kept).
     #[arg(long)]
     pub resume: Option<PathBuf>,
     /// Background the RGBA images are composited on.
@@ -100,8 +101,76 @@ pub fn config_from(args: &TrainArgs) -> anyhow::Result<TrainConfig> {
     Ok(config)
 }
 
+/// The configuration of the run being resumed: its `config.json`, with the budget of
+/// `--iters` if given (said on stderr when it changes). Any other setting flag that
+/// differs from the run's is refused: a resumed run keeps its settings, so that it
+/// continues exactly as the first session would have.
+fn resumed_config(args: &TrainArgs, run: &Path) -> anyhow::Result<TrainConfig> {
+    let path = run.join("config.json");
+    let text = std::fs::read_to_string(&path).map_err(|e| {
+        anyhow::anyhow!(
+            "{}: no run to resume ({e}); start one with --out",
+            path.display()
+        )
+    })?;
+    let mut config: TrainConfig = serde_json::from_str(&text)
+        .map_err(|e| anyhow::anyhow!("{}: invalid run config: {e}", path.display()))?;
+    if let Some(file) = &args.config {
+        bail!(
+            "--config {}: a resumed run keeps the settings in {}; only --iters may change",
+            file.display(),
+            path.display()
+        );
+    }
+    let conflicts = [
+        args.model
+            .as_ref()
+            .filter(|m| m.as_str() != config.model.kind())
+            .map(|m| format!("--model {m} (the run's is {})", config.model.kind())),
+        args.filter
+            .map(FilterKind::from)
+            .filter(|f| *f != config.filter.kind)
+            .map(|f| {
+                format!(
+                    "--filter {} (the run's is {})",
+                    format!("{f:?}").to_lowercase(),
+                    format!("{:?}", config.filter.kind).to_lowercase()
+                )
+            }),
+        args.train_scale
+            .filter(|s| *s != config.train_scale)
+            .map(|s| format!("--train-scale {s} (the run's is {})", config.train_scale)),
+        args.seed
+            .filter(|s| *s != config.seed)
+            .map(|s| format!("--seed {s} (the run's is {})", config.seed)),
+    ];
+    if let Some(c) = conflicts.into_iter().flatten().next() {
+        bail!(
+            "{c}: a resumed run keeps its settings ({}); only --iters may change",
+            path.display()
+        );
+    }
+    if let Some(iters) = args.iters
+        && iters != config.iterations
+    {
+        eprintln!(
+            "maaf: --iters {iters}: the run's budget changes from {} to {iters} iterations",
+            config.iterations
+        );
+        config.iterations = iters;
+    }
+    config.validate()?;
+    Ok(config)
+}
+
 /// Runs `maaf train`.
 pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
+    if args.data.to_str().is_none() {
+        bail!(
+            "--data {}: the folder name is not valid UTF-8, which RUN/data.json cannot record; rename it",
+            args.data.display()
+        );
+    }
     let out = match (&args.out, &args.resume) {
         (Some(o), Some(r)) if o != r => bail!(
             "--out {} and --resume {} name different runs",
@@ -112,14 +181,22 @@ pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
         (Some(o), None) => o.clone(),
         (None, None) => bail!("--out RUN is required (or --resume RUN)"),
     };
-    if args.resume.is_none() && out.join("model").exists() {
-        bail!(
-            "{}: already holds a trained model; use --resume {} or another --out",
-            out.display(),
-            out.display()
-        );
-    }
-    let config = config_from(args)?;
+    let config = match &args.resume {
+        Some(run) => resumed_config(args, run)?,
+        None => {
+            if ["config.json", "log.csv", "checkpoints", "model"]
+                .iter()
+                .any(|f| out.join(f).exists())
+            {
+                bail!(
+                    "{}: already holds a run; continue it with --resume {} or choose another --out",
+                    out.display(),
+                    out.display()
+                );
+            }
+            config_from(args)?
+        }
+    };
     let data = Dataset::open(
         &args.data,
         DatasetOptions {

@@ -10,21 +10,23 @@ pub enum Error {
     #[error("{0}")]
     Input(String),
     /// A file or folder could not be read or written.
-    #[error("{path}: {source}")]
+    // The OS error is part of the message and deliberately not a `source`: error
+    // chains print every source again, which showed it twice.
+    #[error("{path}: {os}")]
     Io {
         /// File or folder.
         path: String,
-        /// Underlying error.
-        source: std::io::Error,
+        /// Underlying OS error.
+        os: std::io::Error,
     },
 }
 
 impl Error {
     /// An I/O error on `path`.
-    pub fn io(path: &Path, source: std::io::Error) -> Self {
+    pub fn io(path: &Path, os: std::io::Error) -> Self {
         Error::Io {
             path: path.display().to_string(),
-            source,
+            os,
         }
     }
 }

@@ -174,6 +174,14 @@ pub fn parse_split(
             }
         };
         let time = number(json, &name("time"), obj.get("time"))?;
+        // The filters and the lifespans are defined on normalised time.
+        if !(0.0..=1.0).contains(&time) {
+            return Err(DataError::field(
+                json,
+                name("time"),
+                format!("{time} is outside [0, 1] (D-NeRF times are normalised)"),
+            ));
+        }
         let gl = matrix4(json, &name("transform_matrix"), obj.get("transform_matrix"))?;
         let flow = match obj.get("flow_path") {
             None | Some(Value::Null) => None,

@@ -362,6 +362,15 @@ pub fn evaluate_trainer(
             let per: Vec<ImageMetrics> = views.iter().map(|v| v.metrics).collect();
             let m =
                 mean_metrics(&per).ok_or_else(|| Error::Input("no views were evaluated".into()))?;
+            if !(m.psnr.is_finite() && m.ssim.is_finite()) {
+                return Err(Error::Input(format!(
+                    "{}: the model renders non-finite pixels at scale {} (PSNR {}, SSIM {}): the run diverged; eval.json not written",
+                    run.display(),
+                    scale_label(s.relative),
+                    m.psnr,
+                    m.ssim
+                )));
+            }
             let mut csv = String::from("view,time,psnr,ssim,lpips\n");
             for v in &views {
                 let l = v

@@ -17,7 +17,8 @@ use crate::{Error, write_atomic};
 /// is present, [`load_run`] refuses a data set that differs from it.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct DataFingerprint {
-    /// Data folder (informational; a moved folder still matches).
+    /// Data folder, absolute (the default data of `eval`/`render`; a moved folder
+    /// still matches when given explicitly).
     pub root: PathBuf,
     /// Number of training views.
     pub train_views: usize,
@@ -37,8 +38,10 @@ impl DataFingerprint {
         let meta = data
             .split(Split::Train)
             .map_err(|e| Error::Input(e.to_string()))?;
+        // Absolute, so the run can be evaluated from any working folder.
+        let root = std::fs::canonicalize(data.root()).map_err(|e| Error::io(data.root(), e))?;
         Ok(DataFingerprint {
-            root: data.root().to_path_buf(),
+            root,
             train_views: data.len(Split::Train),
             test_views: data.len(Split::Test),
             width: meta.width,
@@ -80,7 +83,8 @@ pub fn load_run(run: &Path, data: &Dataset) -> Result<Trainer, Error> {
             run.display()
         )));
     }
-    let model = run.join("model");
+    // A swap of `model/` cut short by a kill leaves the old version parked: read it.
+    let model = maaf_io::readable_dir(&run.join("model")).unwrap_or_else(|| run.join("model"));
     if !model.join("state.json").is_file() || !model.join("tensors.safetensors").is_file() {
         return Err(Error::Input(format!(
             "{}: no trained model (expected {}/state.json and tensors.safetensors; train with `maaf train --out {}`)",
@@ -182,7 +186,9 @@ pub fn render_image(
 
 /// Renders `frames` evenly spaced times over `[t0, t1]` from one fixed `camera` into
 /// `out` as `frame_NNNN.png` plus an animated `video.gif` (10 frames per second).
-/// Returns the PNG paths. `out` is created if needed; existing frames are replaced.
+/// Returns the PNG paths. The frames are built in a fresh temporary folder swapped in
+/// for `out` ([`maaf_io::replace_dir`]), so no frame of an earlier, longer video
+/// stays beside the new ones; an `out` holding anything but such frames is refused.
 pub fn render_video(
     trainer: &Trainer,
     camera: &Camera,
@@ -193,22 +199,46 @@ pub fn render_video(
     if frames == 0 {
         return Err(Error::Input("--frames must be at least 1".into()));
     }
-    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
-    let settings = trainer.render_settings(trainer.iteration);
-    let mut paths = Vec::with_capacity(frames);
-    let mut rgb = Vec::with_capacity(frames);
-    for i in 0..frames {
-        let t = if frames == 1 {
-            t0
-        } else {
-            t0 + (t1 - t0) * i as f64 / (frames - 1) as f64
-        };
-        let img = images::to_rgb8(&render_image(trainer, camera, t, &settings))?;
-        let path = out.join(format!("frame_{i:04}.png"));
-        images::save_png(&img, &path)?;
-        paths.push(path);
-        rgb.push(img);
+    if out.exists() {
+        let entries = std::fs::read_dir(out).map_err(|e| Error::io(out, e))?;
+        for entry in entries.flatten() {
+            let name = entry.file_name().to_string_lossy().into_owned();
+            let ours =
+                name == "video.gif" || (name.starts_with("frame_") && name.ends_with(".png"));
+            if !ours {
+                return Err(Error::Input(format!(
+                    "{}: holds `{name}`, which is not a frame of an earlier video; give a new or empty folder",
+                    out.display()
+                )));
+            }
+        }
     }
-    images::save_gif(&rgb, 100, &out.join("video.gif"))?;
-    Ok(paths)
+    let tmp = maaf_io::temp_sibling(out);
+    if tmp.exists() {
+        std::fs::remove_dir_all(&tmp).map_err(|e| Error::io(&tmp, e))?;
+    }
+    std::fs::create_dir_all(&tmp).map_err(|e| Error::io(&tmp, e))?;
+    let settings = trainer.render_settings(trainer.iteration);
+    let written = (|| {
+        let mut rgb = Vec::with_capacity(frames);
+        for i in 0..frames {
+            let t = if frames == 1 {
+                t0
+            } else {
+                t0 + (t1 - t0) * i as f64 / (frames - 1) as f64
+            };
+            let img = images::to_rgb8(&render_image(trainer, camera, t, &settings))?;
+            images::save_png(&img, &tmp.join(format!("frame_{i:04}.png")))?;
+            rgb.push(img);
+        }
+        images::save_gif(&rgb, 100, &tmp.join("video.gif"))?;
+        maaf_io::replace_dir(&tmp, out).map_err(|e| Error::io(out, e))
+    })();
+    if let Err(e) = written {
+        let _ = std::fs::remove_dir_all(&tmp);
+        return Err(e);
+    }
+    Ok((0..frames)
+        .map(|i| out.join(format!("frame_{i:04}.png")))
+        .collect())
 }

@@ -144,8 +144,15 @@ impl EvalReport {
     pub fn read(run: &Path) -> Result<Self, Error> {
         let path = run.join("eval.json");
         let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
-        serde_json::from_str(&text)
-            .map_err(|e| Error::Input(format!("{}: not an eval.json: {e}", path.display())))
+        serde_json::from_str(&text).map_err(|e| {
+            // Older versions wrote a NaN metric as null; say so instead of a type error.
+            let hint = if e.to_string().contains("null") {
+                " (a null metric: the evaluated model rendered non-finite pixels; retrain and re-run `maaf eval`)"
+            } else {
+                ""
+            };
+            Error::Input(format!("{}: not an eval.json: {e}{hint}", path.display()))
+        })
     }
 }
 

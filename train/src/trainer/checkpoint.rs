@@ -102,8 +102,8 @@ pub fn save_checkpoint(trainer: &Trainer, dir: &Path) -> Result<(), Error> {
     }
     let written = (|| {
         std::fs::create_dir_all(&tmp)?;
-        std::fs::write(tmp.join("tensors.safetensors"), &blob)?;
-        std::fs::write(tmp.join("state.json"), &json)?;
+        maaf_io::write_atomic(&tmp.join("tensors.safetensors"), &blob)?;
+        maaf_io::write_atomic(&tmp.join("state.json"), &json)?;
         maaf_io::replace_dir(&tmp, dir)
     })();
     written.map_err(|e| {
@@ -134,6 +134,12 @@ fn read_state(dir: &Path) -> Result<State, Error> {
     let path = dir.join("state.json");
     let text = std::fs::read(&path).map_err(|e| Error::io(&path, e))?;
     serde_json::from_slice(&text).map_err(|e| Error::Input(format!("{}: {e}", path.display())))
+}
+
+/// The iteration a checkpoint folder holds (from its `state.json`), or an error
+/// naming the file when it is missing or malformed.
+pub fn checkpoint_iteration(dir: &Path) -> Result<usize, Error> {
+    read_state(dir).map(|s| s.iteration)
 }
 
 /// Restores a trainer of the built-in representation `config.model` names from a
@@ -177,6 +183,12 @@ impl Trainer {
                 tensor(&st, &format!("param/{name}"), &blob_path).map_err(|e| e.to_string())
             })
             .map_err(|e| Error::Input(format!("{}: {e}", blob_path.display())))?;
+        if let Some((name, index, value)) = self.first_non_finite_param() {
+            return Err(Error::Input(format!(
+                "{}: parameter `{name}` is {value} at flat index {index}: the run diverged, this model cannot be used",
+                blob_path.display()
+            )));
+        }
         let n = state.num_gaussians;
         if self.model.num_gaussians() != n {
             return Err(Error::Input(format!(

@@ -79,6 +79,11 @@ pub struct TrainConfig {
     pub val_views: usize,
     /// Scan every forward value and cotangent for NaN/Inf (slower; names the op).
     pub validate: bool,
+    /// Largest share of skipped (non-finite) steps a run may have before it is
+    /// stopped as diverged, in [0, 1].
+    pub max_skipped_fraction: f64,
+    /// Iterations before `max_skipped_fraction` applies (a few early skips are noise).
+    pub skip_grace: usize,
     /// The 4D representation: its kind (`"kind": "saro"`) and settings.
     pub model: ModelConfig,
     /// The 3D smoothing filter (kind and KDE parameters).
@@ -101,6 +106,8 @@ impl Default for TrainConfig {
             val_every: 500,
             val_views: 3,
             validate: false,
+            max_skipped_fraction: 0.05,
+            skip_grace: 20,
             model: ModelConfig::default(),
             filter: FilterConfig::default(),
             densify: DensifyConfig::default(),
@@ -108,12 +115,156 @@ impl Default for TrainConfig {
     }
 }
 
+/// Largest number of initial points or Gaussians a config may ask for (a CPU run
+/// beyond this would not fit in memory or time).
+pub const MAX_GAUSSIANS_CAP: usize = 10_000_000;
+
+/// One-line error for `field` = `value` outside `range`.
+fn bad(field: &str, value: &dyn std::fmt::Display, range: &str) -> Error {
+    Error::Input(format!("config: {field} = {value}: must be {range}"))
+}
+
+/// `Ok` if `v` is finite and in `lo..=hi`, else the error naming `field`.
+fn in_range(field: &str, v: f64, lo: f64, hi: f64) -> Result<(), Error> {
+    if v.is_finite() && (lo..=hi).contains(&v) {
+        Ok(())
+    } else {
+        Err(bad(field, &v, &format!("a number in [{lo}, {hi}]")))
+    }
+}
+
+/// `Ok` if `v` is in `lo..=hi`, else the error naming `field`.
+fn count(field: &str, v: usize, lo: usize, hi: usize) -> Result<(), Error> {
+    if (lo..=hi).contains(&v) {
+        Ok(())
+    } else {
+        let range = if hi == usize::MAX {
+            format!("an integer >= {lo}")
+        } else {
+            format!("an integer in {lo}..={hi}")
+        };
+        Err(bad(field, &v, &range))
+    }
+}
+
 impl TrainConfig {
-    /// Checks the model and filter settings, naming the field at fault.
+    /// Checks every setting before any work starts; the error is one line naming the
+    /// field, its value and the allowed range.
     pub fn validate(&self) -> Result<(), Error> {
-        self.model.validate().map_err(Error::Input)?;
+        count("iterations", self.iterations, 1, 100_000_000)?;
+        if !(self.train_scale.is_finite() && self.train_scale > 0.0 && self.train_scale <= 1.0) {
+            return Err(bad(
+                "train_scale",
+                &self.train_scale,
+                "in (0, 1] (a downsampling of the source images)",
+            ));
+        }
+        count("init_points", self.init_points, 1, MAX_GAUSSIANS_CAP)?;
+        in_range("lambda_dssim", self.lambda_dssim, 0.0, 1.0)?;
+        count("sh_degree_every", self.sh_degree_every, 1, usize::MAX)?;
+        count("checkpoint_every", self.checkpoint_every, 1, usize::MAX)?;
+        count("log_every", self.log_every, 1, usize::MAX)?;
+        if !self.val_every.is_multiple_of(self.log_every) {
+            return Err(bad(
+                "val_every",
+                &self.val_every,
+                &format!(
+                    "0 or a multiple of log_every = {} (validation goes on a log row)",
+                    self.log_every
+                ),
+            ));
+        }
+        if self.val_every > 0 {
+            count("val_views", self.val_views, 1, 10_000)?;
+        }
+        in_range("max_skipped_fraction", self.max_skipped_fraction, 0.0, 1.0)?;
+        let d = &self.densify;
+        if d.from > d.until {
+            return Err(bad(
+                "densify.from",
+                &d.from,
+                &format!("<= densify.until = {}", d.until),
+            ));
+        }
+        let positive = [
+            ("densify.grad_threshold", d.grad_threshold),
+            ("densify.percent_dense", d.percent_dense),
+            ("densify.max_screen_size", d.max_screen_size),
+        ];
+        for (field, v) in positive {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(bad(field, &v, "a finite number > 0"));
+            }
+        }
+        in_range("densify.min_opacity", d.min_opacity, 0.0, 1.0)?;
+        count(
+            "densify.max_gaussians",
+            d.max_gaussians,
+            self.init_points,
+            MAX_GAUSSIANS_CAP,
+        )
+        .map_err(|_| {
+            bad(
+                "densify.max_gaussians",
+                &d.max_gaussians,
+                &format!(
+                    "in init_points ({})..={MAX_GAUSSIANS_CAP}",
+                    self.init_points
+                ),
+            )
+        })?;
+        self.model
+            .validate()
+            .map_err(|e| Error::Input(format!("config: {e}")))?;
         self.filter
             .validate()
-            .map_err(|e| Error::Input(format!("filter config: {e}")))
+            .map_err(|e| Error::Input(format!("config: filter: {e}")))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Each bad value is refused with its field's name; the defaults pass.
+    #[test]
+    fn every_bad_setting_names_its_field() {
+        TrainConfig::default()
+            .validate()
+            .expect("defaults are valid");
+        type Change = Box<dyn Fn(&mut TrainConfig)>;
+        let cases: Vec<(&str, Change)> = vec![
+            ("iterations", Box::new(|c| c.iterations = 0)),
+            ("train_scale", Box::new(|c| c.train_scale = -1.0)),
+            ("train_scale", Box::new(|c| c.train_scale = f64::NAN)),
+            ("init_points", Box::new(|c| c.init_points = 0)),
+            ("lambda_dssim", Box::new(|c| c.lambda_dssim = 2.0)),
+            ("checkpoint_every", Box::new(|c| c.checkpoint_every = 0)),
+            ("log_every", Box::new(|c| c.log_every = 0)),
+            ("val_every", Box::new(|c| c.val_every = 150)),
+            (
+                "max_skipped_fraction",
+                Box::new(|c| c.max_skipped_fraction = 1.5),
+            ),
+            (
+                "densify.max_gaussians",
+                Box::new(|c| c.densify.max_gaussians = 0),
+            ),
+            ("densify.from", Box::new(|c| c.densify.from = 20_000)),
+            (
+                "densify.min_opacity",
+                Box::new(|c| c.densify.min_opacity = -0.1),
+            ),
+        ];
+        for (field, change) in cases {
+            let mut c = TrainConfig::default();
+            change(&mut c);
+            let msg = c.validate().expect_err(field).to_string();
+            assert!(
+                msg.starts_with(&format!("config: {field} = ")),
+                "{field}: {msg}"
+            );
+            assert!(!msg.contains('\n'), "{msg}");
+        }
     }
 }

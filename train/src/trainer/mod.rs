@@ -9,7 +9,9 @@
 mod checkpoint;
 mod config;
 mod densify;
+mod health;
 mod refresh;
+mod resume;
 mod run;
 mod step;
 mod timings;
@@ -22,9 +24,10 @@ use maaf_splat::Camera;
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 
-pub use checkpoint::{load_checkpoint, save_checkpoint};
+pub use checkpoint::{checkpoint_iteration, load_checkpoint, save_checkpoint};
 pub use config::{DensifyConfig, TrainConfig};
 pub use densify::{DensifyPlan, DensifyStats, plan as plan_densify};
+pub use resume::{checkpoints_newest_first, load_newest, repair_run_dir, truncate_log};
 pub use run::{RunSummary, checkpoint_dir, train_run, train_run_with};
 pub use timings::Timings;
 
@@ -55,6 +58,8 @@ pub struct Trainer {
     pub iteration: usize,
     /// Steps skipped because a value or gradient was not finite.
     pub skipped_steps: usize,
+    /// Why the last skipped step was skipped (the tape's message), if any was.
+    pub last_skip: Option<String>,
     /// Iteration of the last opacity reset (large-screen pruning starts after it).
     pub last_reset: Option<usize>,
     /// Wall time per phase.
@@ -178,6 +183,7 @@ impl Trainer {
             objective,
             iteration: 0,
             skipped_steps: 0,
+            last_skip: None,
             last_reset: None,
             timings: Timings::default(),
             op_profile: None,

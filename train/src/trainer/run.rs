@@ -1,5 +1,6 @@
 //! A whole training run in a run directory: `config.json`, `log.csv`, checkpoints
-//! under `checkpoints/`, the final model in `model/`, and `timings.json`.
+//! under `checkpoints/`, the final model in `model/`, and `summary.json`; resumable
+//! from the newest complete checkpoint (`resume.rs`).
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -7,7 +8,10 @@ use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 
-use super::{Timings, TrainConfig, Trainer, load_checkpoint, save_checkpoint};
+use super::{
+    Timings, TrainConfig, Trainer, load_checkpoint, load_newest, log_line, repair_run_dir,
+    save_checkpoint, truncate_log,
+};
 use crate::data::Dataset;
 use crate::{Error, write_atomic};
 
@@ -27,39 +31,62 @@ pub struct RunSummary {
 }
 
 /// Trains on `data` into `out` (created if needed) with the representation
-/// `config.model` describes, or continues the run in `out` from its `model/`
-/// checkpoint when `resume` is set (then only the iteration budget of `config`
-/// applies). Prints a progress bar on a terminal and a line every 10% otherwise.
+/// `config.model` describes. With `resume`, the run in `out` continues from its
+/// newest complete checkpoint (`checkpoints/iter_N` or `model/`, whatever stopped the
+/// run; the checkpoint's settings apply, except the iteration budget
+/// `config.iterations`), or starts over with `config` if it has none yet. A resumed
+/// run is bit-identical to an uninterrupted one with the same seed and thread count.
+/// Prints a progress bar on a terminal and a line every 10% otherwise.
 pub fn train_run(
     data: &Dataset,
     config: TrainConfig,
     out: &Path,
     resume: bool,
 ) -> Result<RunSummary, Error> {
-    let trainer = if resume {
-        let mut t = load_checkpoint(data, &out.join("model"))?;
-        // Only the iteration budget may change on resume.
-        t.config.iterations = config.iterations;
-        t
+    repair_run_dir(out)?;
+    let budget = config.iterations;
+    let found = if resume {
+        load_newest(out, |dir| load_checkpoint(data, dir))
     } else {
-        Trainer::new(data, config)?
+        None
+    };
+    let trainer = match found {
+        Some((mut t, dir)) => {
+            t.config.iterations = budget;
+            say_resumed(&t, &dir);
+            t
+        }
+        None => Trainer::new(data, config)?,
     };
     run_trainer(trainer, out, resume)
 }
 
 /// [`train_run`] for a trainer the caller built ([`Trainer::with_model`] for a
 /// representation of its own, custom terms pushed onto [`Trainer::objective`]): the
-/// library's run entry point for research code. With `resume`, the run in `out` is
-/// restored into `trainer` ([`Trainer::restore`]), which keeps its objective: build
-/// the trainer exactly as for the first session, so custom terms are re-supplied.
-/// Refuses a resume whose objective differs from the one `log.csv` was written with.
+/// library's run entry point for research code. With `resume`, the newest complete
+/// checkpoint of `out` is restored into `trainer` ([`Trainer::restore`]), which keeps
+/// its objective and its iteration budget: build the trainer exactly as for the first
+/// session, so custom terms are re-supplied. Refuses a resume whose objective differs
+/// from the one `log.csv` was written with.
 pub fn train_run_with(mut trainer: Trainer, out: &Path, resume: bool) -> Result<RunSummary, Error> {
+    repair_run_dir(out)?;
     if resume {
         let budget = trainer.config.iterations;
-        trainer.restore(&out.join("model"))?;
-        trainer.config.iterations = budget;
+        if let Some(((), dir)) = load_newest(out, |dir| trainer.restore(dir)) {
+            trainer.config.iterations = budget;
+            say_resumed(&trainer, &dir);
+        }
     }
     run_trainer(trainer, out, resume)
+}
+
+fn say_resumed(trainer: &Trainer, dir: &Path) {
+    log_line(&format!(
+        "resuming from {} (iteration {} of {})",
+        dir.display(),
+        trainer.iteration,
+        trainer.config.iterations
+    ));
 }
 
 /// The header of `log.csv` for `trainer`'s objective.
@@ -81,26 +108,15 @@ fn run_trainer(mut trainer: Trainer, out: &Path, resume: bool) -> Result<RunSumm
     write_atomic(&out.join("config.json"), &config_json)?;
     let log_path = out.join("log.csv");
     let header = log_header(&trainer);
-    let new_log = !resume || !log_path.exists();
-    if !new_log {
-        let text = std::fs::read_to_string(&log_path).map_err(|e| Error::io(&log_path, e))?;
-        let first = text.lines().next().unwrap_or("");
-        if first != header {
-            return Err(Error::Input(format!(
-                "{}: its columns `{first}` differ from this run's objective `{header}` (on resume, add the same custom terms as in the first session)",
-                log_path.display()
-            )));
-        }
+    if resume {
+        truncate_log(&log_path, &header, trainer.iteration)?;
+    } else {
+        write_atomic(&log_path, format!("{header}\n").as_bytes())?;
     }
     let mut log = std::fs::OpenOptions::new()
-        .create(true)
         .append(true)
         .open(&log_path)
         .map_err(|e| Error::io(&log_path, e))?;
-    if new_log {
-        log.write_all(format!("{header}\n").as_bytes())
-            .map_err(|e| Error::io(&log_path, e))?;
-    }
     let total = trainer.config.iterations;
     let bar = indicatif::ProgressBar::new(total as u64);
     bar.set_position(trainer.iteration as u64);
@@ -116,6 +132,7 @@ fn run_trainer(mut trainer: Trainer, out: &Path, resume: bool) -> Result<RunSumm
     let ckpt_every = trainer.config.checkpoint_every.max(1);
     while trainer.iteration < total {
         trainer.step();
+        trainer.check_health()?;
         let it = trainer.iteration;
         let loss = trainer
             .last_terms

@@ -129,6 +129,7 @@ impl Trainer {
                 // non-finite reaches the parameters (or a checkpoint); counted and logged.
                 self.skipped_steps += 1;
                 log_line(&format!("iteration {it}: step skipped: {e}"));
+                self.last_skip = Some(e);
             }
         }
         let t4 = Instant::now();

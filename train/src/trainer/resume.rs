@@ -1,0 +1,175 @@
+//! Continuing a run from whatever stopped it: the next start first repairs the run
+//! folder (a folder swap cut short is put back, temporaries are swept), then restores
+//! the newest complete checkpoint (`checkpoints/iter_N` or `model/`), and cuts
+//! `log.csv` back to that checkpoint's iteration so no row is logged twice.
+
+use std::path::{Path, PathBuf};
+
+use super::log_line;
+use crate::{Error, write_atomic};
+
+/// Repairs the run folder `out` after a kill: restores a parked `model/` or
+/// checkpoint (see [`maaf_io::recover_dir`]) and removes every leftover temporary in
+/// the run folder, `checkpoints/` and `eval/`. Returns how many temporaries it removed.
+pub fn repair_run_dir(out: &Path) -> Result<usize, Error> {
+    let checkpoints = out.join("checkpoints");
+    let mut targets = vec![out.join("model")];
+    targets.extend(checkpoint_dirs(&checkpoints));
+    for target in &targets {
+        maaf_io::recover_dir(target).map_err(|e| Error::io(target, e))?;
+    }
+    // Parked checkpoints are named after their target, which `checkpoint_dirs` cannot
+    // list while it is missing: recover those by their parked names.
+    for parked in parked_names(&checkpoints) {
+        let target = checkpoints.join(&parked);
+        maaf_io::recover_dir(&target).map_err(|e| Error::io(&target, e))?;
+    }
+    let mut removed = 0;
+    for dir in [out.to_path_buf(), checkpoints, out.join("eval")] {
+        removed += maaf_io::remove_stale_temps(&dir).map_err(|e| Error::io(&dir, e))?;
+    }
+    Ok(removed)
+}
+
+/// Target names of folders parked by an interrupted swap inside `dir`.
+fn parked_names(dir: &Path) -> Vec<String> {
+    let marker = format!(".old{}", maaf_io::TEMP_MARK);
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return Vec::new();
+    };
+    entries
+        .flatten()
+        .filter_map(|e| {
+            let name = e.file_name().to_string_lossy().into_owned();
+            let stem = name.strip_prefix('.')?;
+            stem.find(&marker).map(|i| stem[..i].to_string())
+        })
+        .collect()
+}
+
+/// The complete checkpoint folders `checkpoints/iter_N` (temporaries excluded).
+fn checkpoint_dirs(checkpoints: &Path) -> Vec<PathBuf> {
+    let Ok(entries) = std::fs::read_dir(checkpoints) else {
+        return Vec::new();
+    };
+    entries
+        .flatten()
+        .filter(|e| e.file_name().to_string_lossy().starts_with("iter_"))
+        .map(|e| e.path())
+        .filter(|p| p.is_dir())
+        .collect()
+}
+
+/// Every checkpoint of the run in `out` whose `state.json` reads, newest first (by
+/// iteration; `model/` before a checkpoint of the same iteration), with its iteration.
+pub fn checkpoints_newest_first(out: &Path) -> Vec<(PathBuf, usize)> {
+    let mut found: Vec<(PathBuf, usize, bool)> = Vec::new();
+    if let Some(model) = maaf_io::readable_dir(&out.join("model")) {
+        found.push((model, 0, true));
+    }
+    for dir in checkpoint_dirs(&out.join("checkpoints")) {
+        found.push((dir, 0, false));
+    }
+    let mut read: Vec<(PathBuf, usize, bool)> = found
+        .into_iter()
+        .filter_map(
+            |(dir, _, is_model)| match super::checkpoint_iteration(&dir) {
+                Ok(it) => Some((dir, it, is_model)),
+                Err(e) => {
+                    log_line(&format!("skipping an unreadable checkpoint: {e}"));
+                    None
+                }
+            },
+        )
+        .collect();
+    read.sort_by_key(|e| std::cmp::Reverse((e.1, e.2)));
+    read.into_iter().map(|(d, it, _)| (d, it)).collect()
+}
+
+/// Loads, with `load`, the newest checkpoint of `out` that loads, trying older ones
+/// when a newer one fails (each failure reported on one line). Returns what `load`
+/// gave and the folder used, or `None` when the run has no checkpoint yet (it then
+/// starts over).
+pub fn load_newest<T>(
+    out: &Path,
+    mut load: impl FnMut(&Path) -> Result<T, Error>,
+) -> Option<(T, PathBuf)> {
+    for (dir, _) in checkpoints_newest_first(out) {
+        match load(&dir) {
+            Ok(t) => return Some((t, dir)),
+            Err(e) => log_line(&format!("skipping a checkpoint that does not load: {e}")),
+        }
+    }
+    None
+}
+
+/// Rewrites `log.csv` (atomically) as `header` plus its rows up to `iteration`:
+/// rows a killed process logged after its last checkpoint and a torn last line go.
+/// Refuses a log whose header differs (a different objective).
+pub fn truncate_log(path: &Path, header: &str, iteration: usize) -> Result<(), Error> {
+    let text = match std::fs::read(path) {
+        Ok(bytes) => String::from_utf8_lossy(&bytes).into_owned(),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => String::new(),
+        Err(e) => return Err(Error::io(path, e)),
+    };
+    let mut lines = text.split_inclusive('\n');
+    if let Some(first) = lines.next()
+        && first.trim_end_matches('\n') != header
+    {
+        return Err(Error::Input(format!(
+            "{}: its columns `{}` differ from this run's objective `{header}` (on resume, add the same custom terms as in the first session)",
+            path.display(),
+            first.trim_end_matches('\n')
+        )));
+    }
+    let mut kept = format!("{header}\n");
+    // Only complete rows (ending with a newline) of iterations the checkpoint covers.
+    for line in lines.take_while(|l| {
+        let it = l.split(',').next().and_then(|v| v.parse::<usize>().ok());
+        l.ends_with('\n') && it.is_some_and(|it| it <= iteration)
+    }) {
+        kept.push_str(line);
+    }
+    write_atomic(path, kept.as_bytes())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_log_is_cut_back_to_the_checkpoint_and_a_torn_row_dropped() {
+        let dir = std::env::temp_dir().join(format!("maaf-log-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("dir");
+        let log = dir.join("log.csv");
+        let header = "iteration,l1,total";
+        std::fs::write(
+            &log,
+            "iteration,l1,total\n1,0.5,0.5\n2,0.4,0.4\n3,0.3,0.3\n4,0.2",
+        )
+        .expect("w");
+        truncate_log(&log, header, 2).expect("truncate");
+        assert_eq!(
+            std::fs::read_to_string(&log).expect("r"),
+            "iteration,l1,total\n1,0.5,0.5\n2,0.4,0.4\n"
+        );
+        std::fs::write(&log, "iteration,l1,total\n1,0.5,0.5\n2,0.4").expect("w");
+        truncate_log(&log, header, 9).expect("truncate");
+        assert_eq!(
+            std::fs::read_to_string(&log).expect("r"),
+            "iteration,l1,total\n1,0.5,0.5\n"
+        );
+        let err = truncate_log(&log, "iteration,l1,mine,total", 9).expect_err("other objective");
+        assert!(
+            err.to_string().contains("differ from this run's objective"),
+            "{err}"
+        );
+        std::fs::remove_file(&log).expect("rm");
+        truncate_log(&log, header, 0).expect("no log yet");
+        assert_eq!(
+            std::fs::read_to_string(&log).expect("r"),
+            "iteration,l1,total\n"
+        );
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
