@@ -2,7 +2,6 @@
 //! (self-adjoint, so the SSIM backward reuses it as its own transpose).
 
 use maaf_autodiff::Float;
-use rayon::prelude::*;
 
 /// Normalised 1D Gaussian taps `w_k = exp(-(k - r)^2 / (2 sigma^2)) / sum`,
 /// `k = 0..size`, `r = size / 2` (the 3DGS `gaussian(window_size, sigma)`; the same as
@@ -25,8 +24,6 @@ pub fn gaussian_taps(size: usize, sigma: f64) -> Vec<f64> {
 /// `out[i, j] = sum_{a, b} taps[a] taps[b] img[i + a - r, j + b - r]`, out-of-range
 /// samples read as 0 (weights are not renormalised at the border). Because `taps` is
 /// symmetric this linear map is self-adjoint, so it also computes its own transpose.
-/// Both passes run over rows on rayon; every output value is summed in the same tap
-/// order whatever the thread count.
 pub fn blur_same<T: Float>(img: &[T], h: usize, w: usize, c: usize, taps: &[T]) -> Vec<T> {
     assert_eq!(
         img.len(),
@@ -34,17 +31,15 @@ pub fn blur_same<T: Float>(img: &[T], h: usize, w: usize, c: usize, taps: &[T]) 
         "blur_same: {} values for [{h}, {w}, {c}]",
         img.len()
     );
-    if img.is_empty() {
-        return Vec::new();
-    }
     let r = taps.len() / 2;
     let row = w * c;
     // Horizontal pass, one tap at a time: for tap `k` (offset `k - r`), every output
     // pixel `j` whose source `j + k - r` is in range gets `taps[k] * src[j + k - r]`;
     // both ranges are contiguous in the interleaved row, so this is a plain axpy.
     let mut tmp = vec![T::zero(); img.len()];
-    tmp.par_chunks_mut(row).enumerate().for_each(|(i, dst)| {
+    for i in 0..h {
         let src = &img[i * row..(i + 1) * row];
+        let dst = &mut tmp[i * row..(i + 1) * row];
         for (k, &wt) in taps.iter().enumerate() {
             // Output pixels j in [j0, j1) read source pixels j + k - r in [0, w).
             let j0 = r.saturating_sub(k);
@@ -61,18 +56,19 @@ pub fn blur_same<T: Float>(img: &[T], h: usize, w: usize, c: usize, taps: &[T]) 
                 *d += wt * v;
             }
         }
-    });
+    }
     // Vertical pass: whole rows at a time, contiguous in memory.
     let mut out = vec![T::zero(); img.len()];
-    out.par_chunks_mut(row).enumerate().for_each(|(i, dst)| {
+    for i in 0..h {
         let lo = i.saturating_sub(r);
         let hi = (i + r).min(h - 1);
+        let dst = &mut out[i * row..(i + 1) * row];
         for ii in lo..=hi {
             let wt = taps[ii + r - i];
             for (d, &v) in dst.iter_mut().zip(&tmp[ii * row..(ii + 1) * row]) {
                 *d += wt * v;
             }
         }
-    });
+    }
     out
 }
