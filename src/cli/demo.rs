@@ -129,7 +129,9 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     ] {
         let run_dir = args.out.join("runs").join(label);
         let config = plan.config(iterations, kind, args.seed);
-        let resume = run_dir.join("model").exists();
+        // A started run (its config.json written) continues from its newest complete
+        // checkpoint, so an interrupted demo picks up where it stopped.
+        let resume = run_dir.join("config.json").exists();
         if resume {
             println!("demo: {label}: continuing the run in {}", run_dir.display());
         }

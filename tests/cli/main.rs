@@ -1,0 +1,10 @@
+//! The root crate's integration tests as one test binary (one link of the whole
+//! workspace instead of one per file): the CLI as a user runs it, and the end-to-end
+//! gradient check through the public API.
+
+mod bad_input;
+mod compare;
+mod e2e_gradcheck;
+mod export_eval;
+mod resume_faults;
+mod sweep;
