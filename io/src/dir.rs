@@ -78,10 +78,15 @@ fn old_sibling(target: &Path) -> PathBuf {
     parent_of(target).join(format!(".{name}.old{TEMP_MARK}{}", std::process::id()))
 }
 
+/// The marker between a parked folder's target name and the parking process id.
+fn parked_marker() -> String {
+    format!(".old{TEMP_MARK}")
+}
+
 /// A parked old version of `target` left by any process, if there is one.
 fn parked(target: &Path) -> Option<PathBuf> {
     let name = target.file_name()?.to_string_lossy().into_owned();
-    let prefix = format!(".{name}.old{TEMP_MARK}");
+    let prefix = format!(".{name}{}", parked_marker());
     fs::read_dir(parent_of(target))
         .ok()?
         .flatten()
@@ -113,18 +118,34 @@ pub fn recover_dir(target: &Path) -> io::Result<bool> {
     Ok(true)
 }
 
+/// [`recover_dir`] for every folder parked directly inside `dir` (whatever its
+/// target's name, which the caller may not know while the target is missing);
+/// returns how many it put back. Parked copies whose target exists are left for
+/// [`crate::remove_stale_temps`].
+pub fn recover_parked_in(dir: &Path) -> io::Result<usize> {
+    let Ok(entries) = fs::read_dir(dir) else {
+        return Ok(0);
+    };
+    let marker = parked_marker();
+    let mut restored = 0;
+    for entry in entries.flatten() {
+        let name = entry.file_name().to_string_lossy().into_owned();
+        let target = name
+            .strip_prefix('.')
+            .and_then(|stem| stem.find(&marker).map(|i| dir.join(&stem[..i])));
+        if let Some(target) = target {
+            restored += usize::from(recover_dir(&target)?);
+        }
+    }
+    Ok(restored)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::temp_sibling;
+    use crate::tests::scratch;
     use std::process::Command;
-
-    fn scratch(name: &str) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("maaf-io-{name}-{}", std::process::id()));
-        let _ = fs::remove_dir_all(&dir);
-        fs::create_dir_all(&dir).expect("scratch dir");
-        dir
-    }
 
     fn install(target: &Path, version: &str) -> io::Result<()> {
         let tmp = temp_sibling(target);
@@ -151,6 +172,10 @@ mod tests {
         assert_eq!(fs::read_to_string(target.join("a")).expect("read"), "v2");
         assert!(!recover_dir(&target).expect("nothing to do"));
         assert_eq!(readable_dir(&dir.join("absent")), None);
+        // The same death, recovered without knowing the target's name.
+        fs::rename(&target, &parked).expect("park");
+        assert_eq!(recover_parked_in(&dir).expect("recover all"), 1);
+        assert_eq!(fs::read_to_string(target.join("a")).expect("read"), "v2");
     }
 
     /// Child half of the kill test below: replaces `MAAF_IO_TARGET` with version v2

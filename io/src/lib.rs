@@ -22,7 +22,7 @@ use std::path::{Path, PathBuf};
 mod dir;
 pub mod fault;
 
-pub use dir::{readable_dir, recover_dir, replace_dir};
+pub use dir::{readable_dir, recover_dir, recover_parked_in, replace_dir};
 use fault::Step;
 
 /// Marker every temporary name contains (`.NAME.maaf-tmp-PID`).
@@ -122,10 +122,11 @@ pub fn remove_stale_temps(dir: &Path) -> io::Result<usize> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
-    fn scratch(name: &str) -> PathBuf {
+    /// A fresh, empty scratch folder for one test (named by test and process).
+    pub(crate) fn scratch(name: &str) -> PathBuf {
         let dir = std::env::temp_dir().join(format!("maaf-io-{name}-{}", std::process::id()));
         let _ = fs::remove_dir_all(&dir);
         fs::create_dir_all(&dir).expect("scratch dir");

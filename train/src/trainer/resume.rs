@@ -8,43 +8,20 @@ use std::path::{Path, PathBuf};
 use super::log_line;
 use crate::{Error, write_atomic};
 
-/// Repairs the run folder `out` after a kill: restores a parked `model/` or
-/// checkpoint (see [`maaf_io::recover_dir`]) and removes every leftover temporary in
-/// the run folder, `checkpoints/` and `eval/`. Returns how many temporaries it removed.
+/// Repairs the run folder `out` after a kill: puts back a parked `model/` or
+/// checkpoint ([`maaf_io::recover_parked_in`]) and removes every leftover temporary
+/// in the run folder, `checkpoints/` and `eval/`. Returns how many temporaries it
+/// removed.
 pub fn repair_run_dir(out: &Path) -> Result<usize, Error> {
     let checkpoints = out.join("checkpoints");
-    let mut targets = vec![out.join("model")];
-    targets.extend(checkpoint_dirs(&checkpoints));
-    for target in &targets {
-        maaf_io::recover_dir(target).map_err(|e| Error::io(target, e))?;
-    }
-    // Parked checkpoints are named after their target, which `checkpoint_dirs` cannot
-    // list while it is missing: recover those by their parked names.
-    for parked in parked_names(&checkpoints) {
-        let target = checkpoints.join(&parked);
-        maaf_io::recover_dir(&target).map_err(|e| Error::io(&target, e))?;
+    for dir in [out, checkpoints.as_path()] {
+        maaf_io::recover_parked_in(dir).map_err(|e| Error::io(dir, e))?;
     }
     let mut removed = 0;
     for dir in [out.to_path_buf(), checkpoints, out.join("eval")] {
         removed += maaf_io::remove_stale_temps(&dir).map_err(|e| Error::io(&dir, e))?;
     }
     Ok(removed)
-}
-
-/// Target names of folders parked by an interrupted swap inside `dir`.
-fn parked_names(dir: &Path) -> Vec<String> {
-    let marker = format!(".old{}", maaf_io::TEMP_MARK);
-    let Ok(entries) = std::fs::read_dir(dir) else {
-        return Vec::new();
-    };
-    entries
-        .flatten()
-        .filter_map(|e| {
-            let name = e.file_name().to_string_lossy().into_owned();
-            let stem = name.strip_prefix('.')?;
-            stem.find(&marker).map(|i| stem[..i].to_string())
-        })
-        .collect()
 }
 
 /// The complete checkpoint folders `checkpoints/iter_N` (temporaries excluded).
@@ -63,24 +40,18 @@ fn checkpoint_dirs(checkpoints: &Path) -> Vec<PathBuf> {
 /// Every checkpoint of the run in `out` whose `state.json` reads, newest first (by
 /// iteration; `model/` before a checkpoint of the same iteration), with its iteration.
 pub fn checkpoints_newest_first(out: &Path) -> Vec<(PathBuf, usize)> {
-    let mut found: Vec<(PathBuf, usize, bool)> = Vec::new();
-    if let Some(model) = maaf_io::readable_dir(&out.join("model")) {
-        found.push((model, 0, true));
-    }
-    for dir in checkpoint_dirs(&out.join("checkpoints")) {
-        found.push((dir, 0, false));
-    }
-    let mut read: Vec<(PathBuf, usize, bool)> = found
+    let model = maaf_io::readable_dir(&out.join("model")).map(|d| (d, true));
+    let checkpoints = checkpoint_dirs(&out.join("checkpoints")).into_iter();
+    let mut read: Vec<(PathBuf, usize, bool)> = model
         .into_iter()
-        .filter_map(
-            |(dir, _, is_model)| match super::checkpoint_iteration(&dir) {
-                Ok(it) => Some((dir, it, is_model)),
-                Err(e) => {
-                    log_line(&format!("skipping an unreadable checkpoint: {e}"));
-                    None
-                }
-            },
-        )
+        .chain(checkpoints.map(|d| (d, false)))
+        .filter_map(|(dir, is_model)| match super::checkpoint_iteration(&dir) {
+            Ok(it) => Some((dir, it, is_model)),
+            Err(e) => {
+                log_line(&format!("skipping an unreadable checkpoint: {e}"));
+                None
+            }
+        })
         .collect();
     read.sort_by_key(|e| std::cmp::Reverse((e.1, e.2)));
     read.into_iter().map(|(d, it, _)| (d, it)).collect()
