@@ -9,8 +9,7 @@ use anyhow::{Context, bail};
 use maaf_train::sweep::{Axis, Layout, points, shell_quote};
 use maaf_train::write_atomic;
 
-use super::BackgroundArg;
-use super::train::{FilterArg, TrainArgs, config_from};
+use super::train::{SettingsArgs, config_from};
 
 /// Arguments of `maaf sweep`.
 #[derive(clap::Args, Debug)]
@@ -28,36 +27,16 @@ pub struct SweepArgs {
     /// Extra arguments of `maaf eval` for every point (quoted as one string).
     #[arg(long, default_value = "", allow_hyphen_values = true)]
     pub eval_args: String,
-    /// Data folder, as for `maaf train`.
-    #[arg(long)]
-    pub data: PathBuf,
-    /// JSON file with the base TrainConfig (full or partial), as for `maaf train`.
-    #[arg(long)]
-    pub config: Option<PathBuf>,
-    /// 4D representation of the base config.
-    #[arg(long, value_parser = maaf_train::models::ModelConfig::KINDS)]
-    pub model: Option<String>,
-    /// 3D smoothing filter of the base config.
-    #[arg(long, value_enum)]
-    pub filter: Option<FilterArg>,
-    /// Training scale of the base config.
-    #[arg(long)]
-    pub train_scale: Option<f64>,
-    /// Iterations of the base config.
-    #[arg(long)]
-    pub iters: Option<usize>,
-    /// Seed of the base config.
-    #[arg(long)]
-    pub seed: Option<u64>,
-    /// Background the RGBA images are composited on.
-    #[arg(long, value_enum, default_value = "white")]
-    pub background: BackgroundArg,
+    /// The base run's data and settings, as for `maaf train`.
+    #[command(flatten)]
+    pub settings: SettingsArgs,
 }
 
 /// Writes the sweep and prints how to run it.
 pub fn run(args: &SweepArgs) -> anyhow::Result<()> {
-    if !args.data.is_dir() {
-        bail!("{}: not a data folder", args.data.display());
+    let settings = &args.settings;
+    if !settings.data.is_dir() {
+        bail!("{}: not a data folder", settings.data.display());
     }
     if args.out.exists() {
         bail!(
@@ -65,18 +44,7 @@ pub fn run(args: &SweepArgs) -> anyhow::Result<()> {
             args.out.display()
         );
     }
-    let base = config_from(&TrainArgs {
-        data: args.data.clone(),
-        out: None,
-        model: args.model.clone(),
-        filter: args.filter,
-        train_scale: args.train_scale,
-        iters: args.iters,
-        seed: args.seed,
-        config: args.config.clone(),
-        resume: None,
-        background: args.background,
-    })?;
+    let base = config_from(settings)?;
     let axes = args
         .grid
         .iter()
@@ -89,14 +57,14 @@ pub fn run(args: &SweepArgs) -> anyhow::Result<()> {
     };
     let pts = points(&base, &axes, layout)?;
     let exe = std::env::current_exe().context("cannot locate the maaf executable")?;
-    let data = std::path::absolute(&args.data)
-        .with_context(|| format!("{}: cannot resolve", args.data.display()))?;
+    let data = std::path::absolute(&settings.data)
+        .with_context(|| format!("{}: cannot resolve", settings.data.display()))?;
     std::fs::create_dir_all(args.out.join("configs"))
         .with_context(|| format!("{}: cannot create", args.out.display()))?;
     let out = std::path::absolute(&args.out)
         .with_context(|| format!("{}: cannot resolve", args.out.display()))?;
     let q = |p: &std::path::Path| shell_quote(&p.display().to_string());
-    let background = format!("{:?}", args.background).to_lowercase();
+    let background = format!("{:?}", settings.background).to_lowercase();
     let mut jobs = String::new();
     let mut runs = Vec::with_capacity(pts.len());
     for p in &pts {

@@ -15,12 +15,24 @@ use super::BackgroundArg;
 /// Arguments of `maaf train`.
 #[derive(clap::Args, Debug)]
 pub struct TrainArgs {
-    /// Data folder holding transforms_{train,val,test}.json.
-    #[arg(long)]
-    pub data: PathBuf,
     /// Run directory to create (config.json, log.csv, checkpoints/, model/).
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Continue the run in this directory from its newest complete checkpoint, with its
+    /// settings (only --iters may change the budget; absent, the run's is kept).
+    #[arg(long)]
+    pub resume: Option<PathBuf>,
+    /// What to train on and with which settings.
+    #[command(flatten)]
+    pub settings: SettingsArgs,
+}
+
+/// The data and training settings of a run (shared by `maaf train` and `maaf sweep`).
+#[derive(clap::Args, Debug)]
+pub struct SettingsArgs {
+    /// Data folder holding transforms_{train,val,test}.json.
+    #[arg(long)]
+    pub data: PathBuf,
     /// 4D representation (its settings: the `model` section of --config).
     #[arg(long, value_parser = ModelConfig::KINDS)]
     pub model: Option<String>,
@@ -39,10 +51,6 @@ pub struct TrainArgs {
     /// JSON file with a full or partial TrainConfig (flags override it).
     #[arg(long)]
     pub config: Option<PathBuf>,
-    /// Continue the run in this directory from its newest complete checkpoint, with its
-    /// settings (only --iters may change the budget; absent, the run's is kept).
-    #[arg(long)]
-    pub resume: Option<PathBuf>,
     /// Background the RGBA images are composited on.
     #[arg(long, value_enum, default_value = "white")]
     pub background: BackgroundArg,
@@ -70,7 +78,7 @@ impl From<FilterArg> for FilterKind {
 }
 
 /// Builds the configuration: defaults, then `--config`, then flags.
-pub fn config_from(args: &TrainArgs) -> anyhow::Result<TrainConfig> {
+pub fn config_from(args: &SettingsArgs) -> anyhow::Result<TrainConfig> {
     let mut config = match &args.config {
         Some(path) => {
             let text = std::fs::read_to_string(path)
@@ -105,7 +113,7 @@ pub fn config_from(args: &TrainArgs) -> anyhow::Result<TrainConfig> {
 /// `--iters` if given (said on stderr when it changes). Any other setting flag that
 /// differs from the run's is refused: a resumed run keeps its settings, so that it
 /// continues exactly as the first session would have.
-fn resumed_config(args: &TrainArgs, run: &Path) -> anyhow::Result<TrainConfig> {
+fn resumed_config(args: &SettingsArgs, run: &Path) -> anyhow::Result<TrainConfig> {
     let path = run.join("config.json");
     let text = std::fs::read_to_string(&path).map_err(|e| {
         anyhow::anyhow!(
@@ -165,10 +173,11 @@ fn resumed_config(args: &TrainArgs, run: &Path) -> anyhow::Result<TrainConfig> {
 
 /// Runs `maaf train`.
 pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
-    if args.data.to_str().is_none() {
+    let settings = &args.settings;
+    if settings.data.to_str().is_none() {
         bail!(
             "--data {}: the folder name is not valid UTF-8, which RUN/data.json cannot record; rename it",
-            args.data.display()
+            settings.data.display()
         );
     }
     let out = match (&args.out, &args.resume) {
@@ -182,7 +191,7 @@ pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
         (None, None) => bail!("--out RUN is required (or --resume RUN)"),
     };
     let config = match &args.resume {
-        Some(run) => resumed_config(args, run)?,
+        Some(run) => resumed_config(settings, run)?,
         None => {
             if ["config.json", "log.csv", "checkpoints", "model"]
                 .iter()
@@ -194,13 +203,13 @@ pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
                     out.display()
                 );
             }
-            config_from(args)?
+            config_from(settings)?
         }
     };
     let data = Dataset::open(
-        &args.data,
+        &settings.data,
         DatasetOptions {
-            background: args.background.rgb(),
+            background: settings.background.rgb(),
         },
     )?;
     let summary = train_run(&data, config, &out, args.resume.is_some())?;
