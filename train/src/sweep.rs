@@ -137,18 +137,12 @@ pub fn points(base: &TrainConfig, axes: &[Axis], layout: Layout) -> Result<Vec<P
     }
     let override_sets: Vec<Vec<(String, Value)>> = match layout {
         Layout::OneAtATime => {
-            let mut sets = vec![Vec::new()];
-            for axis in axes {
-                for v in &axis.values {
-                    let set = vec![(axis.key.clone(), v.clone())];
-                    // A value that gives the base config is the base point (this
-                    // compares settings, so 0.3 matches the f32 0.3 of the base).
-                    if apply(base, &set)? != *base {
-                        sets.push(set);
-                    }
-                }
-            }
-            sets
+            let single = axes.iter().flat_map(|axis| {
+                axis.values
+                    .iter()
+                    .map(|v| vec![(axis.key.clone(), v.clone())])
+            });
+            std::iter::once(Vec::new()).chain(single).collect()
         }
         Layout::Cross => axes.iter().fold(vec![Vec::new()], |sets, axis| {
             sets.iter()
@@ -165,6 +159,11 @@ pub fn points(base: &TrainConfig, axes: &[Axis], layout: Layout) -> Result<Vec<P
     let mut out: Vec<Point> = Vec::with_capacity(override_sets.len());
     for overrides in override_sets {
         let config = apply(base, &overrides)?;
+        // One axis at a time: a value that gives the base config is the base point
+        // (settings are compared, so 0.3 matches the f32 0.3 of the base).
+        if layout == Layout::OneAtATime && !overrides.is_empty() && config == *base {
+            continue;
+        }
         let name = point_name(&overrides);
         if out.iter().any(|p| p.name == name) {
             return Err(Error::Input(format!("--grid: point {name} appears twice")));
