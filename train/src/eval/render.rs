@@ -219,16 +219,17 @@ pub fn render_video(
     }
     std::fs::create_dir_all(&tmp).map_err(|e| Error::io(&tmp, e))?;
     let settings = trainer.render_settings(trainer.iteration);
+    let names: Vec<String> = (0..frames).map(|i| format!("frame_{i:04}.png")).collect();
     let written = (|| {
         let mut rgb = Vec::with_capacity(frames);
-        for i in 0..frames {
+        for (i, name) in names.iter().enumerate() {
             let t = if frames == 1 {
                 t0
             } else {
                 t0 + (t1 - t0) * i as f64 / (frames - 1) as f64
             };
             let img = images::to_rgb8(&render_image(trainer, camera, t, &settings))?;
-            images::save_png(&img, &tmp.join(format!("frame_{i:04}.png")))?;
+            images::save_png(&img, &tmp.join(name))?;
             rgb.push(img);
         }
         images::save_gif(&rgb, 100, &tmp.join("video.gif"))?;
@@ -238,7 +239,5 @@ pub fn render_video(
         let _ = std::fs::remove_dir_all(&tmp);
         return Err(e);
     }
-    Ok((0..frames)
-        .map(|i| out.join(format!("frame_{i:04}.png")))
-        .collect())
+    Ok(names.iter().map(|name| out.join(name)).collect())
 }
