@@ -7,6 +7,8 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+use super::support::{s, tiny_scene};
+
 struct Fixture {
     root: PathBuf,
     data: PathBuf,
@@ -16,10 +18,6 @@ impl Drop for Fixture {
     fn drop(&mut self) {
         let _ = std::fs::remove_dir_all(&self.root);
     }
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf8 path")
 }
 
 fn maaf(args: &[&str]) -> Output {
@@ -56,17 +54,7 @@ fn fixture(name: &str) -> Fixture {
     let _ = std::fs::remove_dir_all(&root);
     std::fs::create_dir_all(&root).expect("temp dir");
     let data = root.join("data");
-    succeeded(maaf(&[
-        "generate",
-        "--out",
-        s(&data),
-        "--size",
-        "64",
-        "--frames",
-        "4",
-        "--samples",
-        "1",
-    ]));
+    tiny_scene(&data);
     Fixture { root, data }
 }
 

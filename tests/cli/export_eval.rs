@@ -3,18 +3,12 @@
 //! renders to the same PNG as the run at that time, and eval without LPIPS weights
 //! writes null plus the reason and still fills the temporal fields.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 
 use maaf::train::data::{Dataset, DatasetOptions, Split};
 
-struct TempDir(PathBuf);
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
+use super::support::{TempDir, s, tiny_scene};
 
 fn maaf(args: &[&str], env: Option<(&str, &str)>) -> Output {
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_maaf"));
@@ -31,29 +25,11 @@ fn maaf(args: &[&str], env: Option<(&str, &str)>) -> Output {
     out
 }
 
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf8 path")
-}
-
 #[test]
 fn exported_frame_renders_as_the_run_and_eval_survives_missing_weights() {
-    let tmp = TempDir(std::env::temp_dir().join(format!("maaf_cli_export_{}", std::process::id())));
-    std::fs::create_dir_all(&tmp.0).expect("temp dir");
+    let tmp = TempDir::fresh("cli_export");
     let (data, run) = (tmp.0.join("data"), tmp.0.join("run"));
-    maaf(
-        &[
-            "generate",
-            "--out",
-            s(&data),
-            "--size",
-            "64",
-            "--frames",
-            "4",
-            "--samples",
-            "1",
-        ],
-        None,
-    );
+    tiny_scene(&data);
     maaf(
         &[
             "train",

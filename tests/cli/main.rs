@@ -7,4 +7,5 @@ mod compare;
 mod e2e_gradcheck;
 mod export_eval;
 mod resume_faults;
+mod support;
 mod sweep;

@@ -10,17 +10,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::time::Duration;
 
-struct TempDir(PathBuf);
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf8 path")
-}
+use super::support::{TempDir, s, tiny_scene};
 
 fn maaf(args: &[&str], env: &[(&str, String)]) -> Output {
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_maaf"));
@@ -58,31 +48,14 @@ struct Scene {
 }
 
 fn scene(name: &str) -> Scene {
-    let root = std::env::temp_dir().join(format!("maaf_faults_{name}_{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&root);
-    std::fs::create_dir_all(&root).expect("temp dir");
+    let tmp = TempDir::fresh(&format!("faults_{name}"));
+    let root = tmp.0.clone();
     let data = root.join("data");
-    ok(
-        maaf(
-            &[
-                "generate",
-                "--out",
-                s(&data),
-                "--size",
-                "64",
-                "--frames",
-                "4",
-                "--samples",
-                "1",
-            ],
-            &[],
-        ),
-        "generate",
-    );
+    tiny_scene(&data);
     let config = root.join("config.json");
     std::fs::write(&config, CONFIG).expect("config");
     Scene {
-        _tmp: TempDir(root.clone()),
+        _tmp: tmp,
         root,
         data,
         config,

@@ -2,16 +2,9 @@
 //! one config per point and one shell line per point; two of the lines are run as
 //! written (train + eval), and the report script reports exactly the evaluated points.
 
-use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-struct TempDir(PathBuf);
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
+use super::support::{TempDir, s};
 
 fn run(cmd: &mut Command) -> Output {
     let out = cmd.output().expect("spawn");
@@ -28,14 +21,9 @@ fn maaf() -> Command {
     Command::new(env!("CARGO_BIN_EXE_maaf"))
 }
 
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf8 path")
-}
-
 #[test]
 fn sweep_writes_configs_and_runnable_job_lines() {
-    let tmp = TempDir(std::env::temp_dir().join(format!("maaf_cli_sweep_{}", std::process::id())));
-    std::fs::create_dir_all(&tmp.0).expect("temp dir");
+    let tmp = TempDir::fresh("cli_sweep");
     let (data, sweep) = (tmp.0.join("data"), tmp.0.join("sweep"));
     run(maaf()
         .args([
