@@ -2,7 +2,8 @@
 //!
 //! - `mlp`: the residual-MLP shape of the trainer, `[41] -> width -> width -> 16`
 //!   (41 = 32 plane channels + 9 time-encoding inputs), at N = 10k, 30k and 60k rows
-//!   and width 64 and 128. The input is a gradient-carrying leaf (as the field
+//!   and width 64 and 128, as one fused op (`fused`, what the trainer runs) and as one
+//!   dense op per layer (`layered`), so one run gives their ratio. The input is a gradient-carrying leaf (as the field
 //!   features are in training), so the backward runs all three products of every
 //!   layer: FLOPs = 3 x 2 N sum(in x out).
 //! - `gemm_peak`: the best rate of the GEMM behind `Float::gemm` at 2048^3, the
@@ -16,13 +17,28 @@
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use maaf_autodiff::check::tests_support::random_tensor;
-use maaf_autodiff::nn::Mlp;
-use maaf_autodiff::{Float, Tape, Tensor};
+use maaf_autodiff::nn::{Mlp, MlpVars};
+use maaf_autodiff::ops::dense::Activation;
+use maaf_autodiff::{Float, Tape, Tensor, Var};
 
 /// Inputs of the trainer's motion/rotation/SH MLPs with the default config.
 const INPUTS: usize = 41;
 /// A middle output width (the trainer's heads have 3, 7 and 48 outputs).
 const OUTPUTS: usize = 16;
+
+/// The network as one dense op per layer (what `MlpVars::forward` did before the
+/// fused op): the baseline of the `layered` rows.
+fn layered<'t>(net: &MlpVars<'t, f32>, x: Var<'t, f32>) -> Var<'t, f32> {
+    let last = net.layers.len() - 1;
+    net.layers.iter().enumerate().fold(x, |h, (i, l)| {
+        let act = if i < last {
+            Activation::Relu
+        } else {
+            Activation::Identity
+        };
+        l.forward_act(h, act)
+    })
+}
 
 fn mlp(c: &mut Criterion) {
     let mut group = c.benchmark_group("mlp");
@@ -34,16 +50,23 @@ fn mlp(c: &mut Criterion) {
             let x: Tensor<f32> = random_tensor(&[rows, INPUTS], -1.0, 1.0, 4);
             let macs: usize = widths.windows(2).map(|w| w[0] * w[1]).sum();
             group.throughput(Throughput::Elements((3 * 2 * rows * macs) as u64));
-            group.bench_function(format!("fwd+bwd N={rows} width={width}"), |bench| {
-                bench.iter(|| {
-                    let tape = Tape::new();
-                    let bound = net.bind(&tape, "mlp");
-                    let input = tape.var(x.clone());
-                    let loss = bound.forward(input).square().mean();
-                    let grads = tape.backward(loss).expect("finite");
-                    std::hint::black_box(grads.wrt(input).map(|g| g.data()[0]))
-                })
-            });
+            for fused in [false, true] {
+                let how = if fused { "fused" } else { "layered" };
+                group.bench_function(format!("fwd+bwd N={rows} width={width} {how}"), |bench| {
+                    bench.iter(|| {
+                        let tape = Tape::new();
+                        let bound = net.bind(&tape, "mlp");
+                        let input = tape.var(x.clone());
+                        let y = if fused {
+                            bound.forward(input)
+                        } else {
+                            layered(&bound, input)
+                        };
+                        let grads = tape.backward(y.square().mean()).expect("finite");
+                        std::hint::black_box(grads.wrt(input).map(|g| g.data()[0]))
+                    })
+                });
+            }
         }
     }
     group.finish();

@@ -152,17 +152,11 @@ pub struct MlpVars<'t, T: Float> {
 
 impl<'t, T: Float> MlpVars<'t, T> {
     /// Runs the network on `x` [rows, in]: `h_{i+1} = relu(h_i W_i + b_i)` for the
-    /// hidden layers and `h_i W_i + b_i` for the last, each layer one fused [`crate::ops::dense::Dense`] op.
+    /// hidden layers and `h_i W_i + b_i` for the last, as one fused
+    /// [`crate::ops::mlp::FusedMlp`] op (bit-identical to one dense op per layer).
     pub fn forward(&self, x: Var<'t, T>) -> Var<'t, T> {
-        let last = self.layers.len() - 1;
-        self.layers.iter().enumerate().fold(x, |h, (i, l)| {
-            let act = if i < last {
-                Activation::Relu
-            } else {
-                Activation::Identity
-            };
-            l.forward_act(h, act)
-        })
+        let layers: Vec<_> = self.layers.iter().map(|l| (l.weight, l.bias)).collect();
+        x.mlp(&layers)
     }
 }
 

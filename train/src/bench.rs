@@ -207,7 +207,7 @@ pub fn bench_step(
         let (f, b) = profile.seconds_where(pick);
         (per(f), per(b))
     };
-    let is_mlp = |op: &str| op.starts_with("dense") || op == "matmul";
+    let is_mlp = |op: &str| op.starts_with("dense") || op == "matmul" || op == "mlp";
     let is_render = |op: &str| {
         [
             "quat_scale_to_cov",
@@ -242,7 +242,7 @@ pub fn bench_step(
         step_ms,
         rows: vec![
             row(
-                "MLPs (dense, matmul)",
+                "MLPs (mlp, dense, matmul)",
                 mlp_f,
                 mlp_b,
                 Some(3.0 * fwd_flops),

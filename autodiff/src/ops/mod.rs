@@ -4,6 +4,7 @@
 pub mod binary;
 pub mod dense;
 pub mod matmul;
+pub mod mlp;
 pub mod reduce;
 pub mod shape;
 pub mod unary;
