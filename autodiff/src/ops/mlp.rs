@@ -10,6 +10,12 @@
 //! that chain and do not depend on the number of threads. The forward keeps the hidden
 //! activations (post-ReLU) for the backward, whose ReLU masks are `a > 0`.
 //!
+//! Rows whose output cotangent is exactly zero (in training: Gaussians that reach no
+//! pixel of the view, about a third of them on a D-NeRF view) contribute nothing to
+//! any gradient, so the backward leaves them out of its products (their `dx` rows are
+//! zero). With such rows the sums are the same terms in a different grouping, so the
+//! results equal the chain's up to float rounding; without them, bit for bit.
+//!
 //! [`Dense`]: super::dense::Dense
 
 use rayon::prelude::*;
@@ -79,7 +85,11 @@ fn map_items<I: Send, R: Send>(
             .map(|(i, x)| f(i, x))
             .collect()
     } else {
-        items.into_iter().enumerate().map(|(i, x)| f(i, x)).collect()
+        items
+            .into_iter()
+            .enumerate()
+            .map(|(i, x)| f(i, x))
+            .collect()
     }
 }
 
@@ -162,21 +172,20 @@ impl<T: Float> Op<T> for FusedMlp {
         let need = c.needs_grad;
         let g = c.grad_outputs[0].data();
         let hidden = &c.saved.hidden;
-        let block = |i: usize, dx: &mut [T]| -> Vec<T> {
-            let start = i * ROW_BLOCK;
-            let rows = ROW_BLOCK.min(m - start);
-            let hb = &hidden[start * hidden_w..(start + rows) * hidden_w];
+        // One block's rows: x rows `xb`, hidden activations `hb` (layer after layer),
+        // cotangent `gb`; writes dx rows into `dx`, returns the partial dW and db.
+        let rows_backward = |rows: usize, xb: &[T], hb: &[T], gb: &[T], dx: &mut [T]| -> Vec<T> {
             // Layer l's input activations in this block (x for the first layer).
             let input = |l: usize| -> &[T] {
                 if l == 0 {
-                    &x.data()[start * n0..(start + rows) * n0]
+                    xb
                 } else {
                     let off: usize = rows * n[1..l].iter().sum::<usize>();
                     &hb[off..off + rows * n[l]]
                 }
             };
             let mut part = vec![T::zero(); len];
-            let mut gl = g[start * out_w..(start + rows) * out_w].to_vec();
+            let mut gl = gb.to_vec();
             let mut below = Vec::new();
             for l in (0..layers).rev() {
                 let (k, nl) = (n[l], n[l + 1]);
@@ -225,6 +234,45 @@ impl<T: Float> Op<T> for FusedMlp {
                     *v = if act > T::zero() { *v } else { T::zero() };
                 });
                 std::mem::swap(&mut gl, &mut below);
+            }
+            part
+        };
+        // Rows whose cotangent is zero (a Gaussian that reaches no pixel) add exactly
+        // nothing to any gradient: they are left out of the block's products.
+        let block = |i: usize, dx: &mut [T]| -> Vec<T> {
+            let start = i * ROW_BLOCK;
+            let rows = ROW_BLOCK.min(m - start);
+            let xb = &x.data()[start * n0..(start + rows) * n0];
+            let hb = &hidden[start * hidden_w..(start + rows) * hidden_w];
+            let gb = &g[start * out_w..(start + rows) * out_w];
+            let keep: Vec<usize> = if out_w == 0 {
+                Vec::new()
+            } else {
+                let live = |r: &[T]| r.iter().any(|&v| v != T::zero());
+                (0..rows)
+                    .filter(|&r| live(&gb[r * out_w..(r + 1) * out_w]))
+                    .collect()
+            };
+            if keep.len() == rows {
+                return rows_backward(rows, xb, hb, gb, dx);
+            }
+            let take = |src: &[T], w: usize| -> Vec<T> {
+                keep.iter()
+                    .flat_map(|&r| src[r * w..(r + 1) * w].iter().copied())
+                    .collect()
+            };
+            let mut hk = Vec::with_capacity(keep.len() * hidden_w);
+            let mut off = 0;
+            for &w in &n[1..layers] {
+                hk.extend(take(&hb[off..off + rows * w], w));
+                off += rows * w;
+            }
+            let mut dxk = vec![T::zero(); if need[0] { keep.len() * n0 } else { 0 }];
+            let part = rows_backward(keep.len(), &take(xb, n0), &hk, &take(gb, out_w), &mut dxk);
+            if need[0] {
+                for (j, &r) in keep.iter().enumerate() {
+                    dx[r * n0..(r + 1) * n0].copy_from_slice(&dxk[j * n0..(j + 1) * n0]);
+                }
             }
             part
         };
@@ -298,8 +346,16 @@ mod tests {
         // Both hidden layers must cut some entries and pass others.
         let t = Tape::new();
         let x = t.constant(v[0].clone());
-        let h1 = x.dense(t.constant(v[1].clone()), t.constant(v[2].clone()), Activation::Relu);
-        let h2 = h1.dense(t.constant(v[3].clone()), t.constant(v[4].clone()), Activation::Relu);
+        let h1 = x.dense(
+            t.constant(v[1].clone()),
+            t.constant(v[2].clone()),
+            Activation::Relu,
+        );
+        let h2 = h1.dense(
+            t.constant(v[3].clone()),
+            t.constant(v[4].clone()),
+            Activation::Relu,
+        );
         for h in [h1, h2] {
             let h = h.value();
             assert!(h.data().contains(&0.0) && h.data().iter().any(|&a| a > 0.0));
@@ -317,7 +373,11 @@ mod tests {
     /// for `x` constant and variable, under a pool of `threads` threads.
     ///
     /// [`Dense`]: crate::ops::dense::Dense
-    fn fused_and_chain(threads: usize, v: &[Tensor<f32>]) -> [Vec<Vec<f32>>; 2] {
+    fn fused_and_chain(
+        threads: usize,
+        v: &[Tensor<f32>],
+        rows: Option<&Tensor<f32>>,
+    ) -> [Vec<Vec<f32>>; 2] {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()
@@ -347,7 +407,12 @@ mod tests {
                             h.dense(w, b, act)
                         })
                     };
-                    let grads = t.backward(y.square().sum()).expect("finite");
+                    // `rows` [m, 1] scales each output row: a zero row has a zero cotangent.
+                    let loss = match rows {
+                        Some(r) => (y * t.constant(r.clone())).square().sum(),
+                        None => y.square().sum(),
+                    };
+                    let grads = t.backward(loss).expect("finite");
                     out.push(y.value().data().to_vec());
                     for p in &params {
                         out.push(grads.wrt(*p).expect("parameter gradient").data().to_vec());
@@ -370,17 +435,69 @@ mod tests {
             .iter()
             .map(Tensor::cast)
             .collect();
-        let [fused, chain] = fused_and_chain(1, &v);
+        let [fused, chain] = fused_and_chain(1, &v, None);
         assert_eq!(fused, chain);
-        assert_eq!(fused_and_chain(2, &v)[0], fused);
-        assert_eq!(fused_and_chain(3, &v)[0], fused);
+        assert_eq!(fused_and_chain(2, &v, None)[0], fused);
+        assert_eq!(fused_and_chain(3, &v, None)[0], fused);
+    }
+
+    /// Every third row, and all of the middle block, with a zero cotangent.
+    fn some_dead_rows(m: usize) -> Tensor<f32> {
+        let dead = |r: usize| r % 3 == 0 || (ROW_BLOCK..2 * ROW_BLOCK).contains(&r);
+        let v = (0..m).map(|r| if dead(r) { 0.0 } else { 1.0 }).collect();
+        Tensor::from_vec(v, &[m, 1])
+    }
+
+    #[test]
+    fn rows_with_a_zero_cotangent_are_skipped_without_changing_the_gradients() {
+        let m = 3 * ROW_BLOCK + 37;
+        let v: Vec<Tensor<f32>> = inputs(m, &[24, 32, 16, 3], 23)
+            .iter()
+            .map(Tensor::cast)
+            .collect();
+        let mask = some_dead_rows(m);
+        let [fused, chain] = fused_and_chain(1, &v, Some(&mask));
+        assert_eq!(fused.len(), chain.len());
+        for (k, (f, c)) in fused.iter().zip(&chain).enumerate() {
+            let scale = c.iter().fold(1.0f32, |a, &b| a.max(b.abs()));
+            for (i, (&a, &b)) in f.iter().zip(c).enumerate() {
+                assert!(
+                    (a - b).abs() <= 2e-6 * scale,
+                    "output {k} at {i}: {a} vs {b}"
+                );
+            }
+        }
+        // The skipped rows' dx is exactly zero; the result is thread-count independent.
+        let dx = fused.last().expect("dx");
+        assert!(
+            (0..m)
+                .filter(|r| r % 3 == 0)
+                .all(|r| dx[r * 24..(r + 1) * 24].iter().all(|&d| d == 0.0))
+        );
+        assert_eq!(fused_and_chain(3, &v, Some(&mask))[0], fused);
+    }
+
+    #[test]
+    fn passes_gradcheck_in_f64_with_rows_of_zero_cotangent() {
+        let v = inputs(9, &[4, 6, 5, 3], 13);
+        let keep = Tensor::from_vec((0..9).map(|r| f64::from(r % 2 == 1)).collect(), &[9, 1]);
+        let report = gradcheck(
+            |t, x| {
+                (x[0].mlp(&pairs(x)) * t.constant(keep.clone()))
+                    .square()
+                    .sum()
+            },
+            &v,
+            &GradcheckConfig::default(),
+        );
+        report.assert_passed();
     }
 
     #[test]
     fn one_layer_and_empty_shapes() {
         for (m, widths) in [(5, vec![3, 2]), (0, vec![3, 4, 2]), (4, vec![0, 3, 2])] {
             let v: Vec<Tensor<f32>> = inputs(m, &widths, 3).iter().map(Tensor::cast).collect();
-            let [fused, chain] = fused_and_chain(1, &v);
+            let [fused, chain] = fused_and_chain(1, &v, None);
             assert_eq!(fused, chain, "{m} rows, widths {widths:?}");
         }
     }
@@ -401,7 +518,10 @@ mod tests {
                 let hidden = saved.hidden.iter().map(|a| a.abs() + 1.0).collect();
                 (y, MlpSaved { hidden })
             }
-            fn backward(&self, c: &BackwardCtx<'_, f64, MlpSaved<f64>>) -> Vec<Option<Tensor<f64>>> {
+            fn backward(
+                &self,
+                c: &BackwardCtx<'_, f64, MlpSaved<f64>>,
+            ) -> Vec<Option<Tensor<f64>>> {
                 FusedMlp.backward(c)
             }
         }

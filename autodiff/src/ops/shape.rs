@@ -137,14 +137,16 @@ impl<T: Float> Op<T> for Concat {
         (vec![Tensor::from_vec(data, &shape)], ())
     }
     fn backward(&self, c: &BackwardCtx<'_, T, ()>) -> Vec<Option<Tensor<T>>> {
+        // Inputs that need no gradient (a constant time encoding) are not sliced.
         let mut start = 0;
         c.inputs
             .iter()
-            .map(|x| {
+            .zip(c.needs_grad)
+            .map(|(x, &need)| {
                 let len = x.shape()[self.0];
-                let g = slice(&c.grad_outputs[0], self.0, start, start + len);
+                let g = need.then(|| slice(&c.grad_outputs[0], self.0, start, start + len));
                 start += len;
-                Some(g)
+                g
             })
             .collect()
     }
