@@ -281,7 +281,7 @@ impl<T: Float> Op<T> for FusedMlp {
         let parts = map_items(
             block_slices(&mut dx, per_row, m),
             m * macs >= PARALLEL_MIN_MACS,
-            |i, d| block(i, d),
+            block,
         );
         let total = parts.into_iter().reduce(|mut acc, p| {
             acc.iter_mut().zip(&p).for_each(|(a, &b)| *a += b);
