@@ -79,7 +79,11 @@ fn map_items<I: Send, R: Send>(
             .map(|(i, x)| f(i, x))
             .collect()
     } else {
-        items.into_iter().enumerate().map(|(i, x)| f(i, x)).collect()
+        items
+            .into_iter()
+            .enumerate()
+            .map(|(i, x)| f(i, x))
+            .collect()
     }
 }
 
@@ -233,7 +237,7 @@ impl<T: Float> Op<T> for FusedMlp {
         let parts = map_items(
             block_slices(&mut dx, per_row, m),
             m * macs >= PARALLEL_MIN_MACS,
-            |i, d| block(i, d),
+            block,
         );
         let total = parts.into_iter().reduce(|mut acc, p| {
             acc.iter_mut().zip(&p).for_each(|(a, &b)| *a += b);
@@ -298,8 +302,16 @@ mod tests {
         // Both hidden layers must cut some entries and pass others.
         let t = Tape::new();
         let x = t.constant(v[0].clone());
-        let h1 = x.dense(t.constant(v[1].clone()), t.constant(v[2].clone()), Activation::Relu);
-        let h2 = h1.dense(t.constant(v[3].clone()), t.constant(v[4].clone()), Activation::Relu);
+        let h1 = x.dense(
+            t.constant(v[1].clone()),
+            t.constant(v[2].clone()),
+            Activation::Relu,
+        );
+        let h2 = h1.dense(
+            t.constant(v[3].clone()),
+            t.constant(v[4].clone()),
+            Activation::Relu,
+        );
         for h in [h1, h2] {
             let h = h.value();
             assert!(h.data().contains(&0.0) && h.data().iter().any(|&a| a > 0.0));
@@ -401,7 +413,10 @@ mod tests {
                 let hidden = saved.hidden.iter().map(|a| a.abs() + 1.0).collect();
                 (y, MlpSaved { hidden })
             }
-            fn backward(&self, c: &BackwardCtx<'_, f64, MlpSaved<f64>>) -> Vec<Option<Tensor<f64>>> {
+            fn backward(
+                &self,
+                c: &BackwardCtx<'_, f64, MlpSaved<f64>>,
+            ) -> Vec<Option<Tensor<f64>>> {
                 FusedMlp.backward(c)
             }
         }
