@@ -94,6 +94,9 @@ pub fn depth_changes(camera: &Camera, now: &Tensor<f32>, next: &Tensor<f32>) -> 
 /// [`crate::forward::gaussians_at`] returns them, the same rows in the same order),
 /// seen from `camera` with the colour render's `settings` (2D filter, near plane,
 /// cutoff).
+///
+/// # Panics
+/// When `now` and `next` do not have the same number of rows.
 pub fn model_flow(
     now: &[Tensor<f32>; 5],
     next: &[Tensor<f32>; 5],
@@ -102,6 +105,11 @@ pub fn model_flow(
 ) -> Tensor<f32> {
     let [means, scales, quats, opacity, _] = now;
     let n = means.shape()[0];
+    assert_eq!(
+        next[0].shape()[0],
+        n,
+        "model_flow: the frames at t and t + 1 must hold the same Gaussians"
+    );
     let d = screen_displacements(camera, means, &next[0]);
     let dz = depth_changes(camera, means, &next[0]);
     let settings = RenderSettings {
@@ -120,8 +128,7 @@ pub fn model_flow(
     let neg = colours(&|k| [(-d[k][1]).max(0.0), dz[k].max(0.0), (-dz[k]).max(0.0)]);
     let a = render_tensors(means, scales, quats, opacity, &pos, camera, &settings);
     let b = render_tensors(means, scales, quats, opacity, &neg, camera, &settings);
-    let m = next[0].shape()[0];
-    let black = Tensor::from_vec(vec![0.0f32; m * 3], &[m, 1, 3]);
+    let black = Tensor::from_vec(vec![0.0f32; n * 3], &[n, 1, 3]);
     let [nm, ns, nq, no, _] = next;
     let c = render_tensors(nm, ns, nq, no, &black, camera, &settings);
     let (h, w) = (camera.height as usize, camera.width as usize);
