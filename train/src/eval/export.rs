@@ -10,7 +10,7 @@
 //! into place whole, or the same files as one zip archive (`--out X.zip`), which
 //! viewers that play PLY sequences also open.
 
-use std::io::{BufWriter, Write};
+use std::io::{BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
 
 use maaf_autodiff::Tensor;
@@ -151,11 +151,11 @@ fn check_zip_target(out: &Path) -> Result<(), Error> {
             out.display()
         )));
     }
-    let mut head = [0u8; 4];
-    let read = std::fs::File::open(out)
-        .and_then(|mut f| std::io::Read::read(&mut f, &mut head))
+    let mut head = Vec::with_capacity(4);
+    std::fs::File::open(out)
+        .and_then(|f| f.take(4).read_to_end(&mut head))
         .map_err(|e| Error::io(out, e))?;
-    if read < 4 || !(head == *b"PK\x03\x04" || head == *b"PK\x05\x06") {
+    if !(head == b"PK\x03\x04" || head == b"PK\x05\x06") {
         return Err(Error::Input(format!(
             "{}: exists and is not a zip archive; refusing to replace it",
             out.display()
