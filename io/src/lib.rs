@@ -1,11 +1,12 @@
 //! Crash-safe output (one implementation for every crate of maaf).
 //!
-//! Every file maaf writes goes through [`write_atomic`]: the bytes are written to a
-//! temporary sibling, flushed to disk (`fsync`), renamed over the target, and the
-//! folder itself is synced so the rename survives a power cut. A reader therefore
-//! sees, at every instant, either the complete old file or the complete new one. A
-//! failed write (full disk, read-only folder) removes its temporary file, so nothing
-//! is left behind to keep the disk full.
+//! Every file maaf writes goes through [`write_atomic`] (or [`write_atomic_with`],
+//! which streams): the bytes are written to a temporary sibling, flushed to disk
+//! (`fsync`), renamed over the target, and the folder itself is synced so the rename
+//! survives a power cut. A reader therefore sees, at every instant, either the
+//! complete old file or the complete new one. A failed write (full disk, read-only
+//! folder) removes its temporary file, so nothing is left behind to keep the disk
+//! full.
 //!
 //! Folders (checkpoints, evaluation outputs, generated data sets) are built under a
 //! temporary name ([`temp_sibling`]) and swapped in by [`replace_dir`]: on Linux one
@@ -58,16 +59,40 @@ pub fn sync_dir(dir: &Path) -> io::Result<()> {
 /// rename over `path`, `fsync` of the folder. On error (a full disk included) the
 /// temporary is removed and `path` is untouched.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> io::Result<()> {
-    let tmp = temp_sibling(path);
-    let result = (|| {
-        fault::step(Step::Meta, "create")?;
-        let mut f = File::create(&tmp)?;
+    atomic(path, |f| {
         if let Err(e) = fault::step(Step::Data, "write") {
             // An injected full disk: part of the bytes land, then the write fails.
             f.write_all(&bytes[..bytes.len() / 2])?;
             return Err(e);
         }
-        f.write_all(bytes)?;
+        f.write_all(bytes)
+    })
+}
+
+/// [`write_atomic`] for output too large to hold in memory (an archive of many
+/// frames): `fill` streams the content into the temporary sibling, which is then
+/// synced, renamed over `path` and its folder synced, exactly as [`write_atomic`]
+/// does. An error from `fill` or any later step removes the temporary and leaves
+/// `path` untouched.
+pub fn write_atomic_with(
+    path: &Path,
+    fill: impl FnOnce(&mut File) -> io::Result<()>,
+) -> io::Result<()> {
+    atomic(path, |f| {
+        fault::step(Step::Data, "write")?;
+        fill(f)
+    })
+}
+
+/// The steps shared by [`write_atomic`] and [`write_atomic_with`]: create the
+/// temporary sibling, `fill` it, fsync, rename, fsync the folder; the temporary is
+/// removed on any error.
+fn atomic(path: &Path, fill: impl FnOnce(&mut File) -> io::Result<()>) -> io::Result<()> {
+    let tmp = temp_sibling(path);
+    let result = (|| {
+        fault::step(Step::Meta, "create")?;
+        let mut f = File::create(&tmp)?;
+        fill(&mut f)?;
         fault::step(Step::Meta, "fsync")?;
         f.sync_all()?;
         drop(f);
@@ -155,6 +180,26 @@ pub(crate) mod tests {
         assert!(write_atomic(&blocked, b"new").is_err());
         assert_eq!(fs::read(&f).expect("read"), b"old");
         assert_eq!(remove_stale_temps(&dir).expect("sweep"), 0, "no temp left");
+    }
+
+    #[test]
+    fn write_atomic_with_streams_and_a_failing_fill_keeps_the_old_file() {
+        let dir = scratch("with");
+        let f = dir.join("a.zip");
+        write_atomic_with(&f, |w| {
+            w.write_all(b"one ")?;
+            w.write_all(b"two")
+        })
+        .expect("write");
+        assert_eq!(fs::read(&f).expect("read"), b"one two");
+        let err = write_atomic_with(&f, |w| {
+            w.write_all(b"partial")?;
+            Err(io::Error::other("fill failed"))
+        })
+        .expect_err("fill error");
+        assert_eq!(err.to_string(), "fill failed");
+        assert_eq!(fs::read(&f).expect("read"), b"one two", "old file kept");
+        assert_eq!(fs::read_dir(&dir).expect("ls").count(), 1, "no temp left");
     }
 
     /// Child half of the full-disk test: writes `MAAF_IO_TARGET` under the parent's plan.

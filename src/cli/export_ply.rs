@@ -1,11 +1,14 @@
 //! `maaf export-ply`: the deformed, filtered Gaussians of a trained run at a time as a
 //! standard 3DGS PLY (`--time T --out F.ply`), or a sequence of `N` frames over the
-//! data set's time range (`--frames N --out DIR`: `frame_NNNN.ply` + `frames.json`).
+//! data set's time range (`--frames N --out DIR`: `frame_NNNN.ply` + `frames.json`;
+//! `--out X.zip`: the same files as one zip archive).
 
 use std::path::PathBuf;
 
 use anyhow::bail;
-use maaf_train::eval::export::{export_frame, export_sequence};
+use maaf_train::eval::export::{
+    check_sequence_target, export_frame, export_sequence, export_sequence_zip, is_zip_path,
+};
 use maaf_train::eval::load_run;
 
 use super::BackgroundArg;
@@ -24,10 +27,10 @@ pub struct ExportPlyArgs {
     #[arg(long, conflicts_with = "frames", required_unless_present = "frames")]
     pub time: Option<f64>,
     /// Export N frames evenly spaced over the data set's time range into the folder
-    /// --out.
+    /// --out, or into one zip archive when --out ends in .zip.
     #[arg(long)]
     pub frames: Option<usize>,
-    /// Output PLY file (--time) or folder (--frames).
+    /// Output PLY file (--time), or folder or .zip file (--frames).
     #[arg(long)]
     pub out: PathBuf,
     /// Background of the run's data (only used to open the data set).
@@ -37,6 +40,9 @@ pub struct ExportPlyArgs {
 
 /// Runs `maaf export-ply`.
 pub fn run(args: &ExportPlyArgs) -> anyhow::Result<()> {
+    if args.frames.is_some() {
+        check_sequence_target(&args.out)?;
+    }
     let data = open_run_data(&args.run, args.data.as_deref(), args.background)?;
     let trainer = load_run(&args.run, &data)?;
     match (args.time, args.frames) {
@@ -44,12 +50,26 @@ pub fn run(args: &ExportPlyArgs) -> anyhow::Result<()> {
             if !t.is_finite() {
                 bail!("--time {t}: must be a finite number");
             }
+            if is_zip_path(&args.out) {
+                bail!(
+                    "{}: --time writes one PLY file; use --frames N for a .zip sequence",
+                    args.out.display()
+                );
+            }
             export_frame(&trainer, t, &args.out)?;
             let bytes = std::fs::metadata(&args.out).map_or(0, |m| m.len());
             println!(
                 "wrote {} ({} Gaussians at t = {t}, {:.2} MB)",
                 args.out.display(),
                 trainer.num_gaussians(),
+                bytes as f64 / 1e6
+            );
+        }
+        (None, Some(n)) if is_zip_path(&args.out) => {
+            let bytes = export_sequence_zip(&trainer, data.time_range(), n, &args.out)?;
+            println!(
+                "wrote {n} frames to {} ({:.2} MB zip)",
+                args.out.display(),
                 bytes as f64 / 1e6
             );
         }

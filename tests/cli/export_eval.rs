@@ -1,6 +1,7 @@
 //! `maaf export-ply`, `maaf render-ply`, `maaf render` and `maaf eval --temporal` as a
 //! user runs them on a tiny trained run of the built-in scene: the exported frame
-//! renders to the same PNG as the run at that time, and eval without LPIPS weights
+//! renders to the same PNG as the run at that time, a sequence goes into a zip (and a
+//! non-zip file in its way is refused in one line), and eval without LPIPS weights
 //! writes null plus the reason and still fills the temporal fields.
 
 use std::path::Path;
@@ -130,6 +131,45 @@ fn exported_frame_renders_as_the_run_and_eval_survives_missing_weights() {
         std::fs::read(&classic).expect("png"),
         std::fs::read(&from_run).expect("png")
     );
+
+    // 20 frames as one zip archive; a non-zip file at the .zip path is refused in one
+    // line naming it, and left as it was.
+    let zip = tmp.0.join("seq.zip");
+    let out = maaf(
+        &[
+            "export-ply",
+            "--run",
+            s(&run),
+            "--frames",
+            "20",
+            "--out",
+            s(&zip),
+        ],
+        None,
+    );
+    let said = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(
+        said.contains("wrote 20 frames") && said.contains("MB zip"),
+        "{said}"
+    );
+    let archive = std::fs::read(&zip).expect("zip");
+    assert!(archive.starts_with(b"PK\x03\x04"), "not a zip archive");
+    eprintln!("{} ({} bytes)", said.trim(), archive.len());
+    let notes = tmp.0.join("notes.zip");
+    std::fs::write(&notes, b"my notes").expect("write");
+    let out = Command::new(env!("CARGO_BIN_EXE_maaf"))
+        .args(["export-ply", "--run", s(&run), "--frames", "2"])
+        .args(["--out", s(&notes)])
+        .output()
+        .expect("run maaf");
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(
+        err.contains(s(&notes)) && err.contains("not a zip archive"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read(&notes).expect("notes"), b"my notes");
 
     // eval --temporal with no LPIPS weights: null and the reason, temporal still filled.
     let missing = "/nonexistent/alex.safetensors";

@@ -1,14 +1,16 @@
 //! A tiny run of the built-in scene end to end: an exported PLY frame renders exactly
-//! as the run does at that time, a sequence folder has every frame and its time, and
-//! `eval --temporal` fills the temporal fields with exact and model flow.
+//! as the run does at that time, a sequence folder has every frame and its time, the
+//! zip version holds the same files byte for byte, and `eval --temporal` fills the
+//! temporal fields with exact and model flow.
 
-use std::path::PathBuf;
+use std::io::Read;
+use std::path::{Path, PathBuf};
 
 use maaf_filter::FilterKind;
 use maaf_splat::{read_ply, render_gaussians};
 use maaf_train::data::synthetic::{self, GenerateOptions};
 use maaf_train::data::{Dataset, DatasetOptions, Split};
-use maaf_train::eval::export::{export_frame, export_sequence};
+use maaf_train::eval::export::{export_frame, export_sequence, export_sequence_zip};
 use maaf_train::eval::{EvalOptions, EvalReport, evaluate_trainer, load_run, render_image};
 use maaf_train::models::ModelConfig;
 use maaf_train::trainer::{TrainConfig, train_run};
@@ -40,6 +42,92 @@ fn tiny_config() -> TrainConfig {
         ModelConfig::Saro(m) => m.static_iterations = 10,
     }
     c
+}
+
+/// `name -> bytes` of every entry of the zip archive `path`, in archive order.
+fn zip_entries(path: &Path) -> Vec<(String, Vec<u8>)> {
+    let file = std::fs::File::open(path).expect("open zip");
+    let mut archive = zip::ZipArchive::new(file).expect("a zip archive");
+    (0..archive.len())
+        .map(|i| {
+            let mut entry = archive.by_index(i).expect("entry");
+            let name = entry.name().expect("entry name").into_owned();
+            let mut bytes = Vec::new();
+            entry.read_to_end(&mut bytes).expect("entry bytes");
+            (name, bytes)
+        })
+        .collect()
+}
+
+/// A 20-frame sequence as a folder and as a zip: the archive holds exactly the
+/// folder's files (frames in order, then `frames.json`) with identical bytes, is the
+/// same file when written again (fixed timestamps), and replaces an earlier zip; a
+/// non-zip file or a folder at the `.zip` path and a folder with foreign files are
+/// refused naming the path.
+fn zip_holds_the_folder_version(trainer: &maaf_train::trainer::Trainer, tmp: &Path) {
+    let (dir, zip) = (tmp.join("seq20"), tmp.join("seq20.zip"));
+    export_sequence(trainer, (0.0, 1.0), 20, &dir).expect("folder");
+    let bytes = export_sequence_zip(trainer, (0.0, 1.0), 20, &zip).expect("zip");
+    assert_eq!(bytes, std::fs::metadata(&zip).expect("zip size").len());
+    let mut want: Vec<String> = std::fs::read_dir(&dir)
+        .expect("ls")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+        .collect();
+    want.sort();
+    let entries = zip_entries(&zip);
+    let names: Vec<&str> = entries.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(names.len(), 21);
+    assert_eq!(names[20], "frames.json");
+    let mut sorted = names.clone();
+    sorted.sort();
+    assert_eq!(sorted, want, "the zip holds exactly the folder's files");
+    for (name, content) in &entries {
+        let on_disk = std::fs::read(dir.join(name)).expect("folder file");
+        assert!(on_disk == *content, "{name} differs between zip and folder");
+    }
+    let folder_bytes: u64 = want
+        .iter()
+        .map(|n| std::fs::metadata(dir.join(n)).expect("size").len())
+        .sum();
+    eprintln!(
+        "20 frames of {} Gaussians: folder {folder_bytes} bytes, zip {bytes} bytes",
+        trainer.num_gaussians()
+    );
+    // Written again over the earlier archive: the same bytes, and no temporary left.
+    let first = std::fs::read(&zip).expect("zip");
+    export_sequence_zip(trainer, (0.0, 1.0), 20, &zip).expect("zip again");
+    assert!(
+        std::fs::read(&zip).expect("zip") == first,
+        "zip not reproducible"
+    );
+    let temps = std::fs::read_dir(tmp)
+        .expect("ls")
+        .filter(|e| {
+            let name = e.as_ref().expect("entry").file_name();
+            name.to_string_lossy().contains(maaf_io::TEMP_MARK)
+        })
+        .count();
+    assert_eq!(temps, 0, "a temporary was left behind");
+
+    // Refusals: one line naming the path, and the file left as it was.
+    let not_zip = tmp.join("notes.zip");
+    std::fs::write(&not_zip, b"my notes").expect("write");
+    let err = export_sequence_zip(trainer, (0.0, 1.0), 2, &not_zip).expect_err("refused");
+    let msg = err.to_string();
+    assert!(msg.contains(&*not_zip.to_string_lossy()) && msg.contains("not a zip"));
+    assert!(!msg.contains('\n'), "one line: {msg}");
+    assert_eq!(std::fs::read(&not_zip).expect("read"), b"my notes");
+    let folder = tmp.join("folder.zip");
+    std::fs::create_dir_all(&folder).expect("mkdir");
+    let err = export_sequence_zip(trainer, (0.0, 1.0), 2, &folder).expect_err("a folder");
+    assert!(err.to_string().contains("is a folder"), "{err}");
+    let plain = tmp.join("plain");
+    std::fs::write(&plain, b"mine").expect("write");
+    let err = export_sequence(trainer, (0.0, 1.0), 2, &plain).expect_err("a file");
+    assert!(err.to_string().contains("not a folder"), "{err}");
+    std::fs::write(dir.join("keep.txt"), b"mine").expect("write");
+    let err = export_sequence(trainer, (0.0, 1.0), 2, &dir).expect_err("foreign file");
+    assert!(err.to_string().contains("keep.txt"), "{err}");
 }
 
 #[test]
@@ -110,6 +198,7 @@ fn export_matches_render_and_temporal_eval_fills_the_fields() {
     let mid = read_ply(&paths[1]).expect("frame 1");
     let direct = maaf_train::eval::export::frame_gaussians(&trainer, 0.5);
     assert_eq!(mid.means, direct.means);
+    zip_holds_the_folder_version(&trainer, &tmp.0);
 
     // Temporal evaluation: exact flow from the video split first, model flow second.
     let options = EvalOptions {

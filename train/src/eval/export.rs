@@ -7,15 +7,20 @@
 //! (`log s'`, `logit o'`, SH up to the degree the run renders with), so that any 3DGS
 //! viewer shows the frame as `maaf render` does. A sequence is a folder of
 //! `frame_NNNN.ply` plus `frames.json` (file name and time of each frame), swapped
-//! into place whole.
+//! into place whole, or the same files as one zip archive (`--out X.zip`), which
+//! viewers that play PLY sequences also open.
 
+use std::io::{BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
 
 use maaf_autodiff::Tensor;
 use maaf_autodiff::scalar::logit;
 use maaf_splat::Gaussians;
+use maaf_splat::ply::ply_bytes;
 use maaf_splat::sh::num_coeffs;
 use serde_json::json;
+use zip::write::SimpleFileOptions;
+use zip::{CompressionMethod, ZipWriter};
 
 use crate::trainer::Trainer;
 use crate::{Error, write_atomic};
@@ -55,45 +60,173 @@ pub fn export_frame(trainer: &Trainer, time: f64, out: &Path) -> Result<(), Erro
         .map_err(|e| Error::Input(e.to_string()))
 }
 
-/// Writes `frames` evenly spaced times over `[t0, t1]` into the folder `out` as
-/// `frame_0000.ply ...` and `frames.json` (`{"frames": [{"file", "time"}]}`), built in
-/// a temporary sibling and swapped in whole. Returns the PLY paths.
-pub fn export_sequence(
-    trainer: &Trainer,
-    (t0, t1): (f64, f64),
-    frames: usize,
-    out: &Path,
-) -> Result<Vec<PathBuf>, Error> {
+/// Name of frame `i` of a sequence, `frame_NNNN.ply`.
+fn frame_name(i: usize) -> String {
+    format!("frame_{i:04}.ply")
+}
+
+/// The `frames` times of a sequence over `[t0, t1]`:
+/// `t_i = t0 + (t1 - t0) i / (frames - 1)` (just `t0` for one frame).
+fn frame_times((t0, t1): (f64, f64), frames: usize) -> Result<Vec<f64>, Error> {
     if frames == 0 {
         return Err(Error::Input("--frames must be at least 1".into()));
     }
+    Ok((0..frames)
+        .map(|i| {
+            if frames == 1 {
+                t0
+            } else {
+                t0 + (t1 - t0) * i as f64 / (frames - 1) as f64
+            }
+        })
+        .collect())
+}
+
+/// `frames.json` of a sequence: `{"frames": [{"file": "frame_0000.ply", "time": t_0},
+/// ...]}`, the same bytes in a folder and in a zip.
+fn index_json(times: &[f64]) -> Result<Vec<u8>, Error> {
+    let index: Vec<_> = times
+        .iter()
+        .enumerate()
+        .map(|(i, t)| json!({"file": frame_name(i), "time": t}))
+        .collect();
+    serde_json::to_vec_pretty(&json!({ "frames": index }))
+        .map_err(|e| Error::Input(format!("frames.json: {e}")))
+}
+
+/// Whether `out` names a zip archive (its extension is `zip`, any case): then
+/// [`export_sequence_zip`] is the writer, else [`export_sequence`].
+pub fn is_zip_path(out: &Path) -> bool {
+    out.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("zip"))
+}
+
+/// Refuses an `out` that a sequence must not replace (see [`export_sequence`] and
+/// [`export_sequence_zip`]), with one line naming the path; the CLI calls it before
+/// loading the run so a bad `--out` fails at once.
+pub fn check_sequence_target(out: &Path) -> Result<(), Error> {
+    if is_zip_path(out) {
+        check_zip_target(out)
+    } else {
+        check_sequence_folder(out)
+    }
+}
+
+/// Refuses an `out` folder that a sequence must not replace: an existing file, or a
+/// folder holding anything but `frame_*.ply` and `frames.json` of an earlier export.
+fn check_sequence_folder(out: &Path) -> Result<(), Error> {
+    if !out.exists() {
+        return Ok(());
+    }
+    if !out.is_dir() {
+        return Err(Error::Input(format!(
+            "{}: exists and is not a folder; give a new folder, or a path ending in .zip",
+            out.display()
+        )));
+    }
+    let entries = std::fs::read_dir(out).map_err(|e| Error::io(out, e))?;
+    for entry in entries.flatten() {
+        let name = entry.file_name().to_string_lossy().into_owned();
+        let ours = name == "frames.json" || (name.starts_with("frame_") && name.ends_with(".ply"));
+        if !ours {
+            return Err(Error::Input(format!(
+                "{}: holds `{name}`, which is not a frame of an earlier export; give a new or empty folder",
+                out.display()
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// Refuses a `.zip` target that is a folder or an existing file that is not a zip
+/// archive (it does not start with a local file header `PK\x03\x04` or, for an
+/// empty archive, the end-of-central-directory record `PK\x05\x06`).
+fn check_zip_target(out: &Path) -> Result<(), Error> {
+    if !out.exists() {
+        return Ok(());
+    }
+    if out.is_dir() {
+        return Err(Error::Input(format!(
+            "{}: is a folder; a .zip sequence is written as one file",
+            out.display()
+        )));
+    }
+    let mut head = Vec::with_capacity(4);
+    std::fs::File::open(out)
+        .and_then(|f| f.take(4).read_to_end(&mut head))
+        .map_err(|e| Error::io(out, e))?;
+    if !(head == b"PK\x03\x04" || head == b"PK\x05\x06") {
+        return Err(Error::Input(format!(
+            "{}: exists and is not a zip archive; refusing to replace it",
+            out.display()
+        )));
+    }
+    Ok(())
+}
+
+/// Writes `frames` evenly spaced times over `[t0, t1]` (`t_i = t0 + (t1 - t0) i /
+/// (frames - 1)`) into the folder `out` as `frame_0000.ply ...` and `frames.json`
+/// (`{"frames": [{"file", "time"}]}`), built in a temporary sibling and swapped in
+/// whole. An existing file at `out`, or a folder holding other files, is refused.
+/// Returns the PLY paths.
+pub fn export_sequence(
+    trainer: &Trainer,
+    range: (f64, f64),
+    frames: usize,
+    out: &Path,
+) -> Result<Vec<PathBuf>, Error> {
+    let times = frame_times(range, frames)?;
+    check_sequence_folder(out)?;
     let tmp = maaf_io::temp_sibling(out);
     if tmp.exists() {
         std::fs::remove_dir_all(&tmp).map_err(|e| Error::io(&tmp, e))?;
     }
     std::fs::create_dir_all(&tmp).map_err(|e| Error::io(&tmp, e))?;
     let result = (|| {
-        let mut index = Vec::with_capacity(frames);
-        for i in 0..frames {
-            let t = if frames == 1 {
-                t0
-            } else {
-                t0 + (t1 - t0) * i as f64 / (frames - 1) as f64
-            };
-            let name = format!("frame_{i:04}.ply");
-            export_frame(trainer, t, &tmp.join(&name))?;
-            index.push(json!({"file": name, "time": t}));
+        for (i, &t) in times.iter().enumerate() {
+            export_frame(trainer, t, &tmp.join(frame_name(i)))?;
         }
-        let doc = serde_json::to_vec_pretty(&json!({ "frames": index }))
-            .map_err(|e| Error::Input(format!("frames.json: {e}")))?;
-        write_atomic(&tmp.join("frames.json"), &doc)
+        write_atomic(&tmp.join("frames.json"), &index_json(&times)?)
     })();
     if let Err(e) = result {
         let _ = std::fs::remove_dir_all(&tmp);
         return Err(e);
     }
     maaf_io::replace_dir(&tmp, out).map_err(|e| Error::io(out, e))?;
-    Ok((0..frames)
-        .map(|i| out.join(format!("frame_{i:04}.ply")))
-        .collect())
+    Ok((0..frames).map(|i| out.join(frame_name(i))).collect())
+}
+
+/// The same sequence as [`export_sequence`] as one zip archive `out`: the entries
+/// `frame_0000.ply ...` then `frames.json`, byte for byte the files of the folder
+/// version, deflated, with the zip format's fixed default timestamp (1980-01-01) so
+/// that equal runs give equal archives. The archive is streamed into a temporary
+/// sibling and renamed into place ([`maaf_io::write_atomic_with`]: fsync, rename,
+/// folder fsync); a folder at `out`, or an existing file that is not a zip archive, is
+/// refused. Returns the archive's size in bytes.
+pub fn export_sequence_zip(
+    trainer: &Trainer,
+    range: (f64, f64),
+    frames: usize,
+    out: &Path,
+) -> Result<u64, Error> {
+    let times = frame_times(range, frames)?;
+    check_zip_target(out)?;
+    let index = index_json(&times)?;
+    maaf_io::write_atomic_with(out, |file| {
+        let mut zip = ZipWriter::new(BufWriter::new(file));
+        let mut put = |name: &str, bytes: &[u8]| -> std::io::Result<()> {
+            let options = SimpleFileOptions::default()
+                .compression_method(CompressionMethod::Deflated)
+                .large_file(bytes.len() as u64 >= u64::from(u32::MAX));
+            zip.start_file(name, options)?;
+            zip.write_all(bytes)
+        };
+        for (i, &t) in times.iter().enumerate() {
+            put(&frame_name(i), &ply_bytes(&frame_gaussians(trainer, t)))?;
+        }
+        put("frames.json", &index)?;
+        zip.finish()?.flush()
+    })
+    .map_err(|e| Error::io(out, e))?;
+    Ok(std::fs::metadata(out).map_err(|e| Error::io(out, e))?.len())
 }

@@ -88,7 +88,7 @@ pub fn evaluate_temporal(
     let mut now = trainer.frame_at(v.times[0]);
     for &t in &v.times[1..] {
         let next = trainer.frame_at(t);
-        model.push(model_flow(&now, &next[0], &v.camera, &settings));
+        model.push(model_flow(&now, &next, &v.camera, &settings));
         now = next;
     }
     let mut out = Vec::new();
