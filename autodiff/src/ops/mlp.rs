@@ -427,14 +427,19 @@ mod tests {
         })
     }
 
+    /// `m` rows through `24 -> 32 -> 16 -> 3` (a narrow head), in f32.
+    fn f32_net(m: usize, seed: u64) -> Vec<Tensor<f32>> {
+        inputs(m, &[24, 32, 16, 3], seed)
+            .iter()
+            .map(Tensor::cast)
+            .collect()
+    }
+
     #[test]
     fn equals_the_chain_of_dense_layers_bit_for_bit_at_any_thread_count() {
         // Three blocks (the last partial), enough work for rayon, a narrow head.
         let m = 2 * ROW_BLOCK + 37;
-        let v: Vec<Tensor<f32>> = inputs(m, &[24, 32, 16, 3], 21)
-            .iter()
-            .map(Tensor::cast)
-            .collect();
+        let v = f32_net(m, 21);
         let [fused, chain] = fused_and_chain(1, &v, None);
         assert_eq!(fused, chain);
         assert_eq!(fused_and_chain(2, &v, None)[0], fused);
@@ -443,7 +448,7 @@ mod tests {
 
     /// Every third row, and all of the middle block, with a zero cotangent.
     fn some_dead_rows(m: usize) -> Tensor<f32> {
-        let dead = |r: usize| r % 3 == 0 || (ROW_BLOCK..2 * ROW_BLOCK).contains(&r);
+        let dead = |r: usize| r.is_multiple_of(3) || (ROW_BLOCK..2 * ROW_BLOCK).contains(&r);
         let v = (0..m).map(|r| if dead(r) { 0.0 } else { 1.0 }).collect();
         Tensor::from_vec(v, &[m, 1])
     }
@@ -451,10 +456,7 @@ mod tests {
     #[test]
     fn rows_with_a_zero_cotangent_are_skipped_without_changing_the_gradients() {
         let m = 3 * ROW_BLOCK + 37;
-        let v: Vec<Tensor<f32>> = inputs(m, &[24, 32, 16, 3], 23)
-            .iter()
-            .map(Tensor::cast)
-            .collect();
+        let v = f32_net(m, 23);
         let mask = some_dead_rows(m);
         let [fused, chain] = fused_and_chain(1, &v, Some(&mask));
         assert_eq!(fused.len(), chain.len());
@@ -471,7 +473,7 @@ mod tests {
         let dx = fused.last().expect("dx");
         assert!(
             (0..m)
-                .filter(|r| r % 3 == 0)
+                .filter(|r| r.is_multiple_of(3))
                 .all(|r| dx[r * 24..(r + 1) * 24].iter().all(|&d| d == 0.0))
         );
         assert_eq!(fused_and_chain(3, &v, Some(&mask))[0], fused);
