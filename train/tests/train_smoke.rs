@@ -311,3 +311,43 @@ fn validation_psnr_is_logged_and_changes_nothing() {
     );
     let _ = std::fs::remove_dir_all(&base);
 }
+
+/// Validation renders the model an iteration trained, before that iteration's
+/// schedule: where an opacity reset falls on a validation iteration, the logged
+/// `val_psnr` is the one of the same run without resets (rather than the near-empty
+/// render just after the reset).
+#[test]
+fn validation_sees_the_model_before_an_opacity_reset() {
+    let Some(data) = mutant() else { return };
+    let base = std::env::temp_dir().join(format!("maaf-val-reset-{}", std::process::id()));
+    let val_at_20 = |reset_every: usize, name: &str| {
+        let mut c = tiny_config(FilterKind::Mip3d);
+        c.iterations = 30;
+        c.log_every = 10;
+        c.val_every = 20;
+        c.val_views = 2;
+        c.densify.opacity_reset_every = reset_every;
+        let out = base.join(name);
+        maaf_train::trainer::train_run(&data, c, &out, false).expect("run");
+        let log = std::fs::read_to_string(out.join("log.csv")).expect("log");
+        let row = log
+            .lines()
+            .find(|l| l.starts_with("20,"))
+            .expect("row of iteration 20")
+            .to_string();
+        let val = row.rsplit(',').next().expect("val_psnr cell").to_string();
+        (val, log)
+    };
+    let (with_reset, log) = val_at_20(20, "reset");
+    let (no_reset, _) = val_at_20(0, "no-reset");
+    assert!(!with_reset.is_empty(), "{log}");
+    assert_eq!(with_reset, no_reset, "{log}");
+    // The reset did happen: the two runs' losses differ after iteration 20.
+    let (_, log_no_reset) = val_at_20(0, "no-reset-2");
+    let l1_at_30 = |l: &str| {
+        let row = l.lines().find(|r| r.starts_with("30,")).expect("row 30");
+        row.split(',').nth(1).expect("l1 cell").to_string()
+    };
+    assert_ne!(l1_at_30(&log), l1_at_30(&log_no_reset), "{log}");
+    let _ = std::fs::remove_dir_all(&base);
+}

@@ -131,9 +131,22 @@ fn run_trainer(mut trainer: Trainer, out: &Path, resume: bool) -> Result<RunSumm
     let mut val_seconds = 0.0;
     let ckpt_every = trainer.config.checkpoint_every.max(1);
     while trainer.iteration < total {
-        trainer.step();
-        trainer.check_health()?;
+        trainer.update();
         let it = trainer.iteration;
+        // Validation renders the model this iteration trained, before the schedule
+        // densifies or resets opacities (after a reset it would read ~13 dB); its
+        // time is not training time and is left out of `elapsed`.
+        let val_every = trainer.config.val_every;
+        let val = if val_every > 0 && (it.is_multiple_of(val_every) || it == total) {
+            let t0 = Instant::now();
+            let psnr = trainer.validation_psnr();
+            val_seconds += t0.elapsed().as_secs_f64();
+            psnr.map_or(String::new(), |p| format!("{p:.4}"))
+        } else {
+            String::new()
+        };
+        trainer.schedule();
+        trainer.check_health()?;
         let loss = trainer
             .last_terms
             .iter()
@@ -149,17 +162,7 @@ fn run_trainer(mut trainer: Trainer, out: &Path, resume: bool) -> Result<RunSumm
                     .map_or(f64::NAN, |(_, v)| *v);
                 row.push_str(&format!(",{v:.6e}"));
             }
-            // Validation renders are not training time: left out of `elapsed`.
             let elapsed = before + start.elapsed().as_secs_f64() - val_seconds;
-            let val_every = trainer.config.val_every;
-            let val = if val_every > 0 && (it.is_multiple_of(val_every) || it == total) {
-                let t0 = Instant::now();
-                let psnr = trainer.validation_psnr();
-                val_seconds += t0.elapsed().as_secs_f64();
-                psnr.map_or(String::new(), |p| format!("{p:.4}"))
-            } else {
-                String::new()
-            };
             row.push_str(&format!(
                 ",{loss:.6e},{},{elapsed:.3},{},{val}\n",
                 trainer.num_gaussians(),

@@ -48,10 +48,18 @@ impl Trainer {
         order[(iteration - 1) % n]
     }
 
-    /// One training iteration: deform, filter, render, objective, backward, Adam,
-    /// statistics, then densification and filter refresh when due. The first step
-    /// of a fresh run computes the filter first.
+    /// One training iteration: [`Self::update`] then [`Self::schedule`]. The first
+    /// step of a fresh run computes the filter first.
     pub fn step(&mut self) {
+        self.update();
+        self.schedule();
+    }
+
+    /// The gradient step of the next iteration: deform, filter, render, objective,
+    /// backward, Adam, statistics; advances `iteration`. What it trained is the model
+    /// to validate at this iteration, before [`Self::schedule`] densifies or resets
+    /// opacities.
+    pub fn update(&mut self) {
         self.ensure_filter();
         let it = self.iteration + 1;
         self.model.set_iteration(it);
@@ -143,7 +151,13 @@ impl Trainer {
         drop(fwd);
         drop(params);
         self.iteration = it;
+    }
 
+    /// What the schedule does after the gradient step of iteration `iteration`:
+    /// densification, pruning and opacity reset, then the filter refresh, when due.
+    pub fn schedule(&mut self) {
+        let it = self.iteration;
+        let t4 = Instant::now();
         let densified = self.maybe_densify(it);
         let t5 = Instant::now();
         self.timings.densification += (t5 - t4).as_secs_f64();
