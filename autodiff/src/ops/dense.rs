@@ -9,8 +9,7 @@
 //! order. The blocks depend on the shapes only, so results do not depend on the
 //! number of threads.
 
-use rayon::prelude::*;
-
+use super::blocks::{map_blocks, row_blocks, sum_in_order};
 use crate::float::{PARALLEL_MIN_MACS, ROW_BLOCK};
 use crate::op::{BackwardCtx, Op};
 use crate::{Float, MatMut, MatRef, Tensor, Var};
@@ -32,49 +31,6 @@ pub struct Dense(pub Activation);
 
 /// One block's partial weight and bias gradients (`None` when not needed).
 type BlockGrads<T> = (Option<Vec<T>>, Option<Vec<T>>);
-
-/// Runs `f(block index)` for every block, in parallel when `parallel`; returns the
-/// results in block order.
-fn map_blocks<R: Send>(
-    blocks: usize,
-    parallel: bool,
-    f: impl Fn(usize) -> R + Sync + Send,
-) -> Vec<R> {
-    if parallel {
-        (0..blocks).into_par_iter().map(f).collect()
-    } else {
-        (0..blocks).map(f).collect()
-    }
-}
-
-/// Maps `f(block index, block)` over consecutive `len`-element chunks of `data`, in
-/// parallel when `parallel`; returns the results in block order.
-fn map_chunks<T: Send, R: Send>(
-    data: &mut [T],
-    len: usize,
-    parallel: bool,
-    f: impl Fn(usize, &mut [T]) -> R + Sync + Send,
-) -> Vec<R> {
-    if parallel {
-        data.par_chunks_mut(len)
-            .enumerate()
-            .map(|(i, c)| f(i, c))
-            .collect()
-    } else {
-        data.chunks_mut(len)
-            .enumerate()
-            .map(|(i, c)| f(i, c))
-            .collect()
-    }
-}
-
-/// Adds the per-block partial sums in block order (`None` when there is no block).
-fn sum_in_order<T: Float>(parts: impl Iterator<Item = Vec<T>>) -> Option<Vec<T>> {
-    parts.reduce(|mut acc, p| {
-        acc.iter_mut().zip(&p).for_each(|(a, &b)| *a += b);
-        acc
-    })
-}
 
 impl<T: Float> Op<T> for Dense {
     type Saved = ();
@@ -105,9 +61,8 @@ impl<T: Float> Op<T> for Dense {
                 MatRef::row_major(w.data(), k, n),
             );
             let relu = self.0 == Activation::Relu;
-            map_chunks(
-                &mut y,
-                ROW_BLOCK * n,
+            map_blocks(
+                row_blocks(&mut y, n, m),
                 m * k * n >= PARALLEL_MIN_MACS,
                 |i, block| {
                     let rows = block.len() / n;
@@ -182,9 +137,11 @@ impl<T: Float> Op<T> for Dense {
         let mut dx = need_dx.then(|| vec![T::zero(); m * k]);
         let parts: Vec<BlockGrads<T>> = match dx.as_mut() {
             Some(dx) if k > 0 && n > 0 => {
-                map_chunks(dx, ROW_BLOCK * k, parallel, |i, d| block(i, Some(d)))
+                map_blocks(row_blocks(dx, k, m), parallel, |i, d| block(i, Some(d)))
             }
-            _ if n > 0 => map_blocks(blocks, parallel, |i| block(i, None)),
+            _ if n > 0 => map_blocks((0..blocks).collect(), parallel, |i, _: usize| {
+                block(i, None)
+            }),
             _ => Vec::new(),
         };
         let (dws, dbs): (Vec<_>, Vec<_>) = parts.into_iter().unzip();

@@ -2,6 +2,7 @@
 //! its finite-difference tests inline.
 
 pub mod binary;
+mod blocks;
 pub mod dense;
 pub mod matmul;
 pub mod mlp;

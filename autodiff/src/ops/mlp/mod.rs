@@ -18,8 +18,7 @@
 //!
 //! [`Dense`]: super::dense::Dense
 
-use rayon::prelude::*;
-
+use super::blocks::{map_blocks, row_blocks, sum_in_order};
 use crate::float::{PARALLEL_MIN_MACS, ROW_BLOCK};
 use crate::op::{BackwardCtx, Op};
 use crate::{Float, MatMut, MatRef, Tensor, Var};
@@ -59,37 +58,36 @@ fn widths<T: Float>(inputs: &[&Tensor<T>]) -> Vec<usize> {
     w
 }
 
-/// Splits `data` into consecutive per-block slices of `per_row` values per row for
-/// `m` rows in blocks of [`ROW_BLOCK`] (empty slices when `per_row` is 0).
-fn block_slices<T>(mut data: &mut [T], per_row: usize, m: usize) -> Vec<&mut [T]> {
-    (0..m.div_ceil(ROW_BLOCK))
-        .map(|i| {
-            let rows = ROW_BLOCK.min(m - i * ROW_BLOCK);
-            let (head, tail) = std::mem::take(&mut data).split_at_mut(rows * per_row);
-            data = tail;
-            head
-        })
-        .collect()
+/// What both passes read off the inputs: widths `n` = `[n_0, ..., n_L]`, `layers` =
+/// L, rows `m`, hidden values per row, and whether the work is worth rayon.
+struct Dims {
+    n: Vec<usize>,
+    layers: usize,
+    m: usize,
+    hidden_w: usize,
+    parallel: bool,
 }
 
-/// Runs `f` over the items, in parallel when `parallel`; returns results in order.
-fn map_items<I: Send, R: Send>(
-    items: Vec<I>,
-    parallel: bool,
-    f: impl Fn(usize, I) -> R + Sync + Send,
-) -> Vec<R> {
-    if parallel {
-        items
-            .into_par_iter()
-            .enumerate()
-            .map(|(i, x)| f(i, x))
-            .collect()
-    } else {
-        items
-            .into_iter()
-            .enumerate()
-            .map(|(i, x)| f(i, x))
-            .collect()
+impl Dims {
+    fn of<T: Float>(inputs: &[&Tensor<T>]) -> Self {
+        let n = widths(inputs);
+        let (layers, m) = (inputs.len() / 2, inputs[0].shape()[0]);
+        let macs: usize = n.windows(2).map(|p| p[0] * p[1]).sum();
+        Dims {
+            hidden_w: n[1..layers].iter().sum(),
+            parallel: m * macs >= PARALLEL_MIN_MACS,
+            n,
+            layers,
+            m,
+        }
+    }
+}
+
+/// Appends rows `rows` of `src` (`w` values per row) to `out`.
+fn gather_rows<T: Copy>(src: &[T], w: usize, rows: &[usize], out: &mut Vec<T>) {
+    out.reserve(rows.len() * w);
+    for &r in rows {
+        out.extend_from_slice(&src[r * w..(r + 1) * w]);
     }
 }
 
@@ -124,19 +122,21 @@ impl<T: Float> Op<T> for FusedMlp {
     }
 
     fn forward(&self, inputs: &[&Tensor<T>]) -> (Vec<Tensor<T>>, MlpSaved<T>) {
-        let n = widths(inputs);
-        let (x, layers) = (inputs[0], inputs.len() / 2);
-        let m = x.shape()[0];
-        let (n0, out_w) = (n[0], n[layers]);
-        let hidden_w: usize = n[1..layers].iter().sum();
-        let macs: usize = n.windows(2).map(|p| p[0] * p[1]).sum();
+        let Dims {
+            n,
+            layers,
+            m,
+            hidden_w,
+            parallel,
+        } = Dims::of(inputs);
+        let (x, n0, out_w) = (inputs[0], n[0], n[layers]);
         let mut y = vec![T::zero(); m * out_w];
         let mut hidden = vec![T::zero(); m * hidden_w];
-        let items: Vec<_> = block_slices(&mut y, out_w, m)
+        let items: Vec<_> = row_blocks(&mut y, out_w, m)
             .into_iter()
-            .zip(block_slices(&mut hidden, hidden_w, m))
+            .zip(row_blocks(&mut hidden, hidden_w, m))
             .collect();
-        map_items(items, m * macs >= PARALLEL_MIN_MACS, |i, (yb, mut hb)| {
+        map_blocks(items, parallel, |i, (yb, mut hb)| {
             let start = i * ROW_BLOCK;
             let rows = ROW_BLOCK.min(m - start);
             let mut a: &[T] = &x.data()[start * n0..(start + rows) * n0];
@@ -156,12 +156,14 @@ impl<T: Float> Op<T> for FusedMlp {
     }
 
     fn backward(&self, c: &BackwardCtx<'_, T, MlpSaved<T>>) -> Vec<Option<Tensor<T>>> {
-        let n = widths(c.inputs);
-        let (x, layers) = (c.inputs[0], c.inputs.len() / 2);
-        let m = x.shape()[0];
-        let (n0, out_w) = (n[0], n[layers]);
-        let hidden_w: usize = n[1..layers].iter().sum();
-        let macs: usize = n.windows(2).map(|p| p[0] * p[1]).sum();
+        let Dims {
+            n,
+            layers,
+            m,
+            hidden_w,
+            parallel,
+        } = Dims::of(c.inputs);
+        let (x, n0, out_w) = (c.inputs[0], n[0], n[layers]);
         // Offsets of each layer's dW and db in one block's partial gradient vector.
         let mut offsets = Vec::with_capacity(layers);
         let mut len = 0;
@@ -206,29 +208,28 @@ impl<T: Float> Op<T> for FusedMlp {
                         db.iter_mut().zip(row).for_each(|(d, &v)| *d += v);
                     }
                 }
-                if l == 0 {
-                    if need[0] && k > 0 && nl > 0 {
-                        T::gemm_serial(
-                            T::one(),
-                            MatRef::row_major(&gl, rows, nl),
-                            MatRef::row_major(w.data(), k, nl).t(),
-                            T::zero(),
-                            MatMut::row_major(dx, rows, k),
-                        );
+                // g_l W_l^T: dx for the first layer, else g_{l-1} before its ReLU mask.
+                let to: &mut [T] = if l == 0 {
+                    if !need[0] {
+                        break;
                     }
-                    break;
-                }
-                // g_{l-1} = (g_l W_l^T) [a_{l-1} > 0], into the other buffer.
-                below.clear();
-                below.resize(rows * k, T::zero());
-                if nl > 0 {
+                    &mut *dx
+                } else {
+                    below.clear();
+                    below.resize(rows * k, T::zero());
+                    &mut below
+                };
+                if k > 0 && nl > 0 {
                     T::gemm_serial(
                         T::one(),
                         MatRef::row_major(&gl, rows, nl),
                         MatRef::row_major(w.data(), k, nl).t(),
                         T::zero(),
-                        MatMut::row_major(&mut below, rows, k),
+                        MatMut::row_major(to, rows, k),
                     );
+                }
+                if l == 0 {
+                    break;
                 }
                 below.iter_mut().zip(a).for_each(|(v, &act)| {
                     *v = if act > T::zero() { *v } else { T::zero() };
@@ -256,19 +257,16 @@ impl<T: Float> Op<T> for FusedMlp {
             if keep.len() == rows {
                 return rows_backward(rows, xb, hb, gb, dx);
             }
-            let take = |src: &[T], w: usize| -> Vec<T> {
-                keep.iter()
-                    .flat_map(|&r| src[r * w..(r + 1) * w].iter().copied())
-                    .collect()
-            };
-            let mut hk = Vec::with_capacity(keep.len() * hidden_w);
+            let (mut xk, mut hk, mut gk) = (Vec::new(), Vec::new(), Vec::new());
+            gather_rows(xb, n0, &keep, &mut xk);
+            gather_rows(gb, out_w, &keep, &mut gk);
             let mut off = 0;
             for &w in &n[1..layers] {
-                hk.extend(take(&hb[off..off + rows * w], w));
+                gather_rows(&hb[off..off + rows * w], w, &keep, &mut hk);
                 off += rows * w;
             }
             let mut dxk = vec![T::zero(); if need[0] { keep.len() * n0 } else { 0 }];
-            let part = rows_backward(keep.len(), &take(xb, n0), &hk, &take(gb, out_w), &mut dxk);
+            let part = rows_backward(keep.len(), &xk, &hk, &gk, &mut dxk);
             if need[0] {
                 for (j, &r) in keep.iter().enumerate() {
                     dx[r * n0..(r + 1) * n0].copy_from_slice(&dxk[j * n0..(j + 1) * n0]);
@@ -278,15 +276,8 @@ impl<T: Float> Op<T> for FusedMlp {
         };
         let mut dx = vec![T::zero(); if need[0] { m * n0 } else { 0 }];
         let per_row = if need[0] { n0 } else { 0 };
-        let parts = map_items(
-            block_slices(&mut dx, per_row, m),
-            m * macs >= PARALLEL_MIN_MACS,
-            block,
-        );
-        let total = parts.into_iter().reduce(|mut acc, p| {
-            acc.iter_mut().zip(&p).for_each(|(a, &b)| *a += b);
-            acc
-        });
+        let parts = map_blocks(row_blocks(&mut dx, per_row, m), parallel, block);
+        let total = sum_in_order(parts.into_iter());
         let mut out = vec![need[0].then(|| Tensor::from_vec(dx, &[m, n0]))];
         for l in 0..layers {
             let (k, nl, off) = (n[l], n[l + 1], offsets[l]);
