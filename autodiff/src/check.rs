@@ -408,4 +408,14 @@ pub mod tests_support {
             shape,
         )
     }
+
+    /// `f()` run on a fresh rayon pool of `threads` threads (the thread-count
+    /// independence tests run the same work at 1, 2 and 3 threads).
+    pub fn with_threads<R: Send>(threads: usize, f: impl FnOnce() -> R + Send) -> R {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("thread pool")
+            .install(f)
+    }
 }

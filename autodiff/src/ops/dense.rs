@@ -170,7 +170,10 @@ impl<'t, T: Float> Var<'t, T> {
 mod tests {
     use super::*;
     use crate::Tape;
-    use crate::check::{GradcheckConfig, check_vjp, gradcheck, tests_support::random_tensor};
+    use crate::check::{
+        GradcheckConfig, check_vjp, gradcheck,
+        tests_support::{random_tensor, with_threads},
+    };
 
     /// `act(x W + b)` by a triple loop.
     fn reference(x: &Tensor<f64>, w: &Tensor<f64>, b: &Tensor<f64>, act: Activation) -> Vec<f64> {
@@ -293,11 +296,7 @@ mod tests {
     /// Forward value and the gradients of W and b (x constant, so no dx is built),
     /// plus dx with x a variable, under a pool of `threads` threads.
     fn run_f32(threads: usize, v: &[Tensor<f32>]) -> Vec<Vec<f32>> {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .expect("thread pool");
-        pool.install(|| {
+        with_threads(threads, || {
             let mut out = Vec::new();
             for x_is_var in [false, true] {
                 let t = Tape::new();

@@ -3,7 +3,10 @@
 
 use super::*;
 use crate::Tape;
-use crate::check::{GradcheckConfig, gradcheck, tests_support::random_tensor};
+use crate::check::{
+    GradcheckConfig, gradcheck,
+    tests_support::{random_tensor, with_threads},
+};
 use crate::ops::dense::Activation;
 
 /// `x` then `(W, b)` per layer for `widths`, seeded; biases in [-0.5, 0.5].
@@ -60,11 +63,7 @@ fn fused_and_chain(
     v: &[Tensor<f32>],
     rows: Option<&Tensor<f32>>,
 ) -> [Vec<Vec<f32>>; 2] {
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .expect("thread pool");
-    pool.install(|| {
+    with_threads(threads, || {
         [true, false].map(|fused| {
             let mut out = Vec::new();
             for x_is_var in [false, true] {

@@ -6,7 +6,10 @@ use std::sync::Arc;
 use super::sample::ROWS_PER_TASK;
 use super::*;
 use maaf_autodiff::Tape;
-use maaf_autodiff::check::{GradcheckConfig, compare, gradcheck, tests_support::random_tensor};
+use maaf_autodiff::check::{
+    GradcheckConfig, compare, gradcheck,
+    tests_support::{random_tensor, with_threads},
+};
 
 /// A small field with random planes and queries that cover the interior, the
 /// border (clamp) and every mip level, including fractional ones.
@@ -94,11 +97,7 @@ fn run_threads(threads: usize, n: usize) -> (Vec<f32>, Vec<Vec<f32>>, Vec<f64>) 
     let scales = random_tensor::<f64>(&[n, 3], -5.0, 1.0, 9).map(f64::exp);
     let q = field.query(&means, &times, scales.data());
     let want = reference_sample(&field, &planes, &q).into_vec();
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .expect("thread pool");
-    pool.install(|| {
+    with_threads(threads, || {
         let tape = Tape::<f32>::new();
         let vars: Vec<_> = planes.iter().map(|p| tape.var(p.cast())).collect();
         let out = tape.apply1(PlaneSample::new(&field, Arc::new(q)), &vars);
