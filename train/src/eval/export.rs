@@ -17,6 +17,8 @@ use maaf_autodiff::Tensor;
 use maaf_autodiff::scalar::logit;
 use maaf_splat::Gaussians;
 use maaf_splat::ply::ply_bytes;
+
+use super::sequence::{check_own_folder, frame_times};
 use maaf_splat::sh::num_coeffs;
 use serde_json::json;
 use zip::write::SimpleFileOptions;
@@ -65,23 +67,6 @@ fn frame_name(i: usize) -> String {
     format!("frame_{i:04}.ply")
 }
 
-/// The `frames` times of a sequence over `[t0, t1]`:
-/// `t_i = t0 + (t1 - t0) i / (frames - 1)` (just `t0` for one frame).
-fn frame_times((t0, t1): (f64, f64), frames: usize) -> Result<Vec<f64>, Error> {
-    if frames == 0 {
-        return Err(Error::Input("--frames must be at least 1".into()));
-    }
-    Ok((0..frames)
-        .map(|i| {
-            if frames == 1 {
-                t0
-            } else {
-                t0 + (t1 - t0) * i as f64 / (frames - 1) as f64
-            }
-        })
-        .collect())
-}
-
 /// `frames.json` of a sequence: `{"frames": [{"file": "frame_0000.ply", "time": t_0},
 /// ...]}`, the same bytes in a folder and in a zip.
 fn index_json(times: &[f64]) -> Result<Vec<u8>, Error> {
@@ -124,18 +109,9 @@ fn check_sequence_folder(out: &Path) -> Result<(), Error> {
             out.display()
         )));
     }
-    let entries = std::fs::read_dir(out).map_err(|e| Error::io(out, e))?;
-    for entry in entries.flatten() {
-        let name = entry.file_name().to_string_lossy().into_owned();
-        let ours = name == "frames.json" || (name.starts_with("frame_") && name.ends_with(".ply"));
-        if !ours {
-            return Err(Error::Input(format!(
-                "{}: holds `{name}`, which is not a frame of an earlier export; give a new or empty folder",
-                out.display()
-            )));
-        }
-    }
-    Ok(())
+    check_own_folder(out, "export", |name| {
+        name == "frames.json" || (name.starts_with("frame_") && name.ends_with(".ply"))
+    })
 }
 
 /// Refuses a `.zip` target that is a folder or an existing file that is not a zip

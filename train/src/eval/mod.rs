@@ -19,6 +19,7 @@ pub mod flow;
 pub mod images;
 pub mod render;
 pub mod report;
+mod sequence;
 pub mod temporal;
 
 use std::path::Path;

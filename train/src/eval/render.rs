@@ -8,6 +8,7 @@ use maaf_splat::{Camera, RenderSettings};
 use serde::{Deserialize, Serialize};
 
 use super::images;
+use super::sequence::{check_own_folder, frame_times};
 use crate::data::{Dataset, Split};
 use crate::forward::forward;
 use crate::trainer::{Trainer, load_checkpoint};
@@ -192,27 +193,14 @@ pub fn render_image(
 pub fn render_video(
     trainer: &Trainer,
     camera: &Camera,
-    (t0, t1): (f64, f64),
+    range: (f64, f64),
     frames: usize,
     out: &Path,
 ) -> Result<Vec<PathBuf>, Error> {
-    if frames == 0 {
-        return Err(Error::Input("--frames must be at least 1".into()));
-    }
-    if out.exists() {
-        let entries = std::fs::read_dir(out).map_err(|e| Error::io(out, e))?;
-        for entry in entries.flatten() {
-            let name = entry.file_name().to_string_lossy().into_owned();
-            let ours =
-                name == "video.gif" || (name.starts_with("frame_") && name.ends_with(".png"));
-            if !ours {
-                return Err(Error::Input(format!(
-                    "{}: holds `{name}`, which is not a frame of an earlier video; give a new or empty folder",
-                    out.display()
-                )));
-            }
-        }
-    }
+    let times = frame_times(range, frames)?;
+    check_own_folder(out, "video", |name| {
+        name == "video.gif" || (name.starts_with("frame_") && name.ends_with(".png"))
+    })?;
     let tmp = maaf_io::temp_sibling(out);
     if tmp.exists() {
         std::fs::remove_dir_all(&tmp).map_err(|e| Error::io(&tmp, e))?;
@@ -222,12 +210,7 @@ pub fn render_video(
     let names: Vec<String> = (0..frames).map(|i| format!("frame_{i:04}.png")).collect();
     let written = (|| {
         let mut rgb = Vec::with_capacity(frames);
-        for (i, name) in names.iter().enumerate() {
-            let t = if frames == 1 {
-                t0
-            } else {
-                t0 + (t1 - t0) * i as f64 / (frames - 1) as f64
-            };
+        for (name, &t) in names.iter().zip(&times) {
             let img = images::to_rgb8(&render_image(trainer, camera, t, &settings))?;
             images::save_png(&img, &tmp.join(name))?;
             rgb.push(img);
