@@ -49,10 +49,29 @@ enum Command {
     Sweep(cli::sweep::SweepArgs),
 }
 
+/// Stack size of the worker threads, which run the whole command (as the main
+/// thread's default would be).
+const WORKER_STACK: usize = 8 << 20;
+
 /// Runs the command; errors print as one line (file, field, reason) and exit with 1.
+///
+/// The command runs on a worker of the rayon pool (`RAYON_NUM_THREADS` threads,
+/// default one per core), not on the main thread: a parallel loop started from
+/// outside the pool hands its work over and sleeps until a worker has finished it,
+/// and a training step starts hundreds of small parallel loops, which then each
+/// paid a thread wake-up. From inside the pool, the calling worker starts on the work
+/// at once and the others join when they wake.
 fn main() {
     alloc::keep_freed_pages();
-    if let Err(e) = run(Cli::parse()) {
+    let cli = Cli::parse();
+    let result = match rayon::ThreadPoolBuilder::new()
+        .stack_size(WORKER_STACK)
+        .build()
+    {
+        Ok(pool) => pool.install(|| run(cli)),
+        Err(e) => Err(anyhow::anyhow!("cannot start the worker threads: {e}")),
+    };
+    if let Err(e) = result {
         eprintln!("maaf: error: {e:#}");
         std::process::exit(1);
     }
