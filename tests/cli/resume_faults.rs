@@ -30,12 +30,14 @@ fn ok(out: Output, what: &str) -> Output {
     out
 }
 
-/// Densification, opacity resets, filter refreshes and the SaRO stage switch all
-/// happen inside the 10 iterations, between checkpoints every 2.
+/// Densification, opacity resets, filter refreshes, the SaRO stage switch and its
+/// adaptive learning-rate refreshes (every 2, so checkpoints carry the scale computed
+/// at their own iteration from the parameters before that step) all happen inside
+/// the 10 iterations, between checkpoints every 2.
 const CONFIG: &str = r#"{
   "iterations": 10, "init_points": 300, "train_scale": 0.5, "seed": 5,
   "checkpoint_every": 2, "log_every": 1, "val_every": 0,
-  "model": {"kind": "saro", "static_iterations": 3},
+  "model": {"kind": "saro", "static_iterations": 3, "adaptive_every": 2},
   "filter": {"kind": "motion", "refresh": {"start": 2, "every": 3, "after_densify": true}},
   "densify": {"from": 2, "until": 9, "every": 2, "opacity_reset_every": 5, "grad_threshold": 1e-6}
 }"#;

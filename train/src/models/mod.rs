@@ -25,6 +25,8 @@ mod init;
 pub mod kplane;
 pub mod saro;
 
+use std::sync::Arc;
+
 use maaf_autodiff::scalar::{logit, sigmoid};
 use maaf_autodiff::{Float, PerGaussian, Tape, Tensor, Var};
 use maaf_splat::GaussianVars;
@@ -184,6 +186,32 @@ pub trait Representation<T: Float> {
     /// integral below the threshold). Empty by default.
     fn short_lived(&self) -> Vec<usize> {
         Vec::new()
+    }
+
+    /// Per-Gaussian multipliers of the learning rate of parameter `name` at the
+    /// current iteration (one per row), or `None` for the plain rate. `densifying`:
+    /// whether the iteration is inside the densification window. SaRO: the adaptive
+    /// optimisation. Default: `None`.
+    fn lr_row_scale(&self, _name: &str, _densifying: bool) -> Option<Arc<[T]>> {
+        None
+    }
+
+    /// Per-Gaussian multipliers of the densification statistic (the mean screen-space
+    /// gradient) before it meets the threshold, or `None`. Default: `None`.
+    fn densify_grad_scale(&self) -> Option<Arc<[T]>> {
+        None
+    }
+
+    /// State outside the parameter store that a checkpoint must carry for a resumed
+    /// run to continue exactly, as (name, tensor). Default: none.
+    fn buffers(&self) -> Vec<(String, Tensor<T>)> {
+        Vec::new()
+    }
+
+    /// Restores a buffer [`Representation::buffers`] wrote; an error names the buffer
+    /// when it is unknown or has the wrong shape.
+    fn load_buffer(&mut self, name: &str, _value: Tensor<T>) -> Result<(), String> {
+        Err(format!("{} has no buffer `{name}`", self.name()))
     }
 
     /// Deformed centres \[N,3] at each of `times`, outside any training tape: what the

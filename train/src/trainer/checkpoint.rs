@@ -1,5 +1,6 @@
 //! Checkpoints: a folder holding `tensors.safetensors` (the parameter store as
-//! `param/{name}`, Adam moments, densification statistics, f/d observations) and
+//! `param/{name}`, Adam moments, the representation's buffers, densification
+//! statistics, f/d observations) and
 //! `state.json` (model name, iteration, counters, configuration, filter state).
 //! Built under a temporary name and swapped in by [`maaf_io::replace_dir`], so a
 //! crash never leaves a half-written checkpoint.
@@ -32,6 +33,9 @@ struct State {
     adam_steps: HashMap<String, u64>,
 }
 
+/// Prefix of the representation's buffers ([`crate::models::Representation::buffers`]).
+const BUFFER: &str = "buffer/";
+
 fn bytes_of(data: &[f32]) -> Vec<u8> {
     data.iter().flat_map(|v| v.to_le_bytes()).collect()
 }
@@ -60,6 +64,13 @@ pub fn save_checkpoint(trainer: &Trainer, dir: &Path) -> Result<(), Error> {
             ));
             adam_steps.insert(name.to_string(), m.steps);
         }
+    }
+    for (name, value) in trainer.model.buffers() {
+        named.push((
+            format!("{BUFFER}{name}"),
+            value.shape().to_vec(),
+            bytes_of(value.data()),
+        ));
     }
     let n = trainer.num_gaussians();
     let s = &trainer.stats;
@@ -230,6 +241,20 @@ impl Trainer {
         // The stage (e.g. SaRO-GS's static warm-up) follows the iteration; without this a
         // loaded run would render its canonical, undeformed Gaussians.
         self.model.set_iteration(state.iteration);
+        // Buffers after the stage: `set_iteration` may recompute them from the
+        // parameters, which have moved since the run computed the saved ones.
+        let mut buffers: Vec<&str> = st
+            .names()
+            .into_iter()
+            .filter_map(|k| k.strip_prefix(BUFFER))
+            .collect();
+        buffers.sort_unstable();
+        for name in buffers {
+            let value = tensor(&st, &format!("{BUFFER}{name}"), &blob_path)?;
+            self.model
+                .load_buffer(name, value)
+                .map_err(|e| Error::Input(format!("{}: {e}", blob_path.display())))?;
+        }
         self.skipped_steps = state.skipped_steps;
         self.last_reset = state.last_reset;
         self.timings = state.timings;

@@ -98,7 +98,9 @@ pub struct DensifyPlan {
 /// - pruned: base opacity `< min_opacity`, screen radius above `max_screen_size`
 ///   when `big_screen` is set (after the first opacity reset), and whatever the
 ///   representation reports as short-lived; a pruned Gaussian is neither cloned nor split;
-/// - growth stops at `max_gaussians`, taking the largest gradients first.
+/// - growth stops at `max_gaussians`, taking the largest gradients first;
+/// - the mean gradient is first multiplied by the representation's
+///   [`Representation::densify_grad_scale`] (SaRO: the adaptive-optimisation scale).
 pub fn plan(
     model: &dyn Representation<f32>,
     stats: &DensifyStats,
@@ -109,7 +111,12 @@ pub fn plan(
 ) -> DensifyPlan {
     let canon = model.canonical();
     let n = model.num_gaussians();
-    let grad = stats.mean_grad();
+    let mut grad = stats.mean_grad();
+    if let Some(scale) = model.densify_grad_scale() {
+        for (g, s) in grad.iter_mut().zip(scale.iter()) {
+            *g *= s;
+        }
+    }
     let mut prune = vec![false; n];
     for i in model.short_lived() {
         prune[i] = true;

@@ -100,11 +100,24 @@ impl Trainer {
         });
         match grads {
             Ok(grads) => {
-                for p in self.model.params_mut().iter_mut() {
+                let densifying = it <= self.config.densify.until;
+                let scales: Vec<_> = self
+                    .model
+                    .params()
+                    .iter()
+                    .map(|p| self.model.lr_row_scale(&p.name, densifying))
+                    .collect();
+                for (p, scale) in self.model.params_mut().iter_mut().zip(scales) {
                     if let Some(gr) = grads.param(&p.name) {
                         self.adam.set_group(&p.name, p.lr.clone());
-                        self.adam
-                            .step_l2(&p.name, &mut p.value, gr, it - 1, p.weight_decay);
+                        self.adam.step_rows(
+                            &p.name,
+                            &mut p.value,
+                            gr,
+                            it - 1,
+                            p.weight_decay,
+                            scale.as_deref(),
+                        );
                     }
                 }
                 let out = &fwd.render;

@@ -92,6 +92,18 @@ pub struct SaroConfig {
     pub min_integral: f64,
     /// Iterations rendered as static 3D Gaussians (`static_iteration` 1000).
     pub static_iterations: usize,
+    /// SaRO-GS's adaptive optimisation ("AO" of the paper's title): every this many
+    /// iterations of the dynamic stage the per-Gaussian scale `I_max / I` (I the
+    /// temporal integral) is recomputed; it multiplies the learning rates of centre,
+    /// opacity, temporal centre, rotation and SH DC (and of the log-scale while
+    /// densifying) and the densification gradient, so Gaussians that live for a short
+    /// time learn and densify as fast as long-lived ones (`update_learning_rate`,
+    /// `iteration % 50 == 0`). 0 turns it off.
+    pub adaptive_every: usize,
+    /// Keep the adaptive learning rates after the densification window
+    /// (`use_intergral_afterdensify`: false in the D-NeRF configs, true in the
+    /// Neural 3D Video ones).
+    pub adaptive_after_densify: bool,
     /// Weight of L_SR (`lambda_dscale_reg` 8e-6): the one place it is set; the model
     /// declares the `l_sr` term with it ([`crate::models::Representation::regularisers`]).
     pub lambda_sr: f64,
@@ -111,6 +123,8 @@ impl Default for SaroConfig {
             duration: None,
             min_integral: 0.0025,
             static_iterations: 1000,
+            adaptive_every: 50,
+            adaptive_after_densify: false,
             lambda_sr: 8e-6,
             lr: SaroLr::default(),
         }

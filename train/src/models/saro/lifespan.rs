@@ -113,4 +113,21 @@ impl<T: Float> SaroModel<T> {
             })
             .collect()
     }
+
+    /// SaRO-GS's adaptive-optimisation scale per Gaussian (`update_learning_rate`):
+    /// `inv = 1 / I` normalised by its smallest value, i.e. `I_max / I`, with `I` the
+    /// [`Self::temporal_integral`]. Integrals at or below `min_integral` (or not
+    /// finite), which SaRO-GS prunes at this point and maaf prunes at the next
+    /// densification, count as `min_integral` (at least 1e-12) so the scale stays
+    /// finite.
+    pub fn adaptive_scale(&self) -> Vec<T> {
+        let floor = self.config.min_integral.max(1e-12);
+        let integral: Vec<f64> = self
+            .temporal_integral()
+            .into_iter()
+            .map(|i| if i.is_finite() && i > floor { i } else { floor })
+            .collect();
+        let max = integral.iter().copied().fold(floor, f64::max);
+        integral.iter().map(|&i| T::of(max / i)).collect()
+    }
 }

@@ -25,6 +25,9 @@ mod lifespan;
 #[cfg(test)]
 mod tests;
 
+use std::sync::Arc;
+
+use maaf_autodiff::PerGaussian;
 use maaf_autodiff::nn::Mlp;
 use maaf_autodiff::optim::LrSchedule;
 use maaf_autodiff::scalar::logit;
@@ -37,6 +40,9 @@ use super::{Bound, CanonicalIds, PointCloud, Representation, knn_mean_sq_dist, r
 use crate::params::{BoundParams, MlpParams, ParamId, ParamStore, Rows};
 
 pub use bound::{Norm2, SaroBound, time_embedding};
+
+/// Checkpoint name of the adaptive-optimisation scale.
+const ADAPTIVE: &str = "adaptive_lr_scale";
 pub use config::{SaroConfig, SaroLr};
 
 /// Where each SaRO parameter sits in the store.
@@ -82,6 +88,9 @@ pub struct SaroModel<T: Float> {
     /// Layout and normalisation box of the residual field.
     pub field: KPlaneField,
     dynamic: bool,
+    /// The adaptive-optimisation scale `I_max / I` per Gaussian, as last computed
+    /// (`None` in the static stage, before the first refresh, or when turned off).
+    adaptive: Option<Arc<[T]>>,
     /// Test-only: bind the field with a deliberately wrong backward (negative control).
     #[cfg(test)]
     corrupt_field_backward: bool,
@@ -238,6 +247,7 @@ impl<T: Float> SaroModel<T> {
             },
             field,
             dynamic: false,
+            adaptive: None,
             #[cfg(test)]
             corrupt_field_backward: false,
         }
@@ -293,8 +303,75 @@ impl<T: Float> Representation<T> for SaroModel<T> {
 
     /// Static stage for iterations `<= static_iterations`, dynamic after (SaRO-GS
     /// `train.py`: `if iteration > opt.static_iteration: stage = "dynamatic"`).
+    ///
+    /// In the dynamic stage, every `adaptive_every` iterations, the adaptive scale is
+    /// recomputed from the parameters at the start of the iteration (SaRO-GS
+    /// `update_learning_rate`, called before the step).
     fn set_iteration(&mut self, iteration: usize) {
         self.dynamic = iteration > self.config.static_iterations;
+        let every = self.config.adaptive_every;
+        if !self.dynamic || every == 0 {
+            self.adaptive = None;
+        } else if iteration.is_multiple_of(every) {
+            self.adaptive = Some(self.adaptive_scale().into());
+        }
+    }
+
+    /// The adaptive scale for centre, opacity, temporal centre, rotation and SH DC
+    /// (while densifying, or always with `adaptive_after_densify`) and for the
+    /// log-scale (while densifying only: SaRO-GS stops it then "to ensure stability").
+    fn lr_row_scale(&self, name: &str, densifying: bool) -> Option<Arc<[T]>> {
+        let on = match name {
+            "xyz" | "opacity" | "t_centre" | "rotation" | "sh_dc" => {
+                densifying || self.config.adaptive_after_densify
+            }
+            "log_scale" => densifying,
+            _ => false,
+        };
+        self.adaptive.clone().filter(|_| on)
+    }
+
+    /// The adaptive scale (SaRO-GS `densify_pruneclone`: `grads * inv_intergral`).
+    fn densify_grad_scale(&self) -> Option<Arc<[T]>> {
+        self.adaptive.clone()
+    }
+
+    /// The adaptive scale, so that a resumed run continues with the one computed
+    /// before the checkpoint (it is refreshed only every `adaptive_every`).
+    fn buffers(&self) -> Vec<(String, Tensor<T>)> {
+        self.adaptive
+            .iter()
+            .map(|a| {
+                (
+                    ADAPTIVE.to_string(),
+                    Tensor::from_vec(a.to_vec(), &[a.len()]),
+                )
+            })
+            .collect()
+    }
+
+    fn load_buffer(&mut self, name: &str, value: Tensor<T>) -> Result<(), String> {
+        let n = self.num_rows();
+        if name != ADAPTIVE {
+            return Err(format!("saro has no buffer `{name}`"));
+        }
+        if value.shape() != [n] {
+            return Err(format!(
+                "buffer `{name}` has shape {:?}, expected [{n}]",
+                value.shape()
+            ));
+        }
+        self.adaptive = Some(value.data().into());
+        Ok(())
+    }
+
+    /// Resizes the parameters and the adaptive scale (a clone or split half keeps
+    /// its parent's scale until the next refresh).
+    fn select_rows(&mut self, index: &[usize]) {
+        self.params.select_rows(index);
+        if let Some(a) = &self.adaptive {
+            self.adaptive = Some(index.iter().map(|&i| a[i]).collect());
+        }
     }
 
     /// Gaussians whose temporal integral is below `min_integral` (SaRO-GS prunes them

@@ -277,6 +277,96 @@ fn temporal_integral_matches_quadrature_and_flags_short_lived() {
 }
 
 #[test]
+fn adaptive_scale_is_the_longest_integral_over_each_and_follows_the_schedule() {
+    let mut model = tiny_model::<f64>(8, 3);
+    randomise_planes(&mut model, -1.0, 1.0, 5);
+    // Gaussian 5 lives outside [0, 1]: its integral is below the prune threshold.
+    let id = model.ids.t_centre;
+    model.params.value_mut(id).data_mut()[5] = 4.0;
+    let integral = model.temporal_integral();
+    let scale = model.adaptive_scale();
+    let floor = model.config.min_integral;
+    let longest = integral.iter().copied().fold(0.0, f64::max);
+    for (i, (&s, &integ)) in scale.iter().zip(&integral).enumerate() {
+        let want = longest / integ.max(floor);
+        assert!((s - want).abs() <= 1e-12 * want, "{i}: {s} vs {want}");
+        assert!(
+            s >= 1.0,
+            "{i}: the longest-lived Gaussian has the smallest scale, 1"
+        );
+    }
+    assert!(
+        (scale[5] - longest / floor).abs() < 1e-9 * scale[5],
+        "floored"
+    );
+    assert_eq!(scale.iter().copied().fold(f64::INFINITY, f64::min), 1.0);
+
+    // Refreshed at multiples of `adaptive_every` in the dynamic stage only.
+    let every = model.config.adaptive_every;
+    let start = model.config.static_iterations;
+    let first = (start / every + 1) * every;
+    model.set_iteration(first - 1);
+    assert!(
+        model.densify_grad_scale().is_none(),
+        "not before the first refresh"
+    );
+    model.set_iteration(first);
+    let got = model.densify_grad_scale().expect("refreshed");
+    assert_eq!(&got[..], &scale[..]);
+    // Kept between refreshes even when the parameters move.
+    model.params.value_mut(id).data_mut()[0] = 0.9;
+    model.set_iteration(first + 1);
+    assert_eq!(&model.densify_grad_scale().expect("kept")[..], &scale[..]);
+    // Which rates it scales: the D-NeRF rule (no scaling after densification).
+    for (name, while_densifying, after) in [
+        ("xyz", true, false),
+        ("opacity", true, false),
+        ("t_centre", true, false),
+        ("rotation", true, false),
+        ("sh_dc", true, false),
+        ("log_scale", true, false),
+        ("sh_rest", false, false),
+        ("motion_mlp.0.weight", false, false),
+        ("field.xy", false, false),
+    ] {
+        assert_eq!(
+            model.lr_row_scale(name, true).is_some(),
+            while_densifying,
+            "{name}"
+        );
+        assert_eq!(model.lr_row_scale(name, false).is_some(), after, "{name}");
+    }
+    model.config.adaptive_after_densify = true;
+    assert!(model.lr_row_scale("xyz", false).is_some());
+    assert!(model.lr_row_scale("log_scale", false).is_none());
+    // Densification carries each row's scale to its clones; a checkpoint buffer
+    // restores it; the static stage and `adaptive_every = 0` turn it off.
+    model.select_rows(&[7, 0, 0]);
+    assert_eq!(
+        &model.densify_grad_scale().expect("resized")[..],
+        &[scale[7], scale[0], scale[0]]
+    );
+    let buffers = model.buffers();
+    let mut other = model.clone();
+    other.set_iteration(1);
+    assert!(other.buffers().is_empty());
+    other.set_iteration(first + 1);
+    for (name, value) in buffers {
+        other.load_buffer(&name, value).expect("load");
+    }
+    assert_eq!(other.densify_grad_scale(), model.densify_grad_scale());
+    assert!(other.load_buffer("nope", Tensor::zeros(&[3])).is_err());
+    assert!(
+        other
+            .load_buffer(super::ADAPTIVE, Tensor::zeros(&[4]))
+            .is_err()
+    );
+    model.config.adaptive_every = 0;
+    model.set_iteration(first);
+    assert!(model.densify_grad_scale().is_none());
+}
+
+#[test]
 fn parameters_are_named_as_bound_and_scaled_by_extent() {
     let model = tiny_model::<f32>(4, 1);
     let names = model.params.names();
