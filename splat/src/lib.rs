@@ -39,7 +39,7 @@ pub use filter3d::apply_3d_filter;
 pub use gaussians::{Gaussians, render_gaussians};
 pub use lanes::SplatFloat;
 pub use math::quat_to_rotmat;
-pub use ply::{PlyError, read_ply, write_baked_ply, write_ply};
+pub use ply::{PlyError, VertexTable, read_ply, read_vertex_table, write_baked_ply, write_ply};
 pub use project::Filter2d;
 pub use render::{
     GaussianVars, RenderOutput, RenderSettings, RenderedFrame, render, render_tensors,

@@ -188,9 +188,31 @@ struct Columns {
     sh: Vec<f32>,
 }
 
-/// Reads a 3DGS PLY file (ascii or binary) into [`Gaussians`]. The SH degree is
-/// inferred from the number of `f_rest_*` properties (0, 9, 24 or 45).
-pub fn read_ply(path: &Path) -> Result<Gaussians, PlyError> {
+/// The `vertex` element of a PLY file (ascii or binary): property names in header
+/// order, whether each is an integer type (e.g. `uchar` colours), and every row's
+/// values converted to `f32`. The generic reader behind [`read_ply`] and the point
+/// clouds data sets ship; list properties are refused.
+#[derive(Clone, Debug, PartialEq)]
+pub struct VertexTable {
+    /// Property names, header order.
+    pub names: Vec<String>,
+    /// Whether each property has an integer type.
+    pub integer: Vec<bool>,
+    /// One entry per vertex, one value per property.
+    pub rows: Vec<Vec<f32>>,
+}
+
+impl VertexTable {
+    /// Column of property `name`, if present.
+    pub fn column(&self, name: &str) -> Option<usize> {
+        self.names.iter().position(|p| p == name)
+    }
+}
+
+/// Reads the `vertex` element of the PLY file at `path` ([`VertexTable`]); errors
+/// name the file and what is wrong (no vertex element, a list property, a row count
+/// that differs from the header's).
+pub fn read_vertex_table(path: &Path) -> Result<VertexTable, PlyError> {
     let shown = path.display().to_string();
     let file = std::fs::File::open(path).map_err(|source| PlyError::Io {
         path: shown.clone(),
@@ -220,8 +242,65 @@ pub fn read_ply(path: &Path) -> Result<Gaussians, PlyError> {
         .current_element()
         .ok_or_else(|| format("no element `vertex`".into()))?
         .clone();
-    let props: Vec<String> = def.properties.iter().map(|p| p.name.clone()).collect();
-    let n_rest = props.iter().filter(|p| p.starts_with("f_rest_")).count();
+    let mut integer = Vec::with_capacity(def.properties.len());
+    for p in &def.properties {
+        match &p.property_type {
+            serde_ply::PropertyType::Scalar(t) => integer.push(!matches!(
+                t,
+                serde_ply::ScalarType::F32 | serde_ply::ScalarType::F64
+            )),
+            serde_ply::PropertyType::List { .. } => {
+                return Err(format(format!(
+                    "property `{}` of element `vertex` is a list; only scalars are read",
+                    p.name
+                )));
+            }
+        }
+    }
+    let names: Vec<String> = def.properties.iter().map(|p| p.name.clone()).collect();
+    let rows: Vec<Row> = reader.next_element().map_err(|e| {
+        format(format!(
+            "element `vertex` ({} rows declared): {e}",
+            def.count
+        ))
+    })?;
+    if rows.len() != def.count {
+        return Err(format(format!(
+            "element `vertex` declares {} rows, read {}",
+            def.count,
+            rows.len()
+        )));
+    }
+    for (i, row) in rows.iter().enumerate() {
+        if row.0.len() != names.len() {
+            return Err(format(format!(
+                "vertex {i} has {} values for {} properties",
+                row.0.len(),
+                names.len()
+            )));
+        }
+    }
+    Ok(VertexTable {
+        names,
+        integer,
+        rows: rows.into_iter().map(|r| r.0).collect(),
+    })
+}
+
+/// Reads a 3DGS PLY file (ascii or binary) into [`Gaussians`]. The SH degree is
+/// inferred from the number of `f_rest_*` properties (0, 9, 24 or 45).
+pub fn read_ply(path: &Path) -> Result<Gaussians, PlyError> {
+    let shown = path.display().to_string();
+    let format = |message: String| PlyError::Format {
+        path: shown.clone(),
+        message,
+    };
+    let table = read_vertex_table(path)?;
+    let n_rest = table
+        .names
+        .iter()
+        .filter(|p| p.starts_with("f_rest_"))
+        .count();
     let degree = match n_rest {
         0 => 0,
         9 => 1,
@@ -239,7 +318,7 @@ pub fn read_ply(path: &Path) -> Result<Gaussians, PlyError> {
     let names = layout.names();
     let mut column = Vec::with_capacity(names.len());
     for (j, name) in names.iter().enumerate() {
-        match props.iter().position(|p| p == name) {
+        match table.column(name) {
             Some(c) => column.push(Some(c)),
             None if Layout::optional(j) => column.push(None),
             None => {
@@ -250,32 +329,12 @@ pub fn read_ply(path: &Path) -> Result<Gaussians, PlyError> {
             }
         }
     }
-    let rows: Vec<Row> = reader.next_element().map_err(|e| {
-        format(format!(
-            "element `vertex` ({} rows declared): {e}",
-            def.count
-        ))
-    })?;
-    if rows.len() != def.count {
-        return Err(format(format!(
-            "element `vertex` declares {} rows, read {}",
-            def.count,
-            rows.len()
-        )));
-    }
-    let n = rows.len();
+    let n = table.rows.len();
     let mut cols = Columns::default();
     let mut values = vec![0.0f32; layout.len()];
-    for (i, row) in rows.iter().enumerate() {
-        if row.0.len() != props.len() {
-            return Err(format(format!(
-                "vertex {i} has {} values for {} properties",
-                row.0.len(),
-                props.len()
-            )));
-        }
+    for (i, row) in table.rows.iter().enumerate() {
         for (j, c) in column.iter().enumerate() {
-            let v = c.map_or(0.0, |c| row.0[c]);
+            let v = c.map_or(0.0, |c| row[c]);
             if !v.is_finite() {
                 return Err(PlyError::NonFinite {
                     path: shown.clone(),

@@ -61,7 +61,12 @@ fn model() -> SaroModel<f64> {
         duration: Some(150.0),
         ..SaroConfig::default()
     };
-    let mut m = SaroModel::from_point_cloud(&PointCloud { points, colours }, config, 2.0, 1);
+    let cloud = PointCloud {
+        points,
+        colours,
+        times: None,
+    };
+    let mut m = SaroModel::from_point_cloud(&cloud, config, 2.0, 1);
     m.set_dynamic(true);
     for (k, p) in m.params.iter_mut().enumerate() {
         // Keep the canonical geometry and colours near their initial values (so every

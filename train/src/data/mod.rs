@@ -7,6 +7,7 @@
 //! - [`dataset`]: [`Dataset`], views at any integer-ratio scale, cached per scale.
 //! - [`synthetic`]: the procedural alias-prone scene behind `maaf generate`.
 //! - [`inspect`]: the summary behind `maaf inspect`.
+//! - [`points`]: the initial point cloud a data set may ship (`points3d.ply`).
 
 pub mod bounds;
 pub mod dataset;
@@ -17,6 +18,7 @@ pub mod flow;
 pub mod image;
 pub mod inspect;
 pub mod n3dv;
+pub mod points;
 pub mod synthetic;
 
 pub use bounds::Aabb;

@@ -12,6 +12,10 @@ pub struct PointCloud {
     pub points: Vec<[f64; 3]>,
     /// Colours in \[0, 1].
     pub colours: Vec<[f64; 3]>,
+    /// Time at which each point was observed, when the source has one (a multi-view
+    /// video's per-frame points); a representation with temporal centres starts them
+    /// there instead of at random.
+    pub times: Option<Vec<f64>>,
 }
 
 impl PointCloud {
@@ -29,7 +33,37 @@ impl PointCloud {
         };
         let points = (0..n).map(|_| draw3(lo, hi)).collect();
         let colours = (0..n).map(|_| draw3(0.0, 1.0)).collect();
-        PointCloud { points, colours }
+        PointCloud {
+            points,
+            colours,
+            times: None,
+        }
+    }
+
+    /// At most `max` of the points, chosen uniformly without replacement by a seeded
+    /// partial Fisher-Yates shuffle and kept in their original order; the cloud
+    /// itself when it has no more than `max`.
+    pub fn subsample(&self, max: usize, seed: u64) -> PointCloud {
+        let n = self.len();
+        if n <= max {
+            return self.clone();
+        }
+        let mut rng = Pcg64::seed_from_u64(seed);
+        let mut order: Vec<usize> = (0..n).collect();
+        for i in 0..max {
+            let j = rng.random_range(i..n);
+            order.swap(i, j);
+        }
+        let mut keep = order[..max].to_vec();
+        keep.sort_unstable();
+        PointCloud {
+            points: keep.iter().map(|&i| self.points[i]).collect(),
+            colours: keep.iter().map(|&i| self.colours[i]).collect(),
+            times: self
+                .times
+                .as_ref()
+                .map(|t| keep.iter().map(|&i| t[i]).collect()),
+        }
     }
 
     /// Number of points.
@@ -83,6 +117,7 @@ pub fn knn_mean_sq_dist(points: &[[f64; 3]], k: usize) -> Vec<f64> {
     let cloud = PointCloud {
         points: points.to_vec(),
         colours: Vec::new(),
+        times: None,
     };
     let (lo, hi) = cloud.bounds();
     // About two points per cell on average.
@@ -182,6 +217,26 @@ mod tests {
                 fast[i]
             );
         }
+    }
+
+    #[test]
+    fn subsample_keeps_distinct_points_in_order_with_their_times() {
+        let mut cloud = PointCloud::random_in_box(50, -1.0, 1.0, 2);
+        cloud.times = Some((0..50).map(|i| i as f64 / 50.0).collect());
+        let sub = cloud.subsample(20, 9);
+        assert_eq!(sub.len(), 20);
+        let times = sub.times.clone().expect("times");
+        // Times are the original indices / 50: strictly increasing means distinct
+        // points kept in order, and each point kept its colour and time.
+        assert!(times.windows(2).all(|w| w[0] < w[1]));
+        for (k, t) in times.iter().enumerate() {
+            let i = (t * 50.0).round() as usize;
+            assert_eq!(sub.points[k], cloud.points[i]);
+            assert_eq!(sub.colours[k], cloud.colours[i]);
+        }
+        assert_eq!(sub, cloud.subsample(20, 9), "seeded");
+        assert_ne!(sub, cloud.subsample(20, 10));
+        assert_eq!(cloud.subsample(50, 9), cloud);
     }
 
     #[test]

@@ -111,13 +111,38 @@ fn training_views(data: &Dataset, config: &TrainConfig) -> Result<Vec<View>, Err
     Ok(views)
 }
 
-/// What a representation of a run on `data` is initialised from: random points in
-/// the data set's scene bounds with random colours (as SaRO-GS and Deformable-3DGS
-/// initialise synthetic D-NeRF scenes), the camera extent, the seed and the number of
-/// distinct training times. The same for every representation, so a user's model
-/// starts from the same cloud as the built-in one.
+/// What a representation of a run on `data` is initialised from: the data set's own
+/// point cloud (`points3d.ply`, [`crate::data::points`]) subsampled to at most
+/// `init_points`, as 3DGS-family loaders use it when present; otherwise
+/// `init_points` random points in the data set's scene bounds with random colours
+/// (as SaRO-GS and Deformable-3DGS initialise synthetic D-NeRF scenes). Plus the
+/// camera extent, the seed and the number of distinct training times. The same for
+/// every representation, so a user's model starts from the same cloud as the
+/// built-in one.
 pub fn model_init(data: &Dataset, config: &TrainConfig) -> Result<ModelInit, Error> {
     let views = training_views(data, config)?;
+    let cloud = match data
+        .point_cloud()
+        .map_err(|e| Error::Input(e.to_string()))?
+    {
+        Some(cloud) => cloud.subsample(config.init_points, config.seed),
+        None => random_cloud(data, config),
+    };
+    let cameras: Vec<Camera> = views.iter().map(|v| v.camera.clone()).collect();
+    let mut times: Vec<f64> = views.iter().map(|v| v.time).collect();
+    times.sort_by(f64::total_cmp);
+    times.dedup();
+    Ok(ModelInit {
+        cloud,
+        extent: camera_extent(&cameras),
+        seed: config.seed,
+        frames: times.len(),
+    })
+}
+
+/// `init_points` points uniform in the data set's scene bounds, colours uniform in
+/// \[0, 1], from the run's seed.
+fn random_cloud(data: &Dataset, config: &TrainConfig) -> PointCloud {
     let bounds = data.scene_bounds();
     let mut rng = Pcg64::seed_from_u64(config.seed);
     let points: Vec<[f64; 3]> = (0..config.init_points)
@@ -126,16 +151,11 @@ pub fn model_init(data: &Dataset, config: &TrainConfig) -> Result<ModelInit, Err
     let colours = (0..config.init_points)
         .map(|_| std::array::from_fn(|_| rng.random_range(0.0..1.0)))
         .collect();
-    let cameras: Vec<Camera> = views.iter().map(|v| v.camera.clone()).collect();
-    let mut times: Vec<f64> = views.iter().map(|v| v.time).collect();
-    times.sort_by(f64::total_cmp);
-    times.dedup();
-    Ok(ModelInit {
-        cloud: PointCloud { points, colours },
-        extent: camera_extent(&cameras),
-        seed: config.seed,
-        frames: times.len(),
-    })
+    PointCloud {
+        points,
+        colours,
+        times: None,
+    }
 }
 
 impl Trainer {

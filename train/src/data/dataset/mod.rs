@@ -30,6 +30,8 @@ use super::error::DataError;
 use super::flow::{downsample_flow, read_flow};
 use super::image::{Image, decode_rgba};
 use super::n3dv::{POSES_BOUNDS, read_plenoptic};
+use super::points::{POINTS_FILE, read_points};
+use crate::models::PointCloud;
 
 /// White background, `[1, 1, 1]` (the default, as D-NeRF's `white_bkgd = True`).
 pub const WHITE: [f32; 3] = [1.0, 1.0, 1.0];
@@ -182,6 +184,17 @@ impl Dataset {
             masks,
             cache: Mutex::new(HashMap::new()),
         })
+    }
+
+    /// The initial point cloud the folder ships (`points3d.ply`,
+    /// [`super::points`]), read now; `None` when there is none.
+    pub fn point_cloud(&self) -> Result<Option<PointCloud>, DataError> {
+        let path = self.root.join(POINTS_FILE);
+        if path.exists() {
+            read_points(&path).map(Some)
+        } else {
+            Ok(None)
+        }
     }
 
     /// The format the folder was read as.

@@ -19,6 +19,7 @@
 
 pub mod approach;
 pub mod multiview;
+pub mod points;
 pub mod render;
 pub mod rig;
 pub mod scene;

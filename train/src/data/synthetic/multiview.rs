@@ -26,7 +26,7 @@ use serde_json::json;
 
 use super::render::{forward_flow, render_layers, render_rgba};
 use super::rig::{arc_positions, camera_wh};
-use super::write::{GenerateSummary, image_salt, write_folder};
+use super::write::{GenerateSummary, image_salt, write_folder, write_points};
 use super::{build_scene, scene::Scene, scene_bounds};
 use crate::data::bounds::Aabb;
 use crate::data::error::DataError;
@@ -166,6 +166,11 @@ fn write_all(
             progress(done, total);
         }
     }
+    let train: Vec<(Camera, f64)> = cams[1..]
+        .iter()
+        .flat_map(|cam| (0..f).map(move |j| (cam.clone(), j as f64 / f as f64)))
+        .collect();
+    write_points(dir, scene, &train, opts.seed)?;
     let bounds = scene_bounds(scene);
     let rows: Vec<PoseRow> = cams.iter().map(|cam| pose_row(cam, &bounds)).collect();
     let npy = dir.join(POSES_BOUNDS);

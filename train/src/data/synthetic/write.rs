@@ -14,6 +14,7 @@ use glam::DVec3;
 use maaf_splat::Camera;
 use serde_json::json;
 
+use super::points::{GENERATED_POINTS, visible_points};
 use super::render::{forward_flow, render_rgba};
 use super::rig::{self, CAMERA_ANGLE_X};
 use super::{build_scene, scene::Scene, scene_bounds};
@@ -21,6 +22,7 @@ use crate::data::dnerf::opengl_to_opencv;
 use crate::data::error::DataError;
 use crate::data::flow::write_flow;
 use crate::data::image::encode_rgba_png;
+use crate::data::points::{POINTS_FILE, encode_points};
 
 /// Camera arrangement of the training split.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -318,7 +320,25 @@ fn write_all(
         maaf_io::write_atomic(&path, text.as_bytes())
             .map_err(|e| DataError::io(&path, "cannot write", e))?;
     }
-    Ok(())
+    let train = splits[0]
+        .iter()
+        .map(|v| Ok((rig::camera_at(v.position, opts.size)?, v.time)))
+        .collect::<Result<Vec<_>, DataError>>()?;
+    write_points(dir, scene, &train, opts.seed)
+}
+
+/// Writes the generated data set's `points3d.ply`: [`visible_points`] of the
+/// training views.
+pub(crate) fn write_points(
+    dir: &Path,
+    scene: &Scene,
+    train: &[(Camera, f64)],
+    seed: u64,
+) -> Result<(), DataError> {
+    let cloud = visible_points(scene, train, GENERATED_POINTS, seed);
+    let path = dir.join(POINTS_FILE);
+    maaf_io::write_atomic(&path, &encode_points(&cloud))
+        .map_err(|e| DataError::io(&path, "cannot write", e))
 }
 
 /// The jitter seed of image `index` of split number `split` (0 train, 1 val, 2 test,

@@ -100,7 +100,9 @@ impl<T: Float> SaroModel<T> {
     /// Initialises from a point cloud (SaRO-GS `create_from_pcd`): centres = points,
     /// scale = sqrt of the mean squared distance to the 3 nearest neighbours (log,
     /// clamped to \[-10, 1]), identity rotation, opacity 0.1 (as a logit), SH DC from the
-    /// colour and zero higher bands, mu_t ~ U(0, 1), zero planes normalised by the
+    /// colour and zero higher bands, mu_t ~ U(0, 1) (or the points' own times when
+    /// the cloud has them, as SpacetimeGS starts its temporal centres; SaRO-GS draws
+    /// them at random even then), zero planes normalised by the
     /// cloud's bounds, residual heads zero, lifespan MLP with PyTorch's default init.
     pub fn from_point_cloud(
         cloud: &PointCloud,
@@ -127,7 +129,10 @@ impl<T: Float> SaroModel<T> {
             .map(|&c| rgb_to_sh_dc(c))
             .collect();
         let mut rng = Pcg64::seed_from_u64(seed);
-        let t_centre: Vec<f64> = (0..n).map(|_| rng.random_range(0.0..1.0)).collect();
+        let t_centre: Vec<f64> = match &cloud.times {
+            Some(times) => times.clone(),
+            None => (0..n).map(|_| rng.random_range(0.0..1.0)).collect(),
+        };
         let (lo, hi) = cloud.bounds();
         let field = KPlaneField::new(config.field.clone(), lo, hi);
         let per_gaussian = [
