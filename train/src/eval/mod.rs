@@ -30,13 +30,14 @@ use maaf_filter::{AnalysisExport, FilterState};
 use maaf_lpips::Lpips;
 use rayon::prelude::*;
 
-use crate::data::{Dataset, Split};
+use crate::data::{Dataset, Image, Split};
+use crate::metrics::regions::{RegionPsnr, region_psnr};
 use crate::metrics::{ImageMetrics, error_map, image_metrics, mean_metrics};
 use crate::trainer::Trainer;
 use crate::{Error, write_atomic};
 
 pub use render::{load_run, render_image, run_camera};
-pub use report::{EvalReport, ScaleResult, TemporalResult, scale_label, trim_float};
+pub use report::{EvalReport, RegionSummary, ScaleResult, TemporalResult, scale_label, trim_float};
 
 /// The paper's evaluation scales relative to the training scale: 1/4x, 1/2x (zoom-out),
 /// 1x, 2x and 4x (zoom-in).
@@ -145,6 +146,8 @@ struct ViewResult {
     lpips: Result<f64, String>,
     /// Wall seconds spent in LPIPS for this view.
     lpips_seconds: f64,
+    /// PSNR by region, when the data set has the view's moving-object mask.
+    regions: Option<RegionPsnr>,
 }
 
 /// Renders, measures and (optionally) saves every view at one scale into `dir`.
@@ -173,10 +176,20 @@ fn evaluate_scale(
             .iter()
             .map(|v| render_image(trainer, &v.camera, v.time, &settings))
             .collect();
+        let masks: Vec<Option<Image>> = chunk
+            .iter()
+            .map(|v| match split {
+                Split::Test => data.moving_mask(v.index, scale.source),
+                _ => Ok(None),
+            })
+            .collect::<Result<_, _>>()
+            .map_err(|e| Error::Input(e.to_string()))?;
         let part: Vec<ViewResult> = chunk
             .par_iter()
-            .zip(rendered.par_iter())
-            .map(|(v, image)| measure_view(v, image, scale, options, lpips, dir))
+            .zip(rendered.par_iter().zip(masks.par_iter()))
+            .map(|(v, (image, mask))| {
+                measure_view(v, image, mask.as_ref(), scale, options, lpips, dir)
+            })
             .collect::<Result<_, _>>()?;
         results.extend(part);
     }
@@ -188,6 +201,7 @@ fn evaluate_scale(
 fn measure_view(
     v: &crate::data::View,
     image: &Tensor<f32>,
+    mask: Option<&Image>,
     scale: &ResolvedScale,
     options: &EvalOptions,
     lpips: &Result<Lpips, String>,
@@ -201,6 +215,16 @@ fn measure_view(
             scale_label(scale.relative)
         ))
     })?;
+    let regions = mask
+        .map(|m| region_psnr(image, &gt, &m.data))
+        .transpose()
+        .map_err(|e| {
+            Error::Input(format!(
+                "view {} at scale {}: moving mask: {e}",
+                v.index,
+                scale_label(scale.relative)
+            ))
+        })?;
     let start = Instant::now();
     let lpips = match lpips {
         Ok(model) => model.distance(image, &gt).map_err(|e| e.to_string()),
@@ -224,6 +248,7 @@ fn measure_view(
         metrics,
         lpips,
         lpips_seconds,
+        regions,
     })
 }
 
@@ -392,6 +417,10 @@ pub fn evaluate_trainer(
             {
                 Ok(values) => result.lpips = Some(report::mean(values.into_iter())),
                 Err(reason) => result.lpips_note = Some(reason),
+            }
+            result.regions = RegionSummary::of(views.iter().filter_map(|v| v.regions));
+            if let Some(r) = &result.regions {
+                eprintln!("maaf: eval {:>5} by region: {}", scale_label(s.relative), r);
             }
             let lpips_seconds: f64 = views.iter().map(|v| v.lpips_seconds).sum();
             eprintln!(

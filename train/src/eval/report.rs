@@ -7,6 +7,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use crate::Error;
+use crate::metrics::regions::RegionPsnr;
 
 /// Metrics at one evaluation scale (an entry of `eval.json`'s `scales`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -50,6 +51,65 @@ pub struct ScaleResult {
     /// with the per-step warping error for the chart; empty without `--temporal`.
     #[serde(default)]
     pub temporal: Vec<TemporalResult>,
+    /// PSNR by region (moving, static, silhouette band), when the data set has
+    /// moving-object masks for the evaluated views; `null` otherwise.
+    #[serde(default)]
+    pub regions: Option<RegionSummary>,
+}
+
+/// Mean over views of the per-view PSNR of each region
+/// ([`crate::metrics::regions`]), over the views that have pixels in it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RegionSummary {
+    /// Moving pixels, dB.
+    pub moving: Option<f64>,
+    /// Static pixels, dB.
+    pub static_: Option<f64>,
+    /// Silhouette band, dB.
+    pub band: Option<f64>,
+    /// Views averaged for moving, static and band.
+    pub views: [usize; 3],
+}
+
+impl RegionSummary {
+    /// The summary of per-view values (`None` when there are none).
+    pub fn of(per_view: impl Iterator<Item = RegionPsnr>) -> Option<Self> {
+        let mut sums = [0.0f64; 3];
+        let mut views = [0usize; 3];
+        let mut any = false;
+        for r in per_view {
+            any = true;
+            for (k, v) in [r.moving, r.static_, r.band].into_iter().enumerate() {
+                if let Some(v) = v {
+                    sums[k] += v;
+                    views[k] += 1;
+                }
+            }
+        }
+        let mean = |k: usize| (views[k] > 0).then(|| sums[k] / views[k] as f64);
+        any.then(|| RegionSummary {
+            moving: mean(0),
+            static_: mean(1),
+            band: mean(2),
+            views,
+        })
+    }
+}
+
+impl std::fmt::Display for RegionSummary {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let show = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.2} dB"));
+        write!(
+            f,
+            "moving {} ({} views), static {} ({}), band {} ({})",
+            show(self.moving),
+            self.views[0],
+            show(self.static_),
+            self.views[1],
+            show(self.band),
+            self.views[2]
+        )
+    }
 }
 
 impl ScaleResult {
@@ -68,6 +128,7 @@ impl ScaleResult {
             w_lpips: None,
             flow: None,
             temporal: Vec::new(),
+            regions: None,
         }
     }
 }

@@ -279,6 +279,7 @@ fn temporal_integral_matches_quadrature_and_flags_short_lived() {
 #[test]
 fn adaptive_scale_is_the_longest_integral_over_each_and_follows_the_schedule() {
     let mut model = tiny_model::<f64>(8, 3);
+    model.config.adaptive_every = 50;
     randomise_planes(&mut model, -1.0, 1.0, 5);
     // Gaussian 5 lives outside [0, 1]: its integral is below the prune threshold.
     let id = model.ids.t_centre;
