@@ -57,6 +57,10 @@ pub struct Summary {
     pub scales: Vec<f64>,
     /// Number of images decoded to check them (0 when decoding was skipped).
     pub images_decoded: usize,
+    /// Points in the folder's `points3d.ply` (the initial point cloud), if it has one.
+    pub init_points: Option<usize>,
+    /// Whether those points carry times (`t`).
+    pub init_points_timed: bool,
 }
 
 /// Opens `root` and summarises it; decodes every image when `decode` is true.
@@ -108,6 +112,7 @@ pub fn inspect(root: &Path, decode: bool) -> Result<Summary, DataError> {
         .filter(|&s| scale_factor(s, train.width, train.height).is_ok())
         .collect();
     let (t0, t1) = data.time_range();
+    let cloud = data.point_cloud()?;
     Ok(Summary {
         root: root.display().to_string(),
         splits,
@@ -121,6 +126,8 @@ pub fn inspect(root: &Path, decode: bool) -> Result<Summary, DataError> {
         .into(),
         scales,
         images_decoded,
+        init_points: cloud.as_ref().map(|c| c.len()),
+        init_points_timed: cloud.as_ref().is_some_and(|c| c.times.is_some()),
     })
 }
 
@@ -170,6 +177,18 @@ impl Summary {
         );
         let scales: Vec<String> = self.scales.iter().map(|v| format!("{v}")).collect();
         s += &format!("  exact ground-truth scales: {}\n", scales.join(", "));
+        s += &match self.init_points {
+            Some(n) => format!(
+                "  initial points: {n} in {}{}\n",
+                super::points::POINTS_FILE,
+                if self.init_points_timed {
+                    ", with times"
+                } else {
+                    ""
+                }
+            ),
+            None => "  initial points: none shipped (training starts from random points in the scene bounds)\n".into(),
+        };
         if self.images_decoded > 0 {
             s += &format!("  all {} images decode\n", self.images_decoded);
         }

@@ -141,7 +141,14 @@ mod tests {
         }
         let r = classify(&big, 8, 8);
         let count = |k: Region| r.iter().filter(|&&x| x == k).count();
-        assert_eq!((count(Region::Moving), count(Region::Band), count(Region::Static)), (4, 32, 28));
+        assert_eq!(
+            (
+                count(Region::Moving),
+                count(Region::Band),
+                count(Region::Static)
+            ),
+            (4, 32, 28)
+        );
         assert_eq!(r[3 * 8 + 3], Region::Moving);
 
         // Errors: 0.1 on static pixels, 0.3 on band pixels, 0 on moving pixels.
