@@ -7,6 +7,7 @@
 use std::path::Path;
 use std::process::{Command, Output};
 
+use maaf::train::data::image::decode_rgba;
 use maaf::train::data::{Dataset, DatasetOptions, Split};
 
 use super::support::{TempDir, s, tiny_scene};
@@ -24,6 +25,20 @@ fn maaf(args: &[&str], env: Option<(&str, &str)>) -> Output {
         String::from_utf8_lossy(&out.stderr)
     );
     out
+}
+
+/// The decoded values of an 8-bit PNG.
+fn png(path: &Path) -> Vec<f32> {
+    decode_rgba(path).expect("png").data
+}
+
+/// Largest absolute difference of two images' values, and how many values differ.
+fn difference(a: &[f32], b: &[f32]) -> (f32, usize) {
+    assert_eq!(a.len(), b.len(), "image sizes differ");
+    a.iter().zip(b).fold((0.0f32, 0), |(max, n), (x, y)| {
+        let d = (x - y).abs();
+        (max.max(d), n + usize::from(d > 0.0))
+    })
 }
 
 #[test]
@@ -104,10 +119,15 @@ fn exported_frame_renders_as_the_run_and_eval_survives_missing_weights() {
         );
     };
     at("0.4", &from_run);
-    assert_eq!(
-        std::fs::read(&from_ply).expect("ply png"),
-        std::fs::read(&from_run).expect("run png"),
-        "render-ply of the export differs from maaf render at t = 0.4"
+    // The PLY stores log-scales and opacity logits, so exp(ln s) and sigmoid(logit o)
+    // may differ from the run's values by an ulp, which can move an 8-bit pixel by one
+    // level: at most 1/255 anywhere, on at most 1 % of the values.
+    let (ply_img, run_img) = (png(&from_ply), png(&from_run));
+    let (max, moved) = difference(&ply_img, &run_img);
+    assert!(
+        max <= 1.0 / 255.0 + 1e-6 && moved <= ply_img.len() / 100,
+        "render-ply of the export differs from maaf render at t = 0.4: max {max}, {moved} of {} values",
+        ply_img.len()
     );
     // Negative control: the same PLY with the classic 2D dilation is another image.
     let classic = tmp.0.join("classic.png");
@@ -127,9 +147,10 @@ fn exported_frame_renders_as_the_run_and_eval_survives_missing_weights() {
         ],
         None,
     );
-    assert_ne!(
-        std::fs::read(&classic).expect("png"),
-        std::fs::read(&from_run).expect("png")
+    let (max, _) = difference(&png(&classic), &run_img);
+    assert!(
+        max > 4.0 / 255.0,
+        "the classic dilation changed nothing: max {max}"
     );
 
     // 20 frames as one zip archive; a non-zip file at the .zip path is refused in one

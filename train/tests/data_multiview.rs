@@ -131,6 +131,21 @@ fn loader_round_trips_the_generated_scene() {
         + full.pixel(2 * x + 1, 2 * y + 1)[0])
         / 4.0;
     assert!((half.pixel(x, y)[0] - mean).abs() < 1e-6);
+
+    // The shipped initial points: seen by the training cameras (not cam00) at the
+    // frame times, inside the scene bounds.
+    let cloud = data
+        .point_cloud()
+        .expect("reads")
+        .expect("ships points3d.ply");
+    let bounds = scene_bounds(&scene);
+    let point_times = cloud.times.as_ref().expect("times");
+    assert!(cloud.len() > 100, "{} points", cloud.len());
+    for (p, t) in cloud.points.iter().zip(point_times) {
+        assert!(times.iter().any(|f| (f - t).abs() < 1e-6), "time {t}");
+        let p = glam::DVec3::from_array(*p);
+        assert!(bounds.contains(p), "{p:?} outside the scene bounds");
+    }
 }
 
 #[test]
