@@ -10,6 +10,7 @@
 
 pub mod charts;
 pub mod curves;
+pub mod regions;
 pub mod temporal;
 
 use std::fmt::Write as _;
@@ -290,6 +291,13 @@ pub fn write_report(runs: &[PathBuf], out: &Path) -> Result<ReportOutput, Error>
     if zoom_in.len() > 1 && zoom_out.len() > 1 {
         md.push_str("\n## All scales\n\n");
         md.push_str(&metrics_table(&runs, &scales));
+    }
+    let by_region = regions::region_table(&runs, &scales);
+    if !by_region.is_empty() {
+        md.push_str(
+            "\n## PSNR by region (moving / static / silhouette band, dB; data with moving masks)\n\n",
+        );
+        md.push_str(&by_region);
     }
     md.push_str("\n## LPIPS (AlexNet, lin v0.1; lower is better)\n\n");
     md.push_str(&temporal::lpips_table(&runs, &scales));
