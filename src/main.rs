@@ -24,7 +24,7 @@ enum Command {
     Generate(cli::generate::GenerateArgs),
     /// Summarise a D-NeRF-format data set (views, resolution, times, cameras, bounds).
     Inspect(cli::inspect::InspectArgs),
-    /// Train a 4D Gaussian model (SaRO-GS + 3D filter) on a D-NeRF-format data set.
+    /// Train a 4D Gaussian model (SaRO-GS or Deformable-3DGS, + 3D filter) on a data set.
     Train(cli::train::TrainArgs),
     /// Render a static 3DGS PLY from a camera JSON to a PNG or float32 NPY image.
     RenderPly(cli::render_ply::RenderPlyArgs),

@@ -96,6 +96,8 @@ impl Plan {
         let frac = |f: f64| ((iterations as f64 * f) as usize).max(1);
         match &mut c.model {
             ModelConfig::Saro(m) => m.static_iterations = frac(0.05),
+            // Deformable-3DGS warms up for 3000 of its iterations: 15% of 20 000.
+            ModelConfig::Deform(m) => m.warm_up = frac(0.15),
         }
         c.densify.from = frac(0.025);
         c.densify.until = frac(0.75);

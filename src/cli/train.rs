@@ -33,7 +33,8 @@ pub struct SettingsArgs {
     /// Data folder holding transforms_{train,val,test}.json.
     #[arg(long)]
     pub data: PathBuf,
-    /// 4D representation (its settings: the `model` section of --config).
+    /// 4D representation: `saro` (SaRO-GS) or `deform` (Deformable-3DGS); its settings:
+    /// the `model` section of --config.
     #[arg(long, value_parser = ModelConfig::KINDS)]
     pub model: Option<String>,
     /// 3D smoothing filter.

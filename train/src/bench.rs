@@ -20,6 +20,7 @@ use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 
 use crate::Error;
+use crate::models::DeformConfig;
 use crate::models::ModelConfig;
 use crate::models::saro::SaroConfig;
 use crate::trainer::{DensifyPlan, Trainer};
@@ -150,6 +151,36 @@ fn saro_mlp_forward_flops(n: usize, c: &SaroConfig) -> f64 {
     life + 2.0 * rot + motion + sh
 }
 
+/// Forward FLOPs of the deformation MLP of a Deformable-3DGS step for `n` Gaussians
+/// (the time network runs on one row and is left out).
+fn deform_mlp_forward_flops(n: usize, c: &DeformConfig) -> f64 {
+    let input = c.x_dim() + c.t_dim();
+    let hidden = |count: usize| std::iter::repeat_n(c.width, count);
+    if c.skip {
+        let before = c.depth / 2 + 1;
+        let trunk: Vec<usize> = std::iter::once(input).chain(hidden(before)).collect();
+        let rest: Vec<usize> = std::iter::once(input + c.width)
+            .chain(hidden(c.depth - before))
+            .chain(std::iter::once(10))
+            .collect();
+        mlp_flops(n, &trunk) + mlp_flops(n, &rest)
+    } else {
+        let widths: Vec<usize> = std::iter::once(input)
+            .chain(hidden(c.depth))
+            .chain(std::iter::once(10))
+            .collect();
+        mlp_flops(n, &widths)
+    }
+}
+
+/// Forward FLOPs of every MLP one step of `model` evaluates for `n` Gaussians.
+fn mlp_forward_flops(n: usize, model: &ModelConfig) -> f64 {
+    match model {
+        ModelConfig::Saro(c) => saro_mlp_forward_flops(n, c),
+        ModelConfig::Deform(c) => deform_mlp_forward_flops(n, c),
+    }
+}
+
 /// Prepares `trainer` for timing at `gaussians` Gaussians: rows sampled with
 /// replacement (seeded) from its model, as densification's clones would add them;
 /// no densification, opacity reset or filter refresh during the timed steps.
@@ -187,7 +218,6 @@ pub fn bench_step(
     if trainer.num_gaussians() == 0 {
         return Err(Error::Input("the run's model has no Gaussians".into()));
     }
-    let ModelConfig::Saro(saro) = trainer.config.model.clone();
     resize_for_bench(&mut trainer, gaussians, opts);
     trainer.refresh_filter();
     for _ in 0..opts.warmup {
@@ -226,7 +256,7 @@ pub fn bench_step(
     let (loss_f, loss_b) = group(&is_loss);
     let (oth_f, oth_b) = group(&|op| !(is_mlp(op) || is_render(op) || is_field(op) || is_loss(op)));
     let scalars: usize = trainer.model.params().iter().map(|p| p.value.len()).sum();
-    let fwd_flops = saro_mlp_forward_flops(n, &saro);
+    let fwd_flops = mlp_forward_flops(n, &trainer.config.model);
     let camera = &trainer.cameras()[0];
     let row = |phase, forward_ms, backward_ms, flops, bytes| PhaseRow {
         phase,

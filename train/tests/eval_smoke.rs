@@ -36,6 +36,7 @@ fn tiny_config() -> TrainConfig {
     c.densify.opacity_reset_every = 0;
     match &mut c.model {
         ModelConfig::Saro(m) => m.static_iterations = 10,
+        ModelConfig::Deform(m) => m.warm_up = 10,
     }
     c
 }

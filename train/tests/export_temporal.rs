@@ -40,6 +40,7 @@ fn tiny_config() -> TrainConfig {
     c.sh_degree_every = 10;
     match &mut c.model {
         ModelConfig::Saro(m) => m.static_iterations = 10,
+        ModelConfig::Deform(m) => m.warm_up = 10,
     }
     c
 }

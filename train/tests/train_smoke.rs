@@ -22,7 +22,13 @@ fn mutant() -> Option<Dataset> {
 
 /// 100x100 training images, 600 random points, densification every 20 iterations.
 fn tiny_config(filter: FilterKind) -> TrainConfig {
+    tiny_config_of("saro", filter)
+}
+
+/// [`tiny_config`] with the representation `kind` (its stage switch at 20).
+fn tiny_config_of(kind: &str, filter: FilterKind) -> TrainConfig {
     let mut c = TrainConfig {
+        model: ModelConfig::default_of(kind).expect("known kind"),
         iterations: 60,
         train_scale: 0.125,
         init_points: 600,
@@ -37,6 +43,7 @@ fn tiny_config(filter: FilterKind) -> TrainConfig {
     c.densify.opacity_reset_every = 0;
     match &mut c.model {
         ModelConfig::Saro(m) => m.static_iterations = 20,
+        ModelConfig::Deform(m) => m.warm_up = 20,
     }
     c
 }
@@ -50,10 +57,16 @@ fn params(t: &mut Trainer) -> Vec<(String, Tensor<f32>)> {
 }
 
 #[test]
-fn loss_falls_with_every_filter() {
+fn loss_falls_with_every_filter_and_representation() {
     let Some(data) = mutant() else { return };
-    for filter in [FilterKind::None, FilterKind::Mip3d, FilterKind::Motion] {
-        let mut t = Trainer::new(&data, tiny_config(filter)).expect("trainer");
+    let runs = [
+        ("saro", FilterKind::None),
+        ("saro", FilterKind::Mip3d),
+        ("saro", FilterKind::Motion),
+        ("deform", FilterKind::Motion),
+    ];
+    for (kind, filter) in runs {
+        let mut t = Trainer::new(&data, tiny_config_of(kind, filter)).expect("trainer");
         let mut first = Vec::new();
         let mut last = Vec::new();
         for i in 0..60 {
@@ -71,10 +84,10 @@ fn loss_falls_with_every_filter() {
             }
         }
         let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
-        assert_eq!(t.skipped_steps, 0, "{filter:?}");
+        assert_eq!(t.skipped_steps, 0, "{kind} {filter:?}");
         assert!(
             mean(&last) < 0.8 * mean(&first),
-            "{filter:?}: L1 {} -> {}",
+            "{kind} {filter:?}: L1 {} -> {}",
             mean(&first),
             mean(&last)
         );
@@ -84,28 +97,38 @@ fn loss_falls_with_every_filter() {
 #[test]
 fn resume_is_bit_identical() {
     let Some(data) = mutant() else { return };
+    for kind in ["saro", "deform"] {
+        resume_is_bit_identical_for(&data, kind);
+    }
+}
+
+fn resume_is_bit_identical_for(data: &Dataset, kind: &str) {
     let cfg = TrainConfig {
         iterations: 50,
-        ..tiny_config(FilterKind::Motion)
+        ..tiny_config_of(kind, FilterKind::Motion)
     };
-    let mut straight = Trainer::new(&data, cfg.clone()).expect("trainer");
+    let mut straight = Trainer::new(data, cfg.clone()).expect("trainer");
     for _ in 0..50 {
         straight.step();
     }
-    let mut first = Trainer::new(&data, cfg).expect("trainer");
+    let mut first = Trainer::new(data, cfg).expect("trainer");
     for _ in 0..25 {
         first.step();
     }
-    let dir = std::env::temp_dir().join(format!("maaf_resume_{}", std::process::id()));
+    let dir = std::env::temp_dir().join(format!("maaf_resume_{kind}_{}", std::process::id()));
     save_checkpoint(&first, &dir).expect("checkpoint");
-    let mut resumed = load_checkpoint(&data, &dir).expect("resume");
+    let mut resumed = load_checkpoint(data, &dir).expect("resume");
     assert_eq!(resumed.iteration, 25);
     // A loaded run renders what the saved one did: the model is in the same stage
     // (dynamic after the static warm-up), so evaluation sees the deformed scene.
     for time in [0.0, 0.37, 1.0] {
         let (a, b) = (first.frame_at(time), resumed.frame_at(time));
         for (x, y) in a.iter().zip(&b) {
-            assert_eq!(x.data(), y.data(), "frame at t = {time} differs after load");
+            assert_eq!(
+                x.data(),
+                y.data(),
+                "{kind}: frame at t = {time} differs after load"
+            );
         }
     }
     for _ in 0..25 {
@@ -121,7 +144,7 @@ fn resume_is_bit_identical() {
                 .iter()
                 .zip(tb.data())
                 .all(|(x, y)| x.to_bits() == y.to_bits()),
-            "{na} differs"
+            "{kind}: {na} differs"
         );
     }
     assert_eq!(straight.filter, resumed.filter);

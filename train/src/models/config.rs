@@ -8,7 +8,7 @@
 
 use serde::{Deserialize, Deserializer, Serialize};
 
-use super::{PointCloud, Representation, SaroConfig, SaroModel};
+use super::{DeformConfig, DeformModel, PointCloud, Representation, SaroConfig, SaroModel};
 
 /// Which representation to train, with its settings (`--model`).
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -16,6 +16,9 @@ use super::{PointCloud, Representation, SaroConfig, SaroModel};
 pub enum ModelConfig {
     /// SaRO-GS (Sec. 3.2 of the paper): 4D Gaussians plus a scale-aware residual field.
     Saro(SaroConfig),
+    /// Deformable 3D Gaussians (Yang et al. 2024): canonical Gaussians plus a
+    /// deformation MLP on the encoded centre and time (the paper's plug-in base).
+    Deform(DeformConfig),
 }
 
 impl Default for ModelConfig {
@@ -30,6 +33,7 @@ impl<'de> Deserialize<'de> for ModelConfig {
         #[serde(tag = "kind", rename_all = "lowercase")]
         enum Tagged {
             Saro(SaroConfig),
+            Deform(DeformConfig),
         }
         let mut value = serde_json::Value::deserialize(d)?;
         if let Some(obj) = value.as_object_mut()
@@ -39,18 +43,20 @@ impl<'de> Deserialize<'de> for ModelConfig {
         }
         match serde_json::from_value(value).map_err(serde::de::Error::custom)? {
             Tagged::Saro(c) => Ok(ModelConfig::Saro(c)),
+            Tagged::Deform(c) => Ok(ModelConfig::Deform(c)),
         }
     }
 }
 
 impl ModelConfig {
     /// The names `--model` accepts.
-    pub const KINDS: [&'static str; 1] = ["saro"];
+    pub const KINDS: [&'static str; 2] = ["saro", "deform"];
 
     /// The kind's name (`"saro"`), as the built representation's `name()`.
     pub fn kind(&self) -> &'static str {
         match self {
             ModelConfig::Saro(_) => "saro",
+            ModelConfig::Deform(_) => "deform",
         }
     }
 
@@ -58,6 +64,7 @@ impl ModelConfig {
     pub fn default_of(name: &str) -> Result<Self, String> {
         match name {
             "saro" => Ok(ModelConfig::Saro(SaroConfig::default())),
+            "deform" => Ok(ModelConfig::Deform(DeformConfig::default())),
             other => Err(format!(
                 "--model {other}: unknown representation (known: {})",
                 Self::KINDS.join(", ")
@@ -69,6 +76,7 @@ impl ModelConfig {
     pub fn validate(&self) -> Result<(), String> {
         match self {
             ModelConfig::Saro(c) => c.validate(),
+            ModelConfig::Deform(c) => c.validate(),
         }
     }
 
@@ -76,6 +84,7 @@ impl ModelConfig {
     pub fn sh_degree(&self) -> usize {
         match self {
             ModelConfig::Saro(c) => c.sh_degree,
+            ModelConfig::Deform(c) => c.sh_degree,
         }
     }
 
@@ -87,6 +96,7 @@ impl ModelConfig {
             ModelConfig::Saro(c) => {
                 c.duration.get_or_insert(init.frames as f64);
             }
+            ModelConfig::Deform(_) => {}
         }
     }
 }
@@ -113,6 +123,11 @@ pub fn build_model(config: &ModelConfig, init: &ModelInit) -> Box<dyn Representa
             init.extent,
             init.seed,
         )),
+        ModelConfig::Deform(c) => Box::new(DeformModel::<f32>::from_point_cloud(
+            &init.cloud,
+            c.clone(),
+            init.seed,
+        )),
     }
 }
 
@@ -125,11 +140,16 @@ mod tests {
         let json = serde_json::to_value(ModelConfig::default()).expect("json");
         assert_eq!(json["kind"], "saro");
         let old: ModelConfig = serde_json::from_str(r#"{"hidden": 32}"#).expect("untagged");
-        let ModelConfig::Saro(c) = &old;
+        let ModelConfig::Saro(c) = &old else {
+            panic!("saro")
+        };
         assert_eq!(c.hidden, 32);
         let bad = serde_json::from_str::<ModelConfig>(r#"{"kind": "nerf"}"#);
         assert!(bad.expect_err("unknown").to_string().contains("nerf"));
-        assert!(ModelConfig::default_of("deform").is_err());
+        assert!(ModelConfig::default_of("nerf").is_err());
+        let d: ModelConfig =
+            serde_json::from_str(r#"{"kind": "deform", "width": 32}"#).expect("deform");
+        assert!(matches!(&d, ModelConfig::Deform(c) if c.width == 32 && c.depth == 4));
     }
 
     #[test]
@@ -142,14 +162,18 @@ mod tests {
         };
         let mut c = ModelConfig::default();
         c.resolve(&init);
-        let ModelConfig::Saro(s) = &c;
+        let ModelConfig::Saro(s) = &c else {
+            panic!("saro")
+        };
         assert_eq!(s.duration, Some(50.0));
         let mut set = ModelConfig::Saro(SaroConfig {
             duration: Some(150.0),
             ..SaroConfig::default()
         });
         set.resolve(&init);
-        let ModelConfig::Saro(s) = &set;
+        let ModelConfig::Saro(s) = &set else {
+            panic!("saro")
+        };
         assert_eq!(s.duration, Some(150.0));
     }
 }

@@ -21,6 +21,8 @@
 //! ```
 
 pub mod config;
+pub mod deform;
+pub mod encoding;
 mod init;
 pub mod kplane;
 pub mod saro;
@@ -34,6 +36,7 @@ use maaf_splat::GaussianVars;
 use crate::params::{BoundParams, ParamId, ParamStore};
 
 pub use config::{ModelConfig, ModelInit, build_model};
+pub use deform::{DeformConfig, DeformModel};
 pub use init::{PointCloud, knn_mean_sq_dist, rgb_to_sh_dc};
 pub use kplane::{KPlaneConfig, KPlaneField};
 pub use saro::{SaroConfig, SaroModel};

@@ -13,6 +13,7 @@ use maaf_splat::compositing::drawable;
 
 use super::SaroModel;
 use crate::models::Bound;
+use crate::models::encoding::positional_encoding;
 use crate::params::BoundParams;
 
 /// Name under which SaRO provides its scale-residual regulariser
@@ -44,20 +45,10 @@ struct DynamicVars<'t, T: Float> {
 }
 
 /// `\[d, sin(2^0 d), cos(2^0 d), ..., sin(2^(F-1) d), cos(2^(F-1) d)]` per row (NeRF
-/// embedder with `include_input`, log sampling; SaRO-GS `get_embedder`), as a constant.
+/// embedder with `include_input`, log sampling; SaRO-GS `get_embedder`), as a constant:
+/// [`positional_encoding`] of one column.
 pub fn time_embedding<T: Float>(d: impl ExactSizeIterator<Item = f64>, freqs: usize) -> Tensor<T> {
-    let n = d.len();
-    let w = 1 + 2 * freqs;
-    let mut out = Vec::with_capacity(n * w);
-    for d in d {
-        out.push(T::of(d));
-        for k in 0..freqs {
-            let a = d * (1u64 << k) as f64;
-            out.push(T::of(a.sin()));
-            out.push(T::of(a.cos()));
-        }
-    }
-    Tensor::from_vec(out, &[n, w])
+    positional_encoding(&d.collect::<Vec<f64>>(), 1, freqs)
 }
 
 impl<'t, T: Float> SaroBound<'t, T> {
