@@ -20,23 +20,34 @@ static FONT: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
 /// Font family name the charts use.
 const FAMILY: &str = "sans-serif";
 
-/// Series colours (colour-blind-safe Tableau-like palette), by run order.
-const PALETTE: [RGBColor; 6] = [
+/// Series colours (Tableau 10, colour-blind-safe), by run order.
+const PALETTE: [RGBColor; 10] = [
     RGBColor(31, 119, 180),
     RGBColor(255, 127, 14),
     RGBColor(214, 39, 40),
     RGBColor(44, 160, 44),
     RGBColor(148, 103, 189),
     RGBColor(140, 86, 75),
+    RGBColor(227, 119, 194),
+    RGBColor(127, 127, 127),
+    RGBColor(188, 189, 34),
+    RGBColor(23, 190, 207),
 ];
 
-/// Colour of run `i`: by filter when it is one of the three, else by position.
-pub(super) fn colour(run: &ReportRun, i: usize) -> RGBColor {
-    match run.eval.filter.as_str() {
-        "none" => PALETTE[0],
-        "mip3d" => PALETTE[1],
-        "motion" => PALETTE[2],
-        _ => PALETTE[(i + 3) % PALETTE.len()],
+/// Colour of `runs[i]`: by filter (none blue, Mip orange, motion red) when no two
+/// runs share a filter (the protocol's comparison), else by position, so that runs
+/// of one filter (representations, budgets, sweep points) stay apart.
+pub(super) fn colour(runs: &[ReportRun], i: usize) -> RGBColor {
+    let filter = |r: &ReportRun| r.eval.filter.clone();
+    let shared = runs
+        .iter()
+        .enumerate()
+        .any(|(j, a)| runs[..j].iter().any(|b| filter(a) == filter(b)));
+    match runs[i].eval.filter.as_str() {
+        "none" if !shared => PALETTE[0],
+        "mip3d" if !shared => PALETTE[1],
+        "motion" if !shared => PALETTE[2],
+        _ => PALETTE[i % PALETTE.len()],
     }
 }
 
@@ -199,7 +210,7 @@ pub fn quality_vs_scale(runs: &[ReportRun], path: &Path) -> Result<(), Error> {
                 .draw()
                 .map_err(e2s)?;
             for (i, r) in runs.iter().enumerate() {
-                let c = colour(r, i);
+                let c = colour(runs, i);
                 let mut pts: Vec<(f64, f64)> = r
                     .eval
                     .scales
@@ -252,7 +263,7 @@ fn scatter_panel(
         .draw()
         .map_err(e2s)?;
     for (i, r) in runs.iter().enumerate() {
-        let c = colour(r, i);
+        let c = colour(runs, i);
         chart
             .draw_series(std::iter::once(Circle::new((x(r), y(r)), 8, c.filled())))
             .map_err(e2s)?
@@ -398,5 +409,50 @@ fn capitalise(s: &str) -> String {
     match c.next() {
         Some(f) => f.to_uppercase().collect::<String>() + c.as_str(),
         None => String::new(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::eval::EvalReport;
+
+    fn run(model: &str, filter: &str) -> ReportRun {
+        ReportRun {
+            label: format!("{model} {filter}"),
+            dir: filter.into(),
+            eval: EvalReport {
+                model: model.into(),
+                filter: filter.into(),
+                train_scale: 0.25,
+                iterations: 10,
+                train_seconds: 1.0,
+                num_gaussians: 5,
+                model_bytes: 1,
+                filter_bytes: 1,
+                background: [1.0; 3],
+                quantized_8bit: false,
+                scales: Vec::new(),
+            },
+            analysis: None,
+        }
+    }
+
+    #[test]
+    fn colours_follow_the_filter_unless_two_runs_share_one() {
+        let three = [
+            run("saro", "motion"),
+            run("saro", "none"),
+            run("saro", "mip3d"),
+        ];
+        let by_filter: Vec<_> = (0..3).map(|i| colour(&three, i)).collect();
+        assert_eq!(by_filter, vec![PALETTE[2], PALETTE[0], PALETTE[1]]);
+        let shared = [
+            run("saro", "none"),
+            run("deform", "none"),
+            run("deform", "motion"),
+        ];
+        let c: Vec<_> = (0..3).map(|i| colour(&shared, i)).collect();
+        assert!(c[0] != c[1] && c[1] != c[2] && c[0] != c[2], "{c:?}");
     }
 }

@@ -83,7 +83,7 @@ pub fn validation_psnr_vs_time(runs: &[ReportRun], path: &Path) -> Result<bool, 
             if curve.is_empty() {
                 continue;
             }
-            let c = colour(r, i);
+            let c = colour(runs, i);
             chart
                 .draw_series(LineSeries::new(curve.iter().copied(), c.stroke_width(3)))
                 .map_err(e2s)?;

@@ -149,7 +149,7 @@ pub fn warp_error_over_time(runs: &[ReportRun], path: &Path) -> Result<bool, Err
                     .draw()
                     .map_err(e2s)?;
                 for (i, r, pts) in &series {
-                    let c = colour(r, *i);
+                    let c = colour(runs, *i);
                     chart
                         .draw_series(LineSeries::new(pts.clone(), c.stroke_width(2)))
                         .map_err(e2s)?

@@ -40,6 +40,16 @@ pub enum Path {
         /// Number of bounces over `t in [0, 1]`.
         bounces: f64,
     },
+    /// A dash: still at `base` until `start`, `delta` at constant velocity until `end`,
+    /// still at `base + delta` after: `delta * clamp((t - start) / (end - start), 0, 1)`.
+    Dash {
+        /// Total translation.
+        delta: DVec3,
+        /// Time the dash starts.
+        start: f64,
+        /// Time it ends (> `start`).
+        end: f64,
+    },
 }
 
 /// Rigid motion: `R(t) = rot(axis, phase + 2 pi turns t) * rest`, `p(t) = base + path(t)`.
@@ -86,6 +96,9 @@ impl Motion {
             Path::Line(d) => d * t,
             Path::Bounce { height, bounces } => {
                 DVec3::Z * height * (std::f64::consts::PI * bounces * t).sin().abs()
+            }
+            Path::Dash { delta, start, end } => {
+                delta * ((t - start) / (end - start)).clamp(0.0, 1.0)
             }
         };
         let rot = DMat3::from_quat(q);
