@@ -161,78 +161,106 @@ pub(super) fn draw_legend<'a, 'b: 'a>(
 
 /// PSNR (left) and SSIM (right) against the render scale (log2 axis), one line per run.
 pub fn quality_vs_scale(runs: &[ReportRun], path: &Path) -> Result<(), Error> {
-    let scales = super::all_scales(runs);
-    let keys: Vec<f64> = scales.iter().map(|s| s.log2()).collect();
-    let (x0, x1) = padded_range(keys.iter().copied(), 0.08);
     save_chart(path, (1300, 560), |root| {
         let panels = root.split_evenly((1, 2));
-        for (p, area) in panels.iter().enumerate() {
-            let metric = |s: &crate::eval::ScaleResult| if p == 0 { s.psnr } else { s.ssim };
-            let (y0, y1) = padded_range(
-                runs.iter()
-                    .flat_map(|r| r.eval.scales.iter().map(metric).collect::<Vec<_>>()),
-                0.05,
-            );
-            // Room below the lines for the legend.
-            let (y0, y1) = widen((y0, y1), 0.45, 0.0);
-            let name = if p == 0 { "PSNR (dB)" } else { "SSIM" };
-            let mut chart = new_chart(
-                area,
-                &format!("{name} vs render scale"),
-                24,
-                70,
-                (x0, x1),
-                (y0, y1),
-            )?;
-            chart
-                .configure_mesh()
-                .x_desc("render scale relative to training (log axis)")
-                .y_desc(name)
-                .x_labels(keys.len().max(2))
-                .x_label_formatter(&|x| {
-                    // Labels only at whole powers of two (the evaluated scales).
-                    if (x - x.round()).abs() < 1e-6 {
-                        scale_header(2f64.powf(x.round()))
-                    } else {
-                        String::new()
-                    }
-                })
-                .y_label_formatter(&|y| {
-                    if p == 0 {
-                        format!("{y:.1}")
-                    } else {
-                        format!("{y:.3}")
-                    }
-                })
-                .label_style(text(16))
-                .axis_desc_style(text(17))
-                .light_line_style(WHITE.mix(0.0))
-                .draw()
-                .map_err(e2s)?;
-            for (i, r) in runs.iter().enumerate() {
-                let c = colour(runs, i);
-                let mut pts: Vec<(f64, f64)> = r
-                    .eval
-                    .scales
-                    .iter()
-                    .map(|s| (s.scale.log2(), metric(s)))
-                    .collect();
-                pts.sort_by(|a, b| a.0.total_cmp(&b.0));
-                chart
-                    .draw_series(LineSeries::new(pts.clone(), c.stroke_width(3)))
-                    .map_err(e2s)?
-                    .label(r.label.clone())
-                    .legend(move |(x, y)| {
-                        PathElement::new(vec![(x, y), (x + 24, y)], c.stroke_width(3))
-                    });
-                chart
-                    .draw_series(pts.iter().map(|&q| Circle::new(q, 5, c.filled())))
-                    .map_err(e2s)?;
-            }
-            draw_legend(&mut chart, SeriesLabelPosition::LowerLeft)?;
+        scale_panel(
+            &panels[0],
+            runs,
+            "PSNR (dB) vs render scale",
+            "PSNR (dB)",
+            1,
+            &|s| Some(s.psnr),
+        )?;
+        scale_panel(&panels[1], runs, "SSIM vs render scale", "SSIM", 3, &|s| {
+            Some(s.ssim)
+        })
+    })
+}
+
+/// PSNR of the moving pixels, the static pixels and the silhouette band
+/// ([`crate::metrics::regions`]) against the render scale, one line per run: what the
+/// report's by-region table shows, for data with moving masks.
+pub fn quality_by_region(runs: &[ReportRun], path: &Path) -> Result<(), Error> {
+    type Pick = fn(&crate::eval::RegionSummary) -> Option<f64>;
+    let regions: [(&str, Pick); 3] = [
+        ("moving pixels", |g| g.moving),
+        ("static pixels", |g| g.static_),
+        ("silhouette band", |g| g.band),
+    ];
+    save_chart(path, (1800, 560), |root| {
+        let panels = root.split_evenly((1, 3));
+        for (area, (name, pick)) in panels.iter().zip(regions) {
+            let title = format!("PSNR of {name} vs render scale");
+            scale_panel(area, runs, &title, "PSNR (dB)", 1, &|s| {
+                s.regions.as_ref().and_then(pick)
+            })?;
         }
         Ok(())
     })
+}
+
+/// One panel of a metric against the render scale (log2 axis, labelled at the
+/// evaluated powers of two), a line per run over the scales where `metric` has a
+/// value, `decimals` on the y labels.
+fn scale_panel(
+    area: &Area<'_>,
+    runs: &[ReportRun],
+    title: &str,
+    y_desc: &str,
+    decimals: usize,
+    metric: &dyn Fn(&crate::eval::ScaleResult) -> Option<f64>,
+) -> Result<(), String> {
+    let scales = super::all_scales(runs);
+    let keys: Vec<f64> = scales.iter().map(|s| s.log2()).collect();
+    let (x0, x1) = padded_range(keys.iter().copied(), 0.08);
+    let series: Vec<Vec<(f64, f64)>> = runs
+        .iter()
+        .map(|r| {
+            let mut pts: Vec<(f64, f64)> = r
+                .eval
+                .scales
+                .iter()
+                .filter_map(|s| metric(s).map(|v| (s.scale.log2(), v)))
+                .collect();
+            pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+            pts
+        })
+        .collect();
+    let (y0, y1) = padded_range(series.iter().flatten().map(|p| p.1), 0.05);
+    // Room below the lines for the legend.
+    let (y0, y1) = widen((y0, y1), 0.45, 0.0);
+    let mut chart = new_chart(area, title, 24, 70, (x0, x1), (y0, y1))?;
+    chart
+        .configure_mesh()
+        .x_desc("render scale relative to training (log axis)")
+        .y_desc(y_desc)
+        .x_labels(keys.len().max(2))
+        .x_label_formatter(&|x| {
+            // Labels only at whole powers of two (the evaluated scales).
+            if (x - x.round()).abs() < 1e-6 {
+                scale_header(2f64.powf(x.round()))
+            } else {
+                String::new()
+            }
+        })
+        .y_label_formatter(&|y| format!("{y:.decimals$}"))
+        .label_style(text(16))
+        .axis_desc_style(text(17))
+        .light_line_style(WHITE.mix(0.0))
+        .draw()
+        .map_err(e2s)?;
+    for (i, (r, pts)) in runs.iter().zip(&series).enumerate() {
+        let c = colour(runs, i);
+        chart
+            .draw_series(LineSeries::new(pts.clone(), c.stroke_width(3)))
+            .map_err(e2s)?
+            .label(r.label.clone())
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], c.stroke_width(3)));
+        chart
+            .draw_series(pts.iter().map(|&q| Circle::new(q, 5, c.filled())))
+            .map_err(e2s)?;
+    }
+    draw_legend(&mut chart, SeriesLabelPosition::LowerLeft)
 }
 
 /// One scatter panel: a point per run at `(x(run), y(run))`, labelled in the legend.

@@ -211,7 +211,8 @@ pub fn all_scales(runs: &[ReportRun]) -> Vec<f64> {
 }
 
 /// Writes `OUT/report.md` and the charts (`quality_vs_scale.png`,
-/// `quality_vs_time.png`, `quality_vs_size.png`, `warp_error_over_time.png` when a
+/// `quality_vs_time.png`, `quality_vs_size.png`, `quality_by_region.png` when a run
+/// has PSNR by region, `warp_error_over_time.png` when a
 /// run has temporal metrics, and `nu_t.png` when a motion run has a nu(t) export),
 /// the LPIPS table and the Tab. 3-shaped temporal tables for the evaluated runs in `runs`. Every file is written
 /// atomically; `OUT` is created if needed.
@@ -238,6 +239,14 @@ pub fn write_report(runs: &[PathBuf], out: &Path) -> Result<ReportOutput, Error>
     let size_png = out.join("quality_vs_size.png");
     charts::quality_vs_size(&runs, &size_png)?;
     charts.push(size_png);
+    if runs
+        .iter()
+        .any(|r| r.eval.scales.iter().any(|s| s.regions.is_some()))
+    {
+        let region_png = out.join("quality_by_region.png");
+        charts::quality_by_region(&runs, &region_png)?;
+        charts.push(region_png);
+    }
     let warp_png = out.join("warp_error_over_time.png");
     if temporal::warp_error_over_time(&runs, &warp_png)? {
         charts.push(warp_png);
