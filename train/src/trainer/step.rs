@@ -87,15 +87,18 @@ impl Trainer {
         let t3 = Instant::now();
         let finite = |t: &Tensor<f32>| t.first_non_finite().is_none();
         let grads = grads.map_err(|e| e.to_string()).and_then(|gr| {
-            let ok = eval.total.value().item().is_finite()
-                && gr
-                    .param_names()
-                    .iter()
-                    .all(|p| gr.param(p).is_none_or(finite));
-            if ok {
-                Ok(gr)
-            } else {
-                Err("non-finite loss or gradient".to_string())
+            let loss = eval.total.value().item();
+            if !loss.is_finite() {
+                return Err(format!("non-finite loss ({loss})"));
+            }
+            // Name the first parameter whose gradient is not finite.
+            match gr
+                .param_names()
+                .into_iter()
+                .find(|p| !gr.param(p).is_none_or(finite))
+            {
+                Some(name) => Err(format!("non-finite gradient of `{name}`")),
+                None => Ok(gr),
             }
         });
         match grads {
