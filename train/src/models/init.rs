@@ -1,6 +1,9 @@
 //! Initial values of a representation: the point cloud it starts from, the
-//! 3DGS nearest-neighbour scale, and the colour-to-SH-DC conversion.
+//! 3DGS nearest-neighbour scale, the colour-to-SH-DC conversion, and the canonical
+//! 3DGS tensors built from them.
 
+use maaf_autodiff::scalar::logit;
+use maaf_autodiff::{Float, Tensor};
 use maaf_splat::sh::SH_C0;
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
@@ -96,6 +99,48 @@ impl PointCloud {
             }
         }
         (lo, hi)
+    }
+}
+
+/// The canonical 3DGS tensors a representation starts from (3DGS `create_from_pcd`,
+/// as SaRO-GS and Deformable-3DGS do it).
+#[derive(Clone, Debug, PartialEq)]
+pub struct InitialGaussians<T: Float> {
+    /// Centres = the points \[N,3].
+    pub xyz: Tensor<T>,
+    /// `ln sqrt(mean squared distance to the 3 nearest neighbours)`, clamped to
+    /// \[-10, 1], on every axis \[N,3].
+    pub log_scale: Tensor<T>,
+    /// Identity rotations (1, 0, 0, 0) \[N,4].
+    pub rotation: Tensor<T>,
+    /// Opacity 0.1 as a logit \[N].
+    pub opacity: Tensor<T>,
+    /// SH DC from the colours \[N,1,3].
+    pub sh_dc: Tensor<T>,
+    /// Zero higher bands \[N,K-1,3].
+    pub sh_rest: Tensor<T>,
+}
+
+impl<T: Float> InitialGaussians<T> {
+    /// The tensors for `cloud` with `sh_coeffs` = K coefficients per colour channel.
+    pub fn from_cloud(cloud: &PointCloud, sh_coeffs: usize) -> Self {
+        let n = cloud.len();
+        let of = |v: Vec<f64>, shape: &[usize]| -> Tensor<T> {
+            Tensor::from_vec(v.into_iter().map(T::of).collect(), shape)
+        };
+        let log_scale = knn_mean_sq_dist(&cloud.points, 3)
+            .iter()
+            .flat_map(|&d| [(d.sqrt().ln()).clamp(-10.0, 1.0); 3])
+            .collect();
+        let sh_dc = cloud.colours.iter().flatten().map(|&c| rgb_to_sh_dc(c));
+        InitialGaussians {
+            xyz: of(cloud.points.concat(), &[n, 3]),
+            log_scale: of(log_scale, &[n, 3]),
+            rotation: of((0..n).flat_map(|_| [1.0, 0.0, 0.0, 0.0]).collect(), &[n, 4]),
+            opacity: Tensor::full(&[n], logit(T::of(0.1))),
+            sh_dc: of(sh_dc.collect(), &[n, 1, 3]),
+            sh_rest: Tensor::zeros(&[n, sh_coeffs - 1, 3]),
+        }
     }
 }
 

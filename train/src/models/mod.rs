@@ -37,7 +37,7 @@ use crate::params::{BoundParams, ParamId, ParamStore};
 
 pub use config::{ModelConfig, ModelInit, build_model};
 pub use deform::{DeformConfig, DeformModel};
-pub use init::{PointCloud, knn_mean_sq_dist, rgb_to_sh_dc};
+pub use init::{InitialGaussians, PointCloud, knn_mean_sq_dist, rgb_to_sh_dc};
 pub use kplane::{KPlaneConfig, KPlaneField};
 pub use saro::{SaroConfig, SaroModel};
 

@@ -30,10 +30,9 @@ mod tests;
 
 use maaf_autodiff::nn::Mlp;
 use maaf_autodiff::optim::LrSchedule;
-use maaf_autodiff::scalar::logit;
 use maaf_autodiff::{Float, Tensor};
 
-use super::{Bound, CanonicalIds, PointCloud, Representation, knn_mean_sq_dist, rgb_to_sh_dc};
+use super::{Bound, CanonicalIds, InitialGaussians, PointCloud, Representation};
 use crate::params::{BoundParams, MlpParams, ParamId, ParamStore, Rows};
 
 pub use bound::DeformBound;
@@ -84,16 +83,7 @@ impl<T: Float> DeformModel<T> {
     /// clamped to \[-10, 1]), identity rotation, opacity 0.1, SH DC from the colour, zero
     /// higher bands, and a fresh network (PyTorch's default initialisation, zero head).
     pub fn from_point_cloud(cloud: &PointCloud, config: DeformConfig, seed: u64) -> Self {
-        let n = cloud.len();
-        let k = config.sh_coeffs();
-        let of = |v: Vec<f64>, shape: &[usize]| -> Tensor<T> {
-            Tensor::from_vec(v.into_iter().map(T::of).collect(), shape)
-        };
-        let log_scale = knn_mean_sq_dist(&cloud.points, 3)
-            .iter()
-            .flat_map(|&d| [(d.sqrt().ln()).clamp(-10.0, 1.0); 3])
-            .collect();
-        let sh_dc = cloud.colours.iter().flatten().map(|&c| rgb_to_sh_dc(c));
+        let g = InitialGaussians::<T>::from_cloud(cloud, config.sh_coeffs());
         let lr = config.lr.clone();
         let s = config.spatial_lr_scale;
         let mut p = ParamStore::new();
@@ -101,38 +91,21 @@ impl<T: Float> DeformModel<T> {
             |name: &str, t: Tensor<T>, lr: LrSchedule| p.add(name, t, Rows::PerGaussian, lr, 0.0);
         let xyz = pg(
             "xyz",
-            of(cloud.points.concat(), &[n, 3]),
+            g.xyz,
             LrSchedule::ExpDecay {
                 init: lr.position_init * s,
                 last: lr.position_final * s,
                 max_steps: lr.position_max_steps,
             },
         );
-        let log_scale = pg(
-            "log_scale",
-            of(log_scale, &[n, 3]),
-            LrSchedule::Constant(lr.scaling),
-        );
-        let quats = (0..n).flat_map(|_| [1.0, 0.0, 0.0, 0.0]).collect();
-        let rotation = pg(
-            "rotation",
-            of(quats, &[n, 4]),
-            LrSchedule::Constant(lr.rotation),
-        );
-        let opacity = pg(
-            "opacity",
-            Tensor::full(&[n], logit(T::of(0.1))),
-            LrSchedule::Constant(lr.opacity),
-        );
-        let sh_dc = pg(
-            "sh_dc",
-            of(sh_dc.collect(), &[n, 1, 3]),
-            LrSchedule::Constant(lr.feature),
-        );
-        let sh_rest = (k > 1).then(|| {
+        let log_scale = pg("log_scale", g.log_scale, LrSchedule::Constant(lr.scaling));
+        let rotation = pg("rotation", g.rotation, LrSchedule::Constant(lr.rotation));
+        let opacity = pg("opacity", g.opacity, LrSchedule::Constant(lr.opacity));
+        let sh_dc = pg("sh_dc", g.sh_dc, LrSchedule::Constant(lr.feature));
+        let sh_rest = (config.sh_coeffs() > 1).then(|| {
             pg(
                 "sh_rest",
-                Tensor::zeros(&[n, k - 1, 3]),
+                g.sh_rest,
                 LrSchedule::Constant(lr.feature / 20.0),
             )
         });

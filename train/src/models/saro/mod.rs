@@ -30,13 +30,12 @@ use std::sync::Arc;
 use maaf_autodiff::PerGaussian;
 use maaf_autodiff::nn::Mlp;
 use maaf_autodiff::optim::LrSchedule;
-use maaf_autodiff::scalar::logit;
 use maaf_autodiff::{Float, Tape, Tensor};
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 
 use super::kplane::{KPlaneField, PLANE_NAMES};
-use super::{Bound, CanonicalIds, PointCloud, Representation, knn_mean_sq_dist, rgb_to_sh_dc};
+use super::{Bound, CanonicalIds, InitialGaussians, PointCloud, Representation};
 use crate::params::{BoundParams, MlpParams, ParamId, ParamStore, Rows};
 
 pub use bound::{Norm2, SaroBound, time_embedding};
@@ -111,38 +110,22 @@ impl<T: Float> SaroModel<T> {
         seed: u64,
     ) -> Self {
         let n = cloud.len();
-        let k = config.sh_coeffs();
-        let dist2 = knn_mean_sq_dist(&cloud.points, 3);
-        let of = |v: &[f64], shape: &[usize]| -> Tensor<T> {
-            Tensor::from_vec(v.iter().map(|&x| T::of(x)).collect(), shape)
-        };
-        let xyz = of(&cloud.points.concat(), &[n, 3]);
-        let log_scale: Vec<f64> = dist2
-            .iter()
-            .flat_map(|&d| [(d.sqrt().ln()).clamp(-10.0, 1.0); 3])
-            .collect();
-        let rotation: Vec<f64> = (0..n).flat_map(|_| [1.0, 0.0, 0.0, 0.0]).collect();
-        let sh_dc: Vec<f64> = cloud
-            .colours
-            .iter()
-            .flatten()
-            .map(|&c| rgb_to_sh_dc(c))
-            .collect();
+        let g = InitialGaussians::<T>::from_cloud(cloud, config.sh_coeffs());
         let mut rng = Pcg64::seed_from_u64(seed);
-        let t_centre: Vec<f64> = match &cloud.times {
-            Some(times) => times.clone(),
-            None => (0..n).map(|_| rng.random_range(0.0..1.0)).collect(),
+        let t_centre: Vec<T> = match &cloud.times {
+            Some(times) => times.iter().map(|&t| T::of(t)).collect(),
+            None => (0..n).map(|_| T::of(rng.random_range(0.0..1.0))).collect(),
         };
         let (lo, hi) = cloud.bounds();
         let field = KPlaneField::new(config.field.clone(), lo, hi);
         let per_gaussian = [
-            xyz,
-            of(&log_scale, &[n, 3]),
-            of(&rotation, &[n, 4]),
-            Tensor::full(&[n], logit(T::of(0.1))),
-            of(&sh_dc, &[n, 1, 3]),
-            Tensor::zeros(&[n, k - 1, 3]),
-            of(&t_centre, &[n]),
+            g.xyz,
+            g.log_scale,
+            g.rotation,
+            g.opacity,
+            g.sh_dc,
+            g.sh_rest,
+            Tensor::from_vec(t_centre, &[n]),
         ];
         Self::assemble(config, scene_extent, per_gaussian, field, seed)
     }
