@@ -154,23 +154,8 @@ fn saro_mlp_forward_flops(n: usize, c: &SaroConfig) -> f64 {
 /// Forward FLOPs of the deformation MLP of a Deformable-3DGS step for `n` Gaussians
 /// (the time network runs on one row and is left out).
 fn deform_mlp_forward_flops(n: usize, c: &DeformConfig) -> f64 {
-    let input = c.x_dim() + c.t_dim();
-    let hidden = |count: usize| std::iter::repeat_n(c.width, count);
-    if c.skip {
-        let before = c.depth / 2 + 1;
-        let trunk: Vec<usize> = std::iter::once(input).chain(hidden(before)).collect();
-        let rest: Vec<usize> = std::iter::once(input + c.width)
-            .chain(hidden(c.depth - before))
-            .chain(std::iter::once(10))
-            .collect();
-        mlp_flops(n, &trunk) + mlp_flops(n, &rest)
-    } else {
-        let widths: Vec<usize> = std::iter::once(input)
-            .chain(hidden(c.depth))
-            .chain(std::iter::once(10))
-            .collect();
-        mlp_flops(n, &widths)
-    }
+    let (trunk, rest) = c.network_widths();
+    mlp_flops(n, &trunk) + rest.map_or(0.0, |w| mlp_flops(n, &w))
 }
 
 /// Forward FLOPs of every MLP one step of `model` evaluates for `n` Gaussians.

@@ -144,6 +144,29 @@ impl DeformConfig {
         }
     }
 
+    /// Layer widths of the deformation MLP, input first: with `skip`, the trunk up
+    /// to and including layer `depth / 2` and then the layers after the skip with the
+    /// 10-output head (`[dx, dq, ds]`), whose input is the encoded input plus the
+    /// trunk's output; without, one network. The time network is not included.
+    pub fn network_widths(&self) -> (Vec<usize>, Option<Vec<usize>>) {
+        let input = self.x_dim() + self.t_dim();
+        let layers = |first: usize, hidden: usize, head: bool| -> Vec<usize> {
+            let mut w = vec![first];
+            w.extend(std::iter::repeat_n(self.width, hidden));
+            w.extend(head.then_some(10));
+            w
+        };
+        if self.skip {
+            let before = self.depth / 2 + 1;
+            (
+                layers(input, before, false),
+                Some(layers(input + self.width, self.depth - before, true)),
+            )
+        } else {
+            (layers(input, self.depth, true), None)
+        }
+    }
+
     /// Checks every size and rate, naming the field and its allowed range.
     pub fn validate(&self) -> Result<(), String> {
         let bad = |field: &str, range: &str, v: &dyn std::fmt::Display| {

@@ -128,21 +128,12 @@ impl<T: Float> DeformModel<T> {
                 1,
             )
         });
-        let input = c.x_dim() + c.t_dim();
-        let (trunk, after_skip) = if c.skip {
-            let before = c.depth / 2 + 1;
-            let mut widths = vec![input];
-            widths.extend(std::iter::repeat_n(c.width, before));
-            let trunk = mlp("deform_trunk", &widths, false, 2);
-            let mut widths = vec![input + c.width];
-            widths.extend(std::iter::repeat_n(c.width, c.depth - before));
-            widths.push(10);
-            (trunk, Some(mlp("deform_head", &widths, true, 3)))
-        } else {
-            let mut widths = vec![input];
-            widths.extend(std::iter::repeat_n(c.width, c.depth));
-            widths.push(10);
-            (mlp("deform", &widths, true, 2), None)
+        let (trunk, after_skip) = match c.network_widths() {
+            (trunk, Some(rest)) => (
+                mlp("deform_trunk", &trunk, false, 2),
+                Some(mlp("deform_head", &rest, true, 3)),
+            ),
+            (all, None) => (mlp("deform", &all, true, 2), None),
         };
         DeformModel {
             config,
