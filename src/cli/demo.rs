@@ -11,7 +11,6 @@ use maaf_filter::FilterKind;
 use maaf_train::data::synthetic::{self, GenerateOptions};
 use maaf_train::data::{Dataset, DatasetOptions, Split};
 use maaf_train::eval::{EvalOptions, evaluate_run};
-use maaf_train::models::ModelConfig;
 use maaf_train::trainer::{TrainConfig, train_run};
 
 /// Arguments of `maaf demo`.
@@ -94,11 +93,10 @@ impl Plan {
             ..TrainConfig::default()
         };
         let frac = |f: f64| ((iterations as f64 * f) as usize).max(1);
-        match &mut c.model {
-            ModelConfig::Saro(m) => m.static_iterations = frac(0.05),
-            // Deformable-3DGS warms up for 3000 of its iterations: 15% of 20 000.
-            ModelConfig::Deform(m) => m.warm_up = frac(0.15),
-        }
+        // The warm-up keeps its share of the full schedule (SaRO 1000, deform 3000 of
+        // 20 000 iterations).
+        let warm_up = c.model.warm_up_mut();
+        *warm_up = frac(*warm_up as f64 / TrainConfig::default().iterations as f64);
         c.densify.from = frac(0.025);
         c.densify.until = frac(0.75);
         // Statistics need many views per Gaussian before they mean anything: keep the

@@ -8,7 +8,6 @@ use maaf_filter::FilterKind;
 use maaf_train::data::{Dataset, DatasetOptions};
 use maaf_train::eval::render::record_data;
 use maaf_train::eval::{EvalOptions, evaluate_run};
-use maaf_train::models::ModelConfig;
 use maaf_train::trainer::{TrainConfig, train_run};
 
 fn mutant_root() -> Option<PathBuf> {
@@ -34,10 +33,7 @@ fn tiny_config() -> TrainConfig {
     c.densify.from = 10;
     c.densify.every = 10;
     c.densify.opacity_reset_every = 0;
-    match &mut c.model {
-        ModelConfig::Saro(m) => m.static_iterations = 10,
-        ModelConfig::Deform(m) => m.warm_up = 10,
-    }
+    *c.model.warm_up_mut() = 10;
     c
 }
 

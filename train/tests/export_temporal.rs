@@ -12,7 +12,6 @@ use maaf_train::data::synthetic::{self, GenerateOptions};
 use maaf_train::data::{Dataset, DatasetOptions, Split};
 use maaf_train::eval::export::{export_frame, export_sequence, export_sequence_zip};
 use maaf_train::eval::{EvalOptions, EvalReport, evaluate_trainer, load_run, render_image};
-use maaf_train::models::ModelConfig;
 use maaf_train::trainer::{TrainConfig, train_run};
 
 struct TempDir(PathBuf);
@@ -38,10 +37,7 @@ fn tiny_config() -> TrainConfig {
     c.densify.every = 20;
     c.densify.opacity_reset_every = 0;
     c.sh_degree_every = 10;
-    match &mut c.model {
-        ModelConfig::Saro(m) => m.static_iterations = 10,
-        ModelConfig::Deform(m) => m.warm_up = 10,
-    }
+    *c.model.warm_up_mut() = 10;
     c
 }
 

@@ -41,10 +41,7 @@ fn tiny_config_of(kind: &str, filter: FilterKind) -> TrainConfig {
     c.densify.from = 20;
     c.densify.every = 20;
     c.densify.opacity_reset_every = 0;
-    match &mut c.model {
-        ModelConfig::Saro(m) => m.static_iterations = 20,
-        ModelConfig::Deform(m) => m.warm_up = 20,
-    }
+    *c.model.warm_up_mut() = 20;
     c
 }
 

@@ -88,6 +88,15 @@ impl ModelConfig {
         }
     }
 
+    /// Iterations rendered as plain 3D Gaussians before the dynamic stage, mutably:
+    /// SaRO's `static_iterations`, deform's `warm_up` (demos and tests shorten it).
+    pub fn warm_up_mut(&mut self) -> &mut usize {
+        match self {
+            ModelConfig::Saro(c) => &mut c.static_iterations,
+            ModelConfig::Deform(c) => &mut c.warm_up,
+        }
+    }
+
     /// Fills in what the data decides unless the config set it: SaRO's `duration`
     /// (the number of distinct training times). Called once when a run starts, so
     /// `config.json` records the value used.
