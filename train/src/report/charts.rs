@@ -443,27 +443,9 @@ fn capitalise(s: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::eval::EvalReport;
 
     fn run(model: &str, filter: &str) -> ReportRun {
-        ReportRun {
-            label: format!("{model} {filter}"),
-            dir: filter.into(),
-            eval: EvalReport {
-                model: model.into(),
-                filter: filter.into(),
-                train_scale: 0.25,
-                iterations: 10,
-                train_seconds: 1.0,
-                num_gaussians: 5,
-                model_bytes: 1,
-                filter_bytes: 1,
-                background: [1.0; 3],
-                quantized_8bit: false,
-                scales: Vec::new(),
-            },
-            analysis: None,
-        }
+        ReportRun::for_test(&format!("{model} {filter}"), model, filter, Vec::new())
     }
 
     #[test]

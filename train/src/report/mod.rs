@@ -34,6 +34,41 @@ pub struct ReportRun {
     pub analysis: Option<AnalysisExport>,
 }
 
+impl ReportRun {
+    /// Its evaluation at render scale `s`, if it was evaluated there.
+    pub fn at_scale(&self, s: f64) -> Option<&crate::eval::ScaleResult> {
+        self.eval.scales.iter().find(|x| (x.scale - s).abs() < 1e-9)
+    }
+
+    /// A run of `model` and `filter` with `scales` and placeholder sizes (report tests).
+    #[cfg(test)]
+    pub(crate) fn for_test(
+        label: &str,
+        model: &str,
+        filter: &str,
+        scales: Vec<crate::eval::ScaleResult>,
+    ) -> Self {
+        ReportRun {
+            label: label.into(),
+            dir: label.into(),
+            eval: EvalReport {
+                model: model.into(),
+                filter: filter.into(),
+                train_scale: 0.25,
+                iterations: 10,
+                train_seconds: 1.0,
+                num_gaussians: 5,
+                model_bytes: 1,
+                filter_bytes: 1,
+                background: [1.0; 3],
+                quantized_8bit: false,
+                scales,
+            },
+            analysis: None,
+        }
+    }
+}
+
 /// What [`write_report`] produced.
 #[derive(Clone, Debug)]
 pub struct ReportOutput {
@@ -111,11 +146,7 @@ pub fn scale_header(s: f64) -> String {
 }
 
 fn metric_at(r: &ReportRun, s: f64) -> Option<(f64, f64)> {
-    r.eval
-        .scales
-        .iter()
-        .find(|x| (x.scale - s).abs() < 1e-9)
-        .map(|x| (x.psnr, x.ssim))
+    r.at_scale(s).map(|x| (x.psnr, x.ssim))
 }
 
 /// A markdown table of PSNR and SSIM at `scales` plus their averages, one row per

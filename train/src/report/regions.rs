@@ -27,10 +27,7 @@ pub fn region_table(runs: &[ReportRun], scales: &[f64]) -> String {
         let _ = write!(t, "| {} |", r.label);
         for &s in scales {
             let cell = r
-                .eval
-                .scales
-                .iter()
-                .find(|x| (x.scale - s).abs() < 1e-9)
+                .at_scale(s)
                 .and_then(|x| x.regions.as_ref())
                 .map_or("-".to_string(), |g| {
                     format!("{} / {} / {}", db(g.moving), db(g.static_), db(g.band))
@@ -45,29 +42,12 @@ pub fn region_table(runs: &[ReportRun], scales: &[f64]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::eval::{EvalReport, RegionSummary, ScaleResult};
+    use crate::eval::{RegionSummary, ScaleResult};
 
     fn run(label: &str, regions: Option<RegionSummary>) -> ReportRun {
         let mut s = ScaleResult::new(1.0, (8, 6), 20.0, 0.5);
         s.regions = regions;
-        ReportRun {
-            label: label.into(),
-            dir: label.into(),
-            eval: EvalReport {
-                model: "saro".into(),
-                filter: "motion".into(),
-                train_scale: 0.25,
-                iterations: 10,
-                train_seconds: 1.0,
-                num_gaussians: 5,
-                model_bytes: 1,
-                filter_bytes: 1,
-                background: [1.0; 3],
-                quantized_8bit: false,
-                scales: vec![s],
-            },
-            analysis: None,
-        }
+        ReportRun::for_test(label, "saro", "motion", vec![s])
     }
 
     #[test]

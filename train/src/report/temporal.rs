@@ -34,8 +34,7 @@ pub fn lpips_table(runs: &[ReportRun], scales: &[f64]) -> String {
     for r in runs {
         let _ = write!(t, "| {} |", r.label);
         for &s in scales {
-            let v = r.eval.scales.iter().find(|x| (x.scale - s).abs() < 1e-9);
-            let _ = write!(t, " {} |", cell(v.and_then(|x| x.lpips), 4));
+            let _ = write!(t, " {} |", cell(r.at_scale(s).and_then(|x| x.lpips), 4));
         }
         t.push('\n');
     }
@@ -57,11 +56,7 @@ pub fn temporal_scales(runs: &[ReportRun]) -> Vec<f64> {
 
 /// The temporal entries of `run` at scale `s`.
 fn entries(run: &ReportRun, s: f64) -> &[TemporalResult] {
-    run.eval
-        .scales
-        .iter()
-        .find(|x| (x.scale - s).abs() < 1e-9)
-        .map_or(&[], |x| x.temporal.as_slice())
+    run.at_scale(s).map_or(&[], |x| x.temporal.as_slice())
 }
 
 /// One Tab. 3-shaped markdown table per scale with temporal metrics: a row per run
