@@ -60,6 +60,25 @@ pub trait Bound<'t, T: Float> {
     }
 }
 
+/// Every deformed output of `bound` at each of `times`, then its regularisers,
+/// flattened into one vector: a gradcheck contracts it with a random cotangent, i.e.
+/// checks a random scalar function of all of them (the representations' tests).
+#[cfg(test)]
+pub(crate) fn flatten_outputs<'t, T: Float>(bound: &dyn Bound<'t, T>, times: &[f64]) -> Var<'t, T> {
+    let mut parts = Vec::new();
+    for &time in times {
+        let g = bound.deform(time);
+        for x in [g.means, g.scales, g.quats, g.opacity, g.sh] {
+            let len = x.value().len();
+            parts.push(x.reshape(&[len]));
+        }
+    }
+    for (_, value) in bound.regularisers() {
+        parts.push(value.reshape(&[1]));
+    }
+    maaf_autodiff::ops::concat(&parts, 0)
+}
+
 /// Which parameters of a store hold the canonical 3DGS tensors, in 3DGS's
 /// parametrisation: centres `[N,3]`, log-scales `[N,3]`, unnormalised quaternions
 /// `[N,4]` (w, x, y, z) and opacity logits `[N]`. Densification reads them (scale

@@ -1,6 +1,5 @@
 use maaf_autodiff::check::{GradcheckConfig, gradcheck, tests_support::random_tensor};
 use maaf_autodiff::nn::Linear;
-use maaf_autodiff::ops::concat;
 use maaf_autodiff::{Tape, Var};
 
 use super::*;
@@ -195,16 +194,7 @@ fn zero_head_and_warm_up_render_the_canonical_gaussians() {
 /// Every deformed output at two times, flattened into one vector.
 fn all_outputs<'t>(m: &DeformModel<f64>, v: &[Var<'t, f64>]) -> Var<'t, f64> {
     let params = BoundParams::from_vars(&m.params, v);
-    let bound = m.bind(&params);
-    let mut parts = Vec::new();
-    for time in [0.2, 0.75] {
-        let g = bound.deform(time);
-        for x in [g.means, g.scales, g.quats, g.opacity, g.sh] {
-            let len = x.value().len();
-            parts.push(x.reshape(&[len]));
-        }
-    }
-    concat(&parts, 0)
+    crate::models::flatten_outputs(&*m.bind(&params), &[0.2, 0.75])
 }
 
 #[test]

@@ -1,7 +1,6 @@
 use maaf_autodiff::Var;
 use maaf_autodiff::check::{GradcheckConfig, gradcheck, tests_support::random_tensor};
 use maaf_autodiff::nn::Linear;
-use maaf_autodiff::ops::concat;
 
 use super::*;
 use crate::models::KPlaneConfig;
@@ -122,24 +121,10 @@ fn busy_model(n: usize) -> SaroModel<f64> {
     m
 }
 
-/// Every deformed output at two times plus L_SR, flattened into one vector: the
-/// gradcheck contracts it with a random cotangent, i.e. checks a random scalar
-/// function of all of them.
+/// Every deformed output at two times plus L_SR, flattened into one vector.
 fn all_outputs<'t>(m: &SaroModel<f64>, v: &[Var<'t, f64>]) -> Var<'t, f64> {
     let params = BoundParams::from_vars(&m.params, v);
-    let bound = m.bind(&params);
-    let mut parts = Vec::new();
-    for time in [0.2, 0.75] {
-        let g = bound.deform(time);
-        for x in [g.means, g.scales, g.quats, g.opacity, g.sh] {
-            let len = x.value().len();
-            parts.push(x.reshape(&[len]));
-        }
-    }
-    for (_, value) in bound.regularisers() {
-        parts.push(value.reshape(&[1]));
-    }
-    concat(&parts, 0)
+    crate::models::flatten_outputs(&*m.bind(&params), &[0.2, 0.75])
 }
 
 #[test]
