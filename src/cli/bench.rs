@@ -25,6 +25,9 @@ pub struct BenchArgs {
     /// Untimed iterations before timing.
     #[arg(long, default_value_t = 5)]
     pub warmup: usize,
+    /// Views per iteration (default: the run's `batch`).
+    #[arg(long)]
+    pub batch: Option<usize>,
     /// Also list the ten slowest tape ops per count.
     #[arg(long)]
     pub ops: bool,
@@ -33,10 +36,15 @@ pub struct BenchArgs {
 /// Runs the benchmark and prints the table.
 pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     anyhow::ensure!(args.iters > 0, "--iters must be at least 1");
+    anyhow::ensure!(
+        args.batch.is_none_or(|b| (1..=64).contains(&b)),
+        "--batch must be in 1..=64"
+    );
     let data = super::eval::open_run_data(&args.run, args.data.as_deref(), None)?;
     let opts = StepBenchOptions {
         iterations: args.iters,
         warmup: args.warmup,
+        batch: args.batch,
         ..StepBenchOptions::default()
     };
     let peak = measure_peak();

@@ -46,6 +46,9 @@ pub struct SettingsArgs {
     /// Iterations (D-NeRF protocol: 20000).
     #[arg(long)]
     pub iters: Option<usize>,
+    /// Training views per iteration, their gradients averaged (SaRO-GS configs: 4).
+    #[arg(long)]
+    pub batch: Option<usize>,
     /// Seed of initialisation, view order and densification.
     #[arg(long)]
     pub seed: Option<u64>,
@@ -103,6 +106,9 @@ pub fn config_from(args: &SettingsArgs) -> anyhow::Result<TrainConfig> {
     if let Some(i) = args.iters {
         config.iterations = i;
     }
+    if let Some(b) = args.batch {
+        config.batch = b;
+    }
     if let Some(s) = args.seed {
         config.seed = s;
     }
@@ -152,6 +158,9 @@ fn resumed_config(args: &SettingsArgs, run: &Path) -> anyhow::Result<TrainConfig
         args.seed
             .filter(|s| *s != config.seed)
             .map(|s| format!("--seed {s} (the run's is {})", config.seed)),
+        args.batch
+            .filter(|b| *b != config.batch)
+            .map(|b| format!("--batch {b} (the run's is {})", config.batch)),
     ];
     if let Some(c) = conflicts.into_iter().flatten().next() {
         bail!(

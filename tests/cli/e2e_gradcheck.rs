@@ -7,7 +7,7 @@ use maaf::autodiff::check::{GradcheckConfig, gradcheck, tests_support::random_te
 use maaf::autodiff::{BackwardCtx, Op, Tape, Tensor, Var};
 use maaf::filter::FilterState;
 use maaf::splat::{AlphaCutoff, Camera, Filter2d, RenderSettings};
-use maaf::train::forward::forward;
+use maaf::train::forward::{batch_mean, forward, forward_bound};
 use maaf::train::loss::Objective;
 use maaf::train::models::{KPlaneConfig, PointCloud, Representation, SaroConfig, SaroModel};
 use maaf::train::params::BoundParams;
@@ -169,4 +169,73 @@ fn one_training_loss_passes_gradcheck_end_to_end() {
         !bad.passed(),
         "a 1% wrong backward passed the end-to-end check"
     );
+}
+
+/// A batch (one binding, each view deformed at its own time, the mean objective)
+/// gives the mean of the views' separate objectives and gradients: the shared
+/// binding carries nothing from one time to the next.
+#[test]
+fn a_batch_is_the_mean_of_its_views() {
+    let m = model();
+    let objective = Objective::for_model(0.2, &m as &dyn Representation<f64>);
+    let f = filter(&[0.002, 0.0005, 0.003, 0.001, 0.0]);
+    let views: Vec<(f64, Tensor<f64>)> = [(0.3, 11), (0.55, 12)]
+        .into_iter()
+        .map(|(t, seed)| (t, random_tensor(&[16, 16, 3], 0.0, 1.0, seed)))
+        .collect();
+
+    let tape = Tape::new();
+    let params = m.params.bind(&tape);
+    let bound = m.bind(&params);
+    let regularisers = bound.regularisers();
+    let totals: Vec<_> = views
+        .iter()
+        .map(|(t, gt)| {
+            forward_bound(
+                bound.as_ref(),
+                &regularisers,
+                &f,
+                &camera(),
+                *t,
+                &settings(),
+            )
+            .objective(&objective, gt, 5000)
+            .total
+        })
+        .collect();
+    let batch = batch_mean(&totals);
+    let batch_grads = tape.backward(batch).expect("backward");
+
+    let mut single = Vec::new();
+    for (t, gt) in &views {
+        let tape = Tape::new();
+        let params = m.params.bind(&tape);
+        let total = forward(&m, &params, &f, &camera(), *t, &settings())
+            .objective(&objective, gt, 5000)
+            .total;
+        let grads = tape.backward(total).expect("backward");
+        let by_name: Vec<Tensor<f64>> = m
+            .params
+            .iter()
+            .map(|p| grads.param(&p.name).expect("every parameter").clone())
+            .collect();
+        single.push((total.value().item(), by_name));
+    }
+    let mean_value = (single[0].0 + single[1].0) / 2.0;
+    assert!((batch.value().item() - mean_value).abs() <= 1e-14 * mean_value.abs());
+    let mut views_differ = false;
+    for (k, p) in m.params.iter().enumerate() {
+        let got = batch_grads.param(&p.name).expect("every parameter");
+        let (a, b) = (&single[0].1[k], &single[1].1[k]);
+        for ((&g, &x), &y) in got.data().iter().zip(a.data()).zip(b.data()) {
+            let want = (x + y) / 2.0;
+            assert!(
+                (g - want).abs() <= 1e-12 + 1e-10 * want.abs(),
+                "{}: batch gradient {g} vs mean of views {want}",
+                p.name
+            );
+            views_differ |= (x - y).abs() > 1e-6 * (x.abs() + y.abs());
+        }
+    }
+    assert!(views_differ, "the two views must give different gradients");
 }

@@ -100,6 +100,8 @@ pub struct StepBench {
     pub width: u32,
     /// Image height.
     pub height: u32,
+    /// Views per iteration (the trainer's `batch`).
+    pub views: usize,
     /// Whole step, milliseconds per iteration.
     pub step_ms: f64,
     /// Phases (their sum is below `step_ms` by the step's own bookkeeping).
@@ -115,6 +117,8 @@ pub struct StepBenchOptions {
     pub warmup: usize,
     /// Seed of the model and the view order.
     pub seed: u64,
+    /// Views per iteration (None: the run's `batch`).
+    pub batch: Option<usize>,
 }
 
 impl Default for StepBenchOptions {
@@ -123,6 +127,7 @@ impl Default for StepBenchOptions {
             iterations: 20,
             warmup: 5,
             seed: 0,
+            batch: None,
         }
     }
 }
@@ -132,8 +137,9 @@ fn mlp_flops(n: usize, widths: &[usize]) -> f64 {
     2.0 * n as f64 * widths.windows(2).map(|w| (w[0] * w[1]) as f64).sum::<f64>()
 }
 
-/// Forward FLOPs of every MLP a SaRO step evaluates for `n` Gaussians.
-fn saro_mlp_forward_flops(n: usize, c: &SaroConfig) -> f64 {
+/// Forward FLOPs of every MLP a SaRO step of `views` views evaluates for `n`
+/// Gaussians: the lifespan MLP and L_SR's rotation MLP once, the residual MLPs per view.
+fn saro_mlp_forward_flops(n: usize, c: &SaroConfig, views: usize) -> f64 {
     let (h, ch, input, k) = (
         c.hidden,
         c.field.channels,
@@ -148,21 +154,22 @@ fn saro_mlp_forward_flops(n: usize, c: &SaroConfig) -> f64 {
     } else {
         0.0
     };
-    life + 2.0 * rot + motion + sh
+    life + rot + views as f64 * (rot + motion + sh)
 }
 
-/// Forward FLOPs of the deformation MLP of a Deformable-3DGS step for `n` Gaussians
-/// (the time network runs on one row and is left out).
-fn deform_mlp_forward_flops(n: usize, c: &DeformConfig) -> f64 {
+/// Forward FLOPs of the deformation MLP of a Deformable-3DGS step of `views` views for
+/// `n` Gaussians (the time network runs on one row and is left out).
+fn deform_mlp_forward_flops(n: usize, c: &DeformConfig, views: usize) -> f64 {
     let (trunk, rest) = c.network_widths();
-    mlp_flops(n, &trunk) + rest.map_or(0.0, |w| mlp_flops(n, &w))
+    views as f64 * (mlp_flops(n, &trunk) + rest.map_or(0.0, |w| mlp_flops(n, &w)))
 }
 
-/// Forward FLOPs of every MLP one step of `model` evaluates for `n` Gaussians.
-fn mlp_forward_flops(n: usize, model: &ModelConfig) -> f64 {
+/// Forward FLOPs of every MLP one step of `views` views of `model` evaluates for `n`
+/// Gaussians.
+fn mlp_forward_flops(n: usize, model: &ModelConfig, views: usize) -> f64 {
     match model {
-        ModelConfig::Saro(c) => saro_mlp_forward_flops(n, c),
-        ModelConfig::Deform(c) => deform_mlp_forward_flops(n, c),
+        ModelConfig::Saro(c) => saro_mlp_forward_flops(n, c, views),
+        ModelConfig::Deform(c) => deform_mlp_forward_flops(n, c, views),
     }
 }
 
@@ -185,6 +192,7 @@ fn resize_for_bench(trainer: &mut Trainer, gaussians: usize, opts: &StepBenchOpt
         pruned: 0,
     });
     let c = &mut trainer.config;
+    c.batch = opts.batch.unwrap_or(c.batch);
     c.iterations = trainer.iteration + opts.warmup + opts.iterations + 1;
     c.densify.from = usize::MAX;
     c.densify.opacity_reset_every = 0;
@@ -241,7 +249,8 @@ pub fn bench_step(
     let (loss_f, loss_b) = group(&is_loss);
     let (oth_f, oth_b) = group(&|op| !(is_mlp(op) || is_render(op) || is_field(op) || is_loss(op)));
     let scalars: usize = trainer.model.params().iter().map(|p| p.value.len()).sum();
-    let fwd_flops = mlp_forward_flops(n, &trainer.config.model);
+    let views = trainer.config.batch;
+    let fwd_flops = mlp_forward_flops(n, &trainer.config.model, views);
     let camera = &trainer.cameras()[0];
     let row = |phase, forward_ms, backward_ms, flops, bytes| PhaseRow {
         phase,
@@ -252,6 +261,7 @@ pub fn bench_step(
     };
     let bench = StepBench {
         gaussians: n,
+        views,
         width: camera.width,
         height: camera.height,
         step_ms,
@@ -322,8 +332,14 @@ pub fn format_table(runs: &[StepBench], peak: &Peak) -> String {
             );
         }
         out += &format!(
-            "| {} | {}x{} | **whole step** | | | | **{:.1} ms** | |\n",
-            r.gaussians, r.width, r.height, r.step_ms
+            "| {} | {}x{} | **whole step, {} view{}** | | | | **{:.1} ms** ({:.1} ms per view) | |\n",
+            r.gaussians,
+            r.width,
+            r.height,
+            r.views,
+            if r.views == 1 { "" } else { "s" },
+            r.step_ms,
+            r.step_ms / r.views as f64
         );
     }
     out

@@ -6,8 +6,8 @@
 //! checks the step that trains.
 //!
 //! ```text
-//! bound    = model.bind(params)                       // time-independent work
-//! deformed = bound.deform(t)                          // GaussianVars
+//! bound    = model.bind(params)                       // time-independent work, once per step
+//! deformed = bound.deform(t)                          // GaussianVars, per view
 //! filtered = fold_filter(deformed, filter, t)         // Sigma + var(t) I, opacity compensation
 //! render   = maaf_splat::render(filtered, camera)     // image, alpha, depth, means2d, radii
 //! loss     = objective(TermCtx{render, gt, deformed, camera, t, iteration, regularisers})
@@ -20,7 +20,7 @@ use maaf_filter::{FilterKind, FilterState};
 use maaf_splat::{Camera, GaussianVars, RenderOutput, RenderSettings, SplatFloat, apply_3d_filter};
 
 use crate::loss::{Evaluated, Objective, TermCtx};
-use crate::models::Representation;
+use crate::models::{Bound, Representation};
 use crate::params::BoundParams;
 
 /// What one forward pass at (camera, time) produced.
@@ -106,7 +106,34 @@ pub fn forward<'t, T: SplatFloat>(
     settings: &RenderSettings,
 ) -> Forward<'t, T> {
     let t0 = Instant::now();
-    let (deformed, regularisers) = deform(model, params, time);
+    let bound = model.bind(params);
+    let regularisers = bound.regularisers();
+    let bind_seconds = t0.elapsed().as_secs_f64();
+    let mut out = forward_bound(
+        bound.as_ref(),
+        &regularisers,
+        filter,
+        camera,
+        time,
+        settings,
+    );
+    out.deform_seconds += bind_seconds;
+    out
+}
+
+/// [`forward`] from a model already bound on the tape: a batch of views at several
+/// times shares one binding (and its regularisers), so the time-independent work of
+/// the representation is done once per training iteration.
+pub fn forward_bound<'t, T: SplatFloat>(
+    bound: &dyn Bound<'t, T>,
+    regularisers: &[(String, Var<'t, T>)],
+    filter: &FilterState,
+    camera: &Camera,
+    time: f64,
+    settings: &RenderSettings,
+) -> Forward<'t, T> {
+    let t0 = Instant::now();
+    let deformed = bound.deform(time);
     let t1 = Instant::now();
     let filtered = fold_filter(deformed, filter, time);
     let tape = deformed.means.tape();
@@ -115,11 +142,28 @@ pub fn forward<'t, T: SplatFloat>(
         deformed,
         filtered,
         render,
-        regularisers,
+        regularisers: regularisers.to_vec(),
         camera: camera.clone(),
         time,
         deform_seconds: (t1 - t0).as_secs_f64(),
         render_seconds: t1.elapsed().as_secs_f64(),
+    }
+}
+
+/// The objective of a batch of views: the mean of their totals, so the gradient is
+/// the mean of the views' gradients (SaRO-GS `set_batch_gradient`); one view is its
+/// own total, unchanged.
+///
+/// # Panics
+/// If `totals` is empty.
+pub fn batch_mean<'t, T: Float>(totals: &[Var<'t, T>]) -> Var<'t, T> {
+    match totals {
+        [] => panic!("batch_mean: no views"),
+        [one] => *one,
+        [first, rest @ ..] => {
+            let sum = rest.iter().fold(*first, |acc, &v| acc + v);
+            sum.scale(1.0 / totals.len() as f64)
+        }
     }
 }
 

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use maaf_autodiff::{PerGaussian, Tensor};
 use maaf_filter::FilterKind;
-use maaf_train::data::{Dataset, DatasetOptions};
+use maaf_train::data::{Dataset, DatasetOptions, Split};
 use maaf_train::models::ModelConfig;
 use maaf_train::params::Rows;
 use maaf_train::trainer::{DensifyPlan, TrainConfig, Trainer, load_checkpoint, save_checkpoint};
@@ -91,17 +91,46 @@ fn loss_falls_with_every_filter_and_representation() {
     }
 }
 
+/// Iteration i of a batch-3 run trains on the views batch-1 iterations 3i-2..3i
+/// would, so every view is still seen once per epoch.
+#[test]
+fn a_batch_walks_the_same_view_sequence() {
+    let Some(data) = mutant() else { return };
+    let one = Trainer::new(&data, tiny_config(FilterKind::None)).expect("trainer");
+    let three = Trainer::new(
+        &data,
+        TrainConfig {
+            batch: 3,
+            ..tiny_config(FilterKind::None)
+        },
+    )
+    .expect("trainer");
+    let n = data.len(Split::Train);
+    assert_eq!(n % 3, 0, "mutant has {n} training views");
+    let mut epoch = Vec::new();
+    for i in 1..=n / 3 {
+        let got = three.views_at(i);
+        let want: Vec<usize> = (3 * i - 2..=3 * i).flat_map(|k| one.views_at(k)).collect();
+        assert_eq!(got, want, "iteration {i}");
+        epoch.extend(got);
+    }
+    epoch.sort_unstable();
+    assert_eq!(epoch, (0..n).collect::<Vec<_>>());
+}
+
 #[test]
 fn resume_is_bit_identical() {
     let Some(data) = mutant() else { return };
-    for kind in ["saro", "deform"] {
-        resume_is_bit_identical_for(&data, kind);
+    // A batch of views per iteration resumes on the same view sequence.
+    for (kind, batch) in [("saro", 1), ("deform", 1), ("saro", 3)] {
+        resume_is_bit_identical_for(&data, kind, batch);
     }
 }
 
-fn resume_is_bit_identical_for(data: &Dataset, kind: &str) {
+fn resume_is_bit_identical_for(data: &Dataset, kind: &str, batch: usize) {
     let cfg = TrainConfig {
         iterations: 50,
+        batch,
         ..tiny_config_of(kind, FilterKind::Motion)
     };
     let mut straight = Trainer::new(data, cfg.clone()).expect("trainer");
@@ -112,7 +141,8 @@ fn resume_is_bit_identical_for(data: &Dataset, kind: &str) {
     for _ in 0..25 {
         first.step();
     }
-    let dir = std::env::temp_dir().join(format!("maaf_resume_{kind}_{}", std::process::id()));
+    let dir =
+        std::env::temp_dir().join(format!("maaf_resume_{kind}_{batch}_{}", std::process::id()));
     save_checkpoint(&first, &dir).expect("checkpoint");
     let mut resumed = load_checkpoint(data, &dir).expect("resume");
     assert_eq!(resumed.iteration, 25);

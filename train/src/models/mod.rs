@@ -10,14 +10,16 @@
 //! [`Bound::deform`] (per time). Checkpoints, densification resizing and the
 //! optimiser come from the store; nothing in the trainer changes.
 //!
-//! One training step (the trainer's `forward::step_forward`) reads:
+//! One training step (`Trainer::update`) reads:
 //!
 //! ```text
 //! model.set_iteration(i);                       // stage switch (e.g. SaRO static warm-up)
 //! let params = model.params().bind(&tape);      // every parameter by name
-//! let bound = model.bind(&params);              // time-independent work
-//! let g = bound.deform(view.time);              // GaussianVars: means, scales, quats, opacity, sh
-//! ... filter fold, render, objective (+ bound.regularisers() by name) ...
+//! let bound = model.bind(&params);              // time-independent work, once
+//! for view in batch {                           // `batch` views (default 1)
+//!     let g = bound.deform(view.time);          // GaussianVars: means, scales, quats, opacity, sh
+//!     ... filter fold, render, objective (+ bound.regularisers() by name) ...
+//! }                                             // backward of the views' mean objective
 //! ```
 
 pub mod config;

@@ -9,13 +9,27 @@ use rand_pcg::Pcg64;
 use super::config::DensifyConfig;
 use crate::models::Representation;
 
+/// One view's part of [`DensifyStats::record_views`]: the cotangent of its screen
+/// means (None when nothing reached them), its radii and its image size.
+pub struct ViewGrad<'a> {
+    /// `dL/d means2d` `[N, 2]` in pixels.
+    pub grad: Option<&'a Tensor<f32>>,
+    /// Screen radii (0 = not drawn).
+    pub radii: &'a [u32],
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+}
+
 /// Per-Gaussian statistics between densifications: accumulated screen-space gradient
 /// norm, number of views in which the Gaussian was visible, and its largest radius.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct DensifyStats {
-    /// Sum over visible views of `|dL/d mean2d|` in NDC units.
+    /// Sum over iterations of `|dL/d mean2d|` in NDC units (averaged over the views of
+    /// an iteration that drew the Gaussian).
     pub grad_accum: Vec<f32>,
-    /// Views in which the Gaussian was visible.
+    /// Iterations in which the Gaussian was drawn by at least one view.
     pub denom: Vec<f32>,
     /// Largest screen radius seen (pixels).
     pub max_radii: Vec<f32>,
@@ -31,21 +45,37 @@ impl DensifyStats {
         }
     }
 
-    /// Adds one view: `grad` is `dL/d means2d` `[N,2]` in pixels; 3DGS thresholds the
-    /// gradient with respect to NDC coordinates, `d/d ndc_x = (W/2) d/d px`, so the
-    /// norm is taken of `(gx W/2, gy H/2)`. Gaussians with radius 0 are not counted.
-    pub fn record(&mut self, grad: Option<&Tensor<f32>>, radii: &[u32], width: u32, height: u32) {
-        let (hw, hh) = (width as f32 * 0.5, height as f32 * 0.5);
-        for (i, &r) in radii.iter().enumerate() {
-            if r == 0 {
-                continue;
+    /// Adds one iteration's views. Per view, `grad` is `dL/d means2d` `[N,2]` in
+    /// pixels of the iteration's objective, which `loss_scale` turns into that view's
+    /// own objective; 3DGS thresholds the gradient with respect to NDC coordinates,
+    /// `d/d ndc_x = (W/2) d/d px`, so the norm is taken of `(gx W/2, gy H/2)`. A
+    /// Gaussian's entry is the mean of its norms over the views where its radius is
+    /// positive, and counts once (SaRO-GS `train.py` with `batch`: the summed norms
+    /// divided by the visibility count, then `add_densification_stats_grad`); with one
+    /// view this is 3DGS's `add_densification_stats`.
+    pub fn record_views(&mut self, views: &[ViewGrad<'_>], loss_scale: f32) {
+        let n = self.denom.len();
+        let mut sum = vec![0.0f32; n];
+        let mut seen = vec![0u32; n];
+        for v in views {
+            let (hw, hh) = (v.width as f32 * 0.5, v.height as f32 * 0.5);
+            for (i, &r) in v.radii.iter().enumerate() {
+                if r == 0 {
+                    continue;
+                }
+                if let Some(g) = v.grad {
+                    let (gx, gy) = (g.data()[2 * i] * hw, g.data()[2 * i + 1] * hh);
+                    sum[i] += (gx * gx + gy * gy).sqrt() * loss_scale;
+                }
+                seen[i] += 1;
+                self.max_radii[i] = self.max_radii[i].max(r as f32);
             }
-            if let Some(g) = grad {
-                let (gx, gy) = (g.data()[2 * i] * hw, g.data()[2 * i + 1] * hh);
-                self.grad_accum[i] += (gx * gx + gy * gy).sqrt();
+        }
+        for i in 0..n {
+            if seen[i] > 0 {
+                self.grad_accum[i] += sum[i] / seen[i] as f32;
+                self.denom[i] += 1.0;
             }
-            self.denom[i] += 1.0;
-            self.max_radii[i] = self.max_radii[i].max(r as f32);
         }
     }
 
@@ -230,10 +260,47 @@ mod tests {
     fn stats_use_ndc_units_and_skip_culled() {
         let mut s = DensifyStats::new(2);
         let g = Tensor::from_vec(vec![1.0, 0.0, 5.0, 5.0], &[2, 2]);
-        s.record(Some(&g), &[3, 0], 10, 20);
+        let view = ViewGrad {
+            grad: Some(&g),
+            radii: &[3, 0],
+            width: 10,
+            height: 20,
+        };
+        s.record_views(&[view], 1.0);
         assert_eq!(s.grad_accum, vec![5.0, 0.0]);
         assert_eq!(s.denom, vec![1.0, 0.0]);
         assert_eq!(s.max_radii, vec![3.0, 0.0]);
         assert_eq!(s.mean_grad(), vec![5.0, 0.0]);
+    }
+
+    /// A batch: each Gaussian gets the mean over the views that drew it of its own
+    /// objective's gradient norm (the mean objective's times the batch size), counted
+    /// once per iteration; the largest radius over the views.
+    #[test]
+    fn batch_stats_average_over_the_views_that_drew_each_gaussian() {
+        let mut s = DensifyStats::new(3);
+        // NDC norms: view a (10 x 20): row 0 |(0.2*5, 0)| = 1, row 1 |(0, 0.1*10)| = 1;
+        // view b (10 x 20): row 0 |(0.6*5, 0.4*10)| = 5, row 1 not drawn.
+        let ga = Tensor::from_vec(vec![0.2, 0.0, 0.0, 0.1, 9.0, 9.0], &[3, 2]);
+        let gb = Tensor::from_vec(vec![0.6, 0.4, 7.0, 7.0, 9.0, 9.0], &[3, 2]);
+        let views = [
+            ViewGrad {
+                grad: Some(&ga),
+                radii: &[2, 4, 0],
+                width: 10,
+                height: 20,
+            },
+            ViewGrad {
+                grad: Some(&gb),
+                radii: &[6, 0, 0],
+                width: 10,
+                height: 20,
+            },
+        ];
+        s.record_views(&views, 2.0);
+        // Row 0: 2 * (1 + 5) / 2 = 6; row 1: 2 * 1 / 1 = 2; row 2 never drawn.
+        assert_eq!(s.grad_accum, vec![6.0, 2.0, 0.0]);
+        assert_eq!(s.denom, vec![1.0, 1.0, 0.0]);
+        assert_eq!(s.max_radii, vec![6.0, 4.0, 0.0]);
     }
 }

@@ -26,7 +26,7 @@ use rand_pcg::Pcg64;
 
 pub use checkpoint::{checkpoint_iteration, load_checkpoint, save_checkpoint};
 pub use config::{DensifyConfig, TrainConfig};
-pub use densify::{DensifyPlan, DensifyStats, plan as plan_densify};
+pub use densify::{DensifyPlan, DensifyStats, ViewGrad, plan as plan_densify};
 pub use resume::{checkpoints_newest_first, load_newest, repair_run_dir, truncate_log};
 pub use run::{RunSummary, checkpoint_dir, train_run, train_run_with};
 pub use timings::Timings;

@@ -11,9 +11,11 @@ use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_pcg::Pcg64;
 
+use super::ViewGrad;
 use super::refresh::centres;
 use super::{Trainer, log_line, plan_densify};
-use crate::forward::forward;
+use crate::forward::{batch_mean, forward_bound};
+use crate::loss::Evaluated;
 
 impl Trainer {
     /// Render settings at `iteration`: the 2D Mip filter (0.1 px^2 with compensation)
@@ -34,18 +36,18 @@ impl Trainer {
         }
     }
 
-    /// The view trained at `iteration` (1-based): views are visited in a seeded random
-    /// order that is reshuffled every epoch; the order depends only on the seed and the
-    /// iteration, so a resumed run sees the same sequence.
-    fn view_at(&self, iteration: usize) -> usize {
+    /// Entry `k` (1-based) of the sequence of training views: views are visited in a
+    /// seeded random order that is reshuffled every epoch; the order depends only on
+    /// the seed and `k`, so a resumed run sees the same sequence.
+    fn view_at(&self, k: usize) -> usize {
         let n = self.views.len();
-        let epoch = (iteration - 1) / n;
+        let epoch = (k - 1) / n;
         let mut order: Vec<usize> = (0..n).collect();
         let mut rng = Pcg64::seed_from_u64(
             self.config.seed ^ (epoch as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15),
         );
         order.shuffle(&mut rng);
-        order[(iteration - 1) % n]
+        order[(k - 1) % n]
     }
 
     /// One training iteration: [`Self::update`] then [`Self::schedule`]. The first
@@ -55,39 +57,66 @@ impl Trainer {
         self.schedule();
     }
 
-    /// The gradient step of the next iteration: deform, filter, render, objective,
-    /// backward, Adam, statistics; advances `iteration`. What it trained is the model
-    /// to validate at this iteration, before [`Self::schedule`] densifies or resets
-    /// opacities.
+    /// The training views (indices into the train split) of `iteration` (1-based):
+    /// `batch` consecutive entries of the seeded epoch order (SaRO-GS draws its
+    /// batches from a shuffled loader the same way).
+    pub fn views_at(&self, iteration: usize) -> Vec<usize> {
+        let b = self.config.batch;
+        (0..b)
+            .map(|k| self.view_at((iteration - 1) * b + k + 1))
+            .collect()
+    }
+
+    /// The gradient step of the next iteration: bind, then per view deform, filter,
+    /// render and objective; backward of the views' mean objective, Adam, statistics;
+    /// advances `iteration`. What it trained is the model to validate at this
+    /// iteration, before [`Self::schedule`] densifies or resets opacities.
     pub fn update(&mut self) {
         self.ensure_filter();
         let it = self.iteration + 1;
         self.model.set_iteration(it);
-        let vi = self.view_at(it);
-        let (time, camera) = (self.views[vi].time, self.cameras[vi].clone());
+        let views = self.views_at(it);
         let tape = Tape::new();
         tape.set_validate(self.config.validate);
         tape.set_profile(self.op_profile.is_some());
 
         let settings = self.render_settings(it);
         let params = self.model.params().bind(&tape);
-        let fwd = forward(
-            self.model.as_ref(),
-            &params,
-            &self.filter,
-            &camera,
-            time,
-            &settings,
-        );
+        let t_bind = Instant::now();
+        let bound = self.model.bind(&params);
+        let regularisers = bound.regularisers();
+        let bind_seconds = t_bind.elapsed().as_secs_f64();
+        let fwds: Vec<_> = views
+            .iter()
+            .map(|&vi| {
+                let camera = &self.cameras[vi];
+                let time = self.views[vi].time;
+                forward_bound(
+                    bound.as_ref(),
+                    &regularisers,
+                    &self.filter,
+                    camera,
+                    time,
+                    &settings,
+                )
+            })
+            .collect();
         let t_obj = Instant::now();
-        let eval = fwd.objective(&self.objective, &self.gts[vi], it - 1);
+        let evals: Vec<_> = fwds
+            .iter()
+            .zip(&views)
+            .map(|(fwd, &vi)| fwd.objective(&self.objective, &self.gts[vi], it - 1))
+            .collect();
+        let batch = views.len();
+        let totals: Vec<_> = evals.iter().map(|e| e.total).collect();
+        let total = batch_mean(&totals);
         let t2 = Instant::now();
 
-        let grads = tape.backward(eval.total);
+        let grads = tape.backward(total);
         let t3 = Instant::now();
         let finite = |t: &Tensor<f32>| t.first_non_finite().is_none();
         let grads = grads.map_err(|e| e.to_string()).and_then(|gr| {
-            let loss = eval.total.value().item();
+            let loss = total.value().item();
             if !loss.is_finite() {
                 return Err(format!("non-finite loss ({loss})"));
             }
@@ -123,30 +152,33 @@ impl Trainer {
                         );
                     }
                 }
-                let out = &fwd.render;
-                self.stats.record(
-                    grads.wrt(out.means2d),
-                    &out.radii,
-                    camera.width,
-                    camera.height,
-                );
-                let centres = centres(&fwd.deformed.means.value());
-                // A Gaussian absent at this time is not observed in this frame.
-                let present = drawable(fwd.deformed.opacity.value().data());
-                // The frame index is valid and the row count matches by construction.
-                let _ = self.observations.record_present(
-                    vi,
-                    &camera,
-                    &centres,
-                    &present,
-                    &self.config.filter,
-                );
-                self.last_terms = eval
-                    .terms
+                // Each view's screen-space gradient is that of its own objective
+                // (SaRO-GS backpropagates every view's loss before averaging), i.e.
+                // `batch` times its share of the mean.
+                let seen: Vec<ViewGrad> = fwds
                     .iter()
-                    .map(|t| (t.name.clone(), t.value))
+                    .map(|fwd| ViewGrad {
+                        grad: grads.wrt(fwd.render.means2d),
+                        radii: &fwd.render.radii,
+                        width: fwd.camera.width,
+                        height: fwd.camera.height,
+                    })
                     .collect();
-                self.last_terms.push(("total".into(), eval.total_value()));
+                self.stats.record_views(&seen, batch as f32);
+                for (fwd, &vi) in fwds.iter().zip(&views) {
+                    let centres = centres(&fwd.deformed.means.value());
+                    // A Gaussian absent at this time is not observed in this frame.
+                    let present = drawable(fwd.deformed.opacity.value().data());
+                    // The frame index is valid and the row count matches by construction.
+                    let _ = self.observations.record_present(
+                        vi,
+                        &fwd.camera,
+                        &centres,
+                        &present,
+                        &self.config.filter,
+                    );
+                }
+                self.last_terms = mean_terms(&evals);
             }
             Err(e) => {
                 // A NaN/Inf in the loss or a gradient: the update is skipped so nothing
@@ -160,11 +192,14 @@ impl Trainer {
         if let (Some(total), Some(step)) = (self.op_profile.as_mut(), tape.op_profile()) {
             total.merge(&step);
         }
-        self.timings.field_mlp += fwd.deform_seconds;
-        self.timings.render_forward += fwd.render_seconds + (t2 - t_obj).as_secs_f64();
+        let deform: f64 = fwds.iter().map(|f| f.deform_seconds).sum();
+        let render: f64 = fwds.iter().map(|f| f.render_seconds).sum();
+        self.timings.field_mlp += bind_seconds + deform;
+        self.timings.render_forward += render + (t2 - t_obj).as_secs_f64();
         self.timings.backward += (t3 - t2).as_secs_f64();
         self.timings.optimiser += (t4 - t3).as_secs_f64();
-        drop(fwd);
+        drop(fwds);
+        drop(bound);
         drop(params);
         self.iteration = it;
     }
@@ -223,4 +258,23 @@ impl Trainer {
         }
         changed
     }
+}
+
+/// The mean over the views of each objective term and of the total, by name (the
+/// terms of one iteration's log row).
+fn mean_terms(evals: &[Evaluated<'_, f32>]) -> Vec<(String, f64)> {
+    let n = evals.len() as f64;
+    let mut terms: Vec<(String, f64)> = evals[0]
+        .terms
+        .iter()
+        .map(|t| (t.name.clone(), 0.0))
+        .chain(std::iter::once(("total".to_string(), 0.0)))
+        .collect();
+    for e in evals {
+        let values = e.terms.iter().map(|t| t.value).chain([e.total_value()]);
+        for (slot, v) in terms.iter_mut().zip(values) {
+            slot.1 += v / n;
+        }
+    }
+    terms
 }
