@@ -30,10 +30,11 @@ use crate::{Float, MatMut, MatRef, Tensor, Var};
 /// `a_0 = x` and `a_l` the hidden activations.
 pub struct FusedMlp;
 
-/// Hidden activations of every block, block after block; inside a block, layer 1's
-/// `[rows, n_1]`, then layer 2's, and so on.
+/// Hidden activations, one buffer per block of rows; inside a block, layer 1's
+/// `[rows, n_1]`, then layer 2's, and so on. Each block's buffer starts as its bias
+/// rows (no zeroing pass over the largest buffer of the op).
 pub struct MlpSaved<T> {
-    hidden: Vec<T>,
+    hidden: Vec<Vec<T>>,
 }
 
 /// Layer widths `[n_0, ..., n_L]` of the inputs; panics naming the shapes when the
@@ -59,12 +60,11 @@ fn widths<T: Float>(inputs: &[&Tensor<T>]) -> Vec<usize> {
 }
 
 /// What both passes read off the inputs: widths `n` = `[n_0, ..., n_L]`, `layers` =
-/// L, rows `m`, hidden values per row, and whether the work is worth rayon.
+/// L, rows `m`, and whether the work is worth rayon.
 struct Dims {
     n: Vec<usize>,
     layers: usize,
     m: usize,
-    hidden_w: usize,
     parallel: bool,
 }
 
@@ -74,7 +74,6 @@ impl Dims {
         let (layers, m) = (inputs.len() / 2, inputs[0].shape()[0]);
         let macs: usize = n.windows(2).map(|p| p[0] * p[1]).sum();
         Dims {
-            hidden_w: n[1..layers].iter().sum(),
             parallel: m * macs >= PARALLEL_MIN_MACS,
             n,
             layers,
@@ -92,14 +91,12 @@ fn gather_rows<T: Copy>(src: &[T], w: usize, rows: &[usize], out: &mut Vec<T>) {
 }
 
 /// `out = act(a W + b)` for one block: `out` [rows, n] starts as the bias rows.
-fn layer_forward<T: Float>(a: &[T], w: &Tensor<T>, b: &Tensor<T>, relu: bool, out: &mut [T]) {
+fn layer_forward<T: Float>(a: &[T], w: &Tensor<T>, relu: bool, out: &mut [T]) {
     let (k, n) = (w.shape()[0], w.shape()[1]);
     if n == 0 {
         return;
     }
     let rows = out.len() / n;
-    out.chunks_exact_mut(n)
-        .for_each(|r| r.copy_from_slice(b.data()));
     if k > 0 {
         T::gemm_serial(
             T::one(),
@@ -114,6 +111,19 @@ fn layer_forward<T: Float>(a: &[T], w: &Tensor<T>, b: &Tensor<T>, relu: bool, ou
     }
 }
 
+/// `rows` copies of each bias in `biases`, layer after layer: a block's hidden buffer
+/// before its products are added.
+fn bias_rows<T: Float>(biases: &[&Tensor<T>], rows: usize) -> Vec<T> {
+    let len: usize = biases.iter().map(|b| b.len()).sum();
+    let mut out = Vec::with_capacity(rows * len);
+    for b in biases {
+        for _ in 0..rows {
+            out.extend_from_slice(b.data());
+        }
+    }
+    out
+}
+
 impl<T: Float> Op<T> for FusedMlp {
     type Saved = MlpSaved<T>;
 
@@ -126,31 +136,33 @@ impl<T: Float> Op<T> for FusedMlp {
             n,
             layers,
             m,
-            hidden_w,
             parallel,
         } = Dims::of(inputs);
         let (x, n0, out_w) = (inputs[0], n[0], n[layers]);
-        let mut y = vec![T::zero(); m * out_w];
-        let mut hidden = vec![T::zero(); m * hidden_w];
-        let items: Vec<_> = row_blocks(&mut y, out_w, m)
-            .into_iter()
-            .zip(row_blocks(&mut hidden, hidden_w, m))
-            .collect();
-        map_blocks(items, parallel, |i, (yb, mut hb)| {
+        let last_b = inputs[2 * layers];
+        let mut y = Vec::with_capacity(m * out_w);
+        for _ in 0..m {
+            y.extend_from_slice(last_b.data());
+        }
+        let hidden_biases: Vec<&Tensor<T>> = (0..layers - 1).map(|l| inputs[2 + 2 * l]).collect();
+        let hidden = map_blocks(row_blocks(&mut y, out_w, m), parallel, |i, yb| {
             let start = i * ROW_BLOCK;
             let rows = ROW_BLOCK.min(m - start);
+            let mut hb = bias_rows(&hidden_biases, rows);
+            let mut rest: &mut [T] = &mut hb;
             let mut a: &[T] = &x.data()[start * n0..(start + rows) * n0];
             for l in 0..layers {
-                let (w, b) = (inputs[1 + 2 * l], inputs[2 + 2 * l]);
+                let w = inputs[1 + 2 * l];
                 if l + 1 == layers {
-                    layer_forward(a, w, b, false, yb);
+                    layer_forward(a, w, false, yb);
                     break;
                 }
-                let (out, rest) = std::mem::take(&mut hb).split_at_mut(rows * n[l + 1]);
-                layer_forward(a, w, b, true, out);
+                let (out, tail) = std::mem::take(&mut rest).split_at_mut(rows * n[l + 1]);
+                layer_forward(a, w, true, out);
                 a = out;
-                hb = rest;
+                rest = tail;
             }
+            hb
         });
         (vec![Tensor::from_vec(y, &[m, out_w])], MlpSaved { hidden })
     }
@@ -160,7 +172,6 @@ impl<T: Float> Op<T> for FusedMlp {
             n,
             layers,
             m,
-            hidden_w,
             parallel,
         } = Dims::of(c.inputs);
         let (x, n0, out_w) = (c.inputs[0], n[0], n[layers]);
@@ -215,7 +226,8 @@ impl<T: Float> Op<T> for FusedMlp {
                     }
                     &mut *dx
                 } else {
-                    below.clear();
+                    // Whatever the buffer held is overwritten: the product below does
+                    // not read its destination.
                     below.resize(rows * k, T::zero());
                     &mut below
                 };
@@ -227,6 +239,8 @@ impl<T: Float> Op<T> for FusedMlp {
                         T::zero(),
                         MatMut::row_major(to, rows, k),
                     );
+                } else {
+                    to.fill(T::zero());
                 }
                 if l == 0 {
                     break;
@@ -244,7 +258,7 @@ impl<T: Float> Op<T> for FusedMlp {
             let start = i * ROW_BLOCK;
             let rows = ROW_BLOCK.min(m - start);
             let xb = &x.data()[start * n0..(start + rows) * n0];
-            let hb = &hidden[start * hidden_w..(start + rows) * hidden_w];
+            let hb = &hidden[i];
             let gb = &g[start * out_w..(start + rows) * out_w];
             let keep: Vec<usize> = if out_w == 0 {
                 Vec::new()

@@ -198,7 +198,8 @@ fn negative_control_a_backward_reading_pre_relu_like_activations_is_rejected() {
         }
         fn forward(&self, x: &[&Tensor<f64>]) -> (Vec<Tensor<f64>>, MlpSaved<f64>) {
             let (y, saved) = FusedMlp.forward(x);
-            let hidden = saved.hidden.iter().map(|a| a.abs() + 1.0).collect();
+            let shift = |block: &Vec<f64>| block.iter().map(|a| a.abs() + 1.0).collect();
+            let hidden = saved.hidden.iter().map(shift).collect();
             (y, MlpSaved { hidden })
         }
         fn backward(&self, c: &BackwardCtx<'_, f64, MlpSaved<f64>>) -> Vec<Option<Tensor<f64>>> {
