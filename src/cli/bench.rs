@@ -5,6 +5,7 @@ use std::path::PathBuf;
 
 use maaf_train::bench::{StepBenchOptions, bench_step, format_table, measure_peak};
 use maaf_train::eval::load_run;
+use maaf_train::trainer::MAX_BATCH;
 
 /// Arguments of `maaf bench`.
 #[derive(clap::Args, Debug)]
@@ -37,8 +38,8 @@ pub struct BenchArgs {
 pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     anyhow::ensure!(args.iters > 0, "--iters must be at least 1");
     anyhow::ensure!(
-        args.batch.is_none_or(|b| (1..=64).contains(&b)),
-        "--batch must be in 1..=64"
+        args.batch.is_none_or(|b| (1..=MAX_BATCH).contains(&b)),
+        "--batch must be in 1..={MAX_BATCH}"
     );
     let data = super::eval::open_run_data(&args.run, args.data.as_deref(), None)?;
     let opts = StepBenchOptions {

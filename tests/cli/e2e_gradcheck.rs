@@ -187,20 +187,12 @@ fn a_batch_is_the_mean_of_its_views() {
     let tape = Tape::new();
     let params = m.params.bind(&tape);
     let bound = m.bind(&params);
-    let regularisers = bound.regularisers();
     let totals: Vec<_> = views
         .iter()
         .map(|(t, gt)| {
-            forward_bound(
-                bound.as_ref(),
-                &regularisers,
-                &f,
-                &camera(),
-                *t,
-                &settings(),
-            )
-            .objective(&objective, gt, 5000)
-            .total
+            forward_bound(bound.as_ref(), &f, &camera(), *t, &settings())
+                .objective(&objective, gt, 5000)
+                .total
         })
         .collect();
     let batch = batch_mean(&totals);

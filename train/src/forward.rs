@@ -107,26 +107,17 @@ pub fn forward<'t, T: SplatFloat>(
 ) -> Forward<'t, T> {
     let t0 = Instant::now();
     let bound = model.bind(params);
-    let regularisers = bound.regularisers();
     let bind_seconds = t0.elapsed().as_secs_f64();
-    let mut out = forward_bound(
-        bound.as_ref(),
-        &regularisers,
-        filter,
-        camera,
-        time,
-        settings,
-    );
+    let mut out = forward_bound(bound.as_ref(), filter, camera, time, settings);
     out.deform_seconds += bind_seconds;
     out
 }
 
 /// [`forward`] from a model already bound on the tape: a batch of views at several
-/// times shares one binding (and its regularisers), so the time-independent work of
-/// the representation is done once per training iteration.
+/// times shares one binding (and the regulariser values it computed), so the
+/// time-independent work of the representation is done once per training iteration.
 pub fn forward_bound<'t, T: SplatFloat>(
     bound: &dyn Bound<'t, T>,
-    regularisers: &[(String, Var<'t, T>)],
     filter: &FilterState,
     camera: &Camera,
     time: f64,
@@ -142,7 +133,7 @@ pub fn forward_bound<'t, T: SplatFloat>(
         deformed,
         filtered,
         render,
-        regularisers: regularisers.to_vec(),
+        regularisers: bound.regularisers(),
         camera: camera.clone(),
         time,
         deform_seconds: (t1 - t0).as_secs_f64(),

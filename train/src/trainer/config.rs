@@ -122,6 +122,10 @@ impl Default for TrainConfig {
     }
 }
 
+/// Most training views one iteration may batch (each view's render stays on the tape
+/// until the backward).
+pub const MAX_BATCH: usize = 64;
+
 /// Largest number of initial points or Gaussians a config may ask for (a CPU run
 /// beyond this would not fit in memory or time).
 pub const MAX_GAUSSIANS_CAP: usize = 10_000_000;
@@ -159,7 +163,7 @@ impl TrainConfig {
     /// field, its value and the allowed range.
     pub fn validate(&self) -> Result<(), Error> {
         count("iterations", self.iterations, 1, 100_000_000)?;
-        count("batch", self.batch, 1, 64)?;
+        count("batch", self.batch, 1, MAX_BATCH)?;
         if !(self.train_scale.is_finite() && self.train_scale > 0.0 && self.train_scale <= 1.0) {
             return Err(bad(
                 "train_scale",

@@ -25,7 +25,7 @@ use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 
 pub use checkpoint::{checkpoint_iteration, load_checkpoint, save_checkpoint};
-pub use config::{DensifyConfig, TrainConfig};
+pub use config::{DensifyConfig, MAX_BATCH, TrainConfig};
 pub use densify::{DensifyPlan, DensifyStats, ViewGrad, plan as plan_densify};
 pub use resume::{checkpoints_newest_first, load_newest, repair_run_dir, truncate_log};
 pub use run::{RunSummary, checkpoint_dir, train_run, train_run_with};

@@ -84,21 +84,12 @@ impl Trainer {
         let params = self.model.params().bind(&tape);
         let t_bind = Instant::now();
         let bound = self.model.bind(&params);
-        let regularisers = bound.regularisers();
         let bind_seconds = t_bind.elapsed().as_secs_f64();
         let fwds: Vec<_> = views
             .iter()
             .map(|&vi| {
-                let camera = &self.cameras[vi];
-                let time = self.views[vi].time;
-                forward_bound(
-                    bound.as_ref(),
-                    &regularisers,
-                    &self.filter,
-                    camera,
-                    time,
-                    &settings,
-                )
+                let (camera, time) = (&self.cameras[vi], self.views[vi].time);
+                forward_bound(bound.as_ref(), &self.filter, camera, time, &settings)
             })
             .collect();
         let t_obj = Instant::now();

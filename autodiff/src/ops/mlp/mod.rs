@@ -111,8 +111,8 @@ fn layer_forward<T: Float>(a: &[T], w: &Tensor<T>, relu: bool, out: &mut [T]) {
     }
 }
 
-/// `rows` copies of each bias in `biases`, layer after layer: a block's hidden buffer
-/// before its products are added.
+/// `rows` copies of each bias in `biases`, layer after layer: a block's hidden buffer,
+/// or the whole output, before its products are added.
 fn bias_rows<T: Float>(biases: &[&Tensor<T>], rows: usize) -> Vec<T> {
     let len: usize = biases.iter().map(|b| b.len()).sum();
     let mut out = Vec::with_capacity(rows * len);
@@ -139,11 +139,7 @@ impl<T: Float> Op<T> for FusedMlp {
             parallel,
         } = Dims::of(inputs);
         let (x, n0, out_w) = (inputs[0], n[0], n[layers]);
-        let last_b = inputs[2 * layers];
-        let mut y = Vec::with_capacity(m * out_w);
-        for _ in 0..m {
-            y.extend_from_slice(last_b.data());
-        }
+        let mut y = bias_rows(&[inputs[2 * layers]], m);
         let hidden_biases: Vec<&Tensor<T>> = (0..layers - 1).map(|l| inputs[2 + 2 * l]).collect();
         let hidden = map_blocks(row_blocks(&mut y, out_w, m), parallel, |i, yb| {
             let start = i * ROW_BLOCK;
