@@ -220,4 +220,8 @@ fn exported_frame_renders_as_the_run_and_eval_survives_missing_weights() {
     assert_eq!(sc["flow"], "exact");
     assert!(sc["warp_error"].as_f64().expect("warp error") > 0.0);
     assert_eq!(sc["temporal"][1]["flow"], "model");
+    // Popping: one count and one mass per step of the same video.
+    let steps = sc["temporal"][0]["times"].as_array().expect("times").len() - 1;
+    assert_eq!(sc["popping"]["pops"].as_array().expect("pops").len(), steps);
+    assert_eq!(sc["popping"]["mass"].as_array().expect("mass").len(), steps);
 }

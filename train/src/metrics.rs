@@ -8,6 +8,7 @@
 //! Both are pinned: this one against scikit-image 0.26 values stored in
 //! `train/tests/fixtures/metric_fixtures.txt`.
 
+pub mod popping;
 pub mod regions;
 pub mod temporal;
 

@@ -17,6 +17,7 @@
 pub mod export;
 pub mod flow;
 pub mod images;
+pub mod popping;
 pub mod render;
 pub mod report;
 mod sequence;
@@ -37,7 +38,9 @@ use crate::trainer::Trainer;
 use crate::{Error, write_atomic};
 
 pub use render::{load_run, render_image, run_camera};
-pub use report::{EvalReport, RegionSummary, ScaleResult, TemporalResult, scale_label, trim_float};
+pub use report::{
+    EvalReport, PoppingResult, RegionSummary, ScaleResult, TemporalResult, scale_label, trim_float,
+};
 
 /// The paper's evaluation scales relative to the training scale: 1/4x, 1/2x (zoom-out),
 /// 1x, 2x and 4x (zoom-in).
@@ -438,10 +441,11 @@ pub fn evaluate_trainer(
             if options.temporal {
                 let start = Instant::now();
                 let model = lpips.as_ref().ok();
-                result.temporal = temporal::evaluate_temporal(trainer, data, s.source, model)?;
+                let (flows, popping) = temporal::evaluate_temporal(trainer, data, s.source, model)?;
+                result.temporal = flows;
                 temporal::set_primary(&mut result);
                 eprintln!(
-                    "maaf: temporal {:>5}: {} ({:.1} s)",
+                    "maaf: temporal {:>5}: {}; popping {:.1} Gaussians per step, mass {:.3} % ({:.1} s)",
                     scale_label(s.relative),
                     result
                         .temporal
@@ -452,8 +456,11 @@ pub fn evaluate_trainer(
                         ))
                         .collect::<Vec<_>>()
                         .join(", "),
+                    popping.mean_pops(),
+                    100.0 * popping.mean_mass(),
                     start.elapsed().as_secs_f64()
                 );
+                result.popping = Some(popping);
             }
             report.scales.push(result);
         }

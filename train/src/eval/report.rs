@@ -55,6 +55,10 @@ pub struct ScaleResult {
     /// moving-object masks for the evaluated views; `null` otherwise.
     #[serde(default)]
     pub regions: Option<RegionSummary>,
+    /// Popping of single Gaussians in the fixed-camera video of the temporal metrics;
+    /// `null` without `--temporal`.
+    #[serde(default)]
+    pub popping: Option<PoppingResult>,
 }
 
 /// Mean over views of the per-view PSNR of each region
@@ -129,6 +133,7 @@ impl ScaleResult {
             flow: None,
             temporal: Vec::new(),
             regions: None,
+            popping: None,
         }
     }
 }
@@ -155,6 +160,44 @@ pub struct TemporalResult {
     /// `E_warp(I_t, I_{t+1})` of each step, `T - 1` values (the supplementary's
     /// warping-error-over-time figure).
     pub per_step: Vec<f64>,
+}
+
+/// Popping of single Gaussians in one fixed-camera video at one scale
+/// ([`crate::metrics::popping`]: a Gaussian pops when its visible weight at least
+/// halves or doubles within one frame step).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PoppingResult {
+    /// The camera of the video, as in [`TemporalResult::camera`].
+    pub camera: String,
+    /// Times of the `T` frames, ascending.
+    pub times: Vec<f64>,
+    /// Popping Gaussians of each step, `T - 1` values.
+    pub pops: Vec<usize>,
+    /// Popped mass of each step (fraction of the frame's pixels), `T - 1` values.
+    pub mass: Vec<f64>,
+}
+
+impl PoppingResult {
+    /// Mean number of popping Gaussians per step.
+    pub fn mean_pops(&self) -> f64 {
+        mean(self.pops.iter().map(|&p| p as f64))
+    }
+
+    /// Mean popped mass per step.
+    pub fn mean_mass(&self) -> f64 {
+        mean(self.mass.iter().copied())
+    }
+
+    /// The step with the largest popped mass: `(t, mass)`, `t` the time of its first
+    /// frame; `None` for a video of one frame.
+    pub fn worst_step(&self) -> Option<(f64, f64)> {
+        self.mass
+            .iter()
+            .enumerate()
+            .max_by(|a, b| a.1.total_cmp(b.1))
+            .map(|(j, &m)| (self.times[j], m))
+    }
 }
 
 /// `RUN/eval.json`: exactly the field names of the DESIGN.md section 8 contract.

@@ -13,10 +13,12 @@ use maaf_lpips::Lpips;
 use maaf_splat::Camera;
 
 use super::flow::model_flow;
+use super::popping::visible_weights;
 use super::render_image;
-use super::report::{ScaleResult, TemporalResult};
+use super::report::{PoppingResult, ScaleResult, TemporalResult};
 use crate::Error;
 use crate::data::{Dataset, Split};
+use crate::metrics::popping::popping;
 use crate::metrics::temporal::temporal_metrics;
 use crate::trainer::Trainer;
 
@@ -66,13 +68,14 @@ fn video(data: &Dataset, source: f64) -> Result<Video, Error> {
 
 /// Renders the video of `trainer` at `source` scale and measures it with the exact
 /// flow (when the data set has one) and with model flow: one [`TemporalResult`] per
-/// flow, exact first.
+/// flow, exact first, and the popping of its single Gaussians
+/// ([`super::popping::visible_weights`], [`crate::metrics::popping`]).
 pub fn evaluate_temporal(
     trainer: &Trainer,
     data: &Dataset,
     source: f64,
     lpips: Option<&Lpips>,
-) -> Result<Vec<TemporalResult>, Error> {
+) -> Result<(Vec<TemporalResult>, PoppingResult), Error> {
     let v = video(data, source)?;
     let settings = trainer.render_settings(trainer.iteration);
     let frames: Vec<Tensor<f32>> = v
@@ -86,11 +89,15 @@ pub fn evaluate_temporal(
     // One pair of deformed frames in memory at a time (a large run's SH is big).
     let mut model = Vec::with_capacity(v.times.len() - 1);
     let mut now = trainer.frame_at(v.times[0]);
+    let mut weights = vec![visible_weights(&now, &v.camera, &settings)];
     for &t in &v.times[1..] {
         let next = trainer.frame_at(t);
         model.push(model_flow(&now, &next, &v.camera, &settings));
+        weights.push(visible_weights(&next, &v.camera, &settings));
         now = next;
     }
+    let pixels = v.camera.width as usize * v.camera.height as usize;
+    let pops = popping(&weights, pixels);
     let mut out = Vec::new();
     for (name, flows) in [("exact", v.exact.as_ref()), ("model", Some(&model))] {
         let Some(flows) = flows else { continue };
@@ -106,7 +113,13 @@ pub fn evaluate_temporal(
             per_step: m.per_step.iter().map(|s| s.warp_error).collect(),
         });
     }
-    Ok(out)
+    let popping = PoppingResult {
+        camera: v.label,
+        times: v.times,
+        pops: pops.pops,
+        mass: pops.mass,
+    };
+    Ok((out, popping))
 }
 
 /// Copies the first temporal entry (exact flow when there is one) into the scale's

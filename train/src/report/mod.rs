@@ -348,6 +348,13 @@ pub fn write_report(runs: &[PathBuf], out: &Path) -> Result<ReportOutput, Error>
         );
         md.push_str(&tab3);
     }
+    let pops = temporal::popping_table(&runs);
+    if !pops.is_empty() {
+        md.push_str(
+            "\n## Popping (Gaussians whose visible weight halves or doubles within one frame step; mass = share of the frame's pixels)\n\n",
+        );
+        md.push_str(&pops);
+    }
     md.push_str("\n## Cost\n\n");
     md.push_str(&cost_table(&runs));
     md.push_str("\n## Charts\n\n");

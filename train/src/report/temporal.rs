@@ -89,6 +89,39 @@ pub fn temporal_tables(runs: &[ReportRun]) -> String {
     md
 }
 
+/// One markdown table of popping ([`crate::metrics::popping`]) over the scales with
+/// temporal metrics: a row per run and scale with the mean number of popping
+/// Gaussians per frame step, the mean popped mass and the step with the largest one.
+/// Empty when no run has any.
+pub fn popping_table(runs: &[ReportRun]) -> String {
+    let mut md = String::new();
+    for s in temporal_scales(runs) {
+        for r in runs {
+            let Some(p) = r.at_scale(s).and_then(|x| x.popping.as_ref()) else {
+                continue;
+            };
+            let worst = p.worst_step().map_or("-".to_string(), |(t, m)| {
+                format!("{:.3} % at t = {t:.3}", 100.0 * m)
+            });
+            let _ = writeln!(
+                md,
+                "| {} | {} | {} | {} | {:.1} | {:.3} % | {worst} |",
+                r.label,
+                scale_header(s),
+                p.camera,
+                p.times.len(),
+                p.mean_pops(),
+                100.0 * p.mean_mass(),
+            );
+        }
+    }
+    if md.is_empty() {
+        return md;
+    }
+    let head = "| Method | Scale | Camera | Frames | popping Gaussians per step | popped mass per step | largest step |\n|---|---|---|---:|---:|---:|---|\n";
+    format!("{head}{md}")
+}
+
 /// The warping error over time: one panel per (flow, scale), rows by flow (`exact`
 /// then `model`) and columns by scale, a line per run of `E_warp(I_t, I_{t+1})`
 /// against `t`. Returns `false` (and writes nothing) when no run has temporal metrics.
