@@ -132,6 +132,7 @@ fn eval_writes_the_contract_and_refuses_bad_input() {
                 "height",
                 "lpips",
                 "lpips_note",
+                "popping",
                 "psnr",
                 "regions",
                 "scale",
@@ -143,6 +144,7 @@ fn eval_writes_the_contract_and_refuses_bad_input() {
                 "width"
             ]
         );
+        assert!(s["popping"].is_null(), "no --temporal, no popping: {s}");
         // The committed LPIPS weights load; no --temporal, so no temporal metrics.
         let lpips = s["lpips"].as_f64().expect("lpips");
         assert!(
