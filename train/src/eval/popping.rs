@@ -101,7 +101,7 @@ mod tests {
         let w = visible_weights(&frame, &camera(), &settings);
         let one = ((1.0 - 0.5) / SH_C0) as f32;
         let zero = (-0.5 / SH_C0) as f32;
-        for k in 0..5 {
+        for (k, &weight) in w.iter().enumerate() {
             let dc: Vec<f32> = (0..5)
                 .flat_map(|j| [if j == k { one } else { zero }; 3])
                 .collect();
@@ -110,9 +110,8 @@ mod tests {
             let image = render_tensors(m, s, q, o, &sh, &camera(), &settings).image;
             let summed: f64 = image.data().iter().step_by(3).map(|&v| f64::from(v)).sum();
             assert!(
-                (w[k] - summed).abs() <= 1e-4 * summed.max(1.0),
-                "Gaussian {k}: weight {} against its lone image {summed}",
-                w[k]
+                (weight - summed).abs() <= 1e-4 * summed.max(1.0),
+                "Gaussian {k}: weight {weight} against its lone image {summed}"
             );
         }
         assert!(w[..4].iter().all(|&x| x > 1.0), "in-view weights {w:?}");
