@@ -129,7 +129,8 @@ mod tests {
             .iter()
             .map(|f| visible_weights(f, &camera(), &settings))
             .collect();
-        let m = crate::metrics::popping::popping(&w, 40 * 32);
+        let mut m = crate::metrics::popping::PoppingMetrics::default();
+        m.push_step(&w[0], &w[1], 40 * 32);
         assert!(
             w[0][2] > 2.0 * w[1][2],
             "its weight {} -> {}",

@@ -18,7 +18,7 @@ use super::render_image;
 use super::report::{PoppingResult, ScaleResult, TemporalResult};
 use crate::Error;
 use crate::data::{Dataset, Split};
-use crate::metrics::popping::popping;
+use crate::metrics::popping::PoppingMetrics;
 use crate::metrics::temporal::temporal_metrics;
 use crate::trainer::Trainer;
 
@@ -88,16 +88,17 @@ pub fn evaluate_temporal(
     let lpips = lpips.filter(|_| big_enough);
     // One pair of deformed frames in memory at a time (a large run's SH is big).
     let mut model = Vec::with_capacity(v.times.len() - 1);
+    let pixels = v.camera.width as usize * v.camera.height as usize;
+    let mut pops = PoppingMetrics::default();
     let mut now = trainer.frame_at(v.times[0]);
-    let mut weights = vec![visible_weights(&now, &v.camera, &settings)];
+    let mut now_weights = visible_weights(&now, &v.camera, &settings);
     for &t in &v.times[1..] {
         let next = trainer.frame_at(t);
         model.push(model_flow(&now, &next, &v.camera, &settings));
-        weights.push(visible_weights(&next, &v.camera, &settings));
-        now = next;
+        let next_weights = visible_weights(&next, &v.camera, &settings);
+        pops.push_step(&now_weights, &next_weights, pixels);
+        (now, now_weights) = (next, next_weights);
     }
-    let pixels = v.camera.width as usize * v.camera.height as usize;
-    let pops = popping(&weights, pixels);
     let mut out = Vec::new();
     for (name, flows) in [("exact", v.exact.as_ref()), ("model", Some(&model))] {
         let Some(flows) = flows else { continue };

@@ -30,8 +30,9 @@ pub const POP_RATIO: f64 = 0.5;
 pub const MIN_POP_PIXELS: f64 = 1.0;
 
 /// Popping of one video: per step `t_j -> t_{j+1}`, the number of popping Gaussians and
-/// their popped mass (fraction of the frame's pixels).
-#[derive(Clone, Debug, PartialEq)]
+/// their popped mass (fraction of the frame's pixels). Built one step at a time
+/// ([`PoppingMetrics::push_step`]), so only two frames' weights need to be in memory.
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct PoppingMetrics {
     /// Popping Gaussians per step, `T - 1` values.
     pub pops: Vec<usize>,
@@ -39,17 +40,14 @@ pub struct PoppingMetrics {
     pub mass: Vec<f64>,
 }
 
-/// Popping of the frames whose visible weights are `weights[t][k]` (the same
-/// Gaussians in every frame), for frames of `pixels` pixels.
-///
-/// # Panics
-/// When frames hold different numbers of Gaussians or `pixels` is 0.
-pub fn popping(weights: &[Vec<f64>], pixels: usize) -> PoppingMetrics {
-    assert!(pixels > 0, "popping: frames have no pixels");
-    let mut pops = Vec::new();
-    let mut mass = Vec::new();
-    for pair in weights.windows(2) {
-        let (now, next) = (&pair[0], &pair[1]);
+impl PoppingMetrics {
+    /// Appends the step between two frames whose visible weights are `now[k]` and
+    /// `next[k]` (the same Gaussians in both), for frames of `pixels` pixels.
+    ///
+    /// # Panics
+    /// When the frames hold different numbers of Gaussians or `pixels` is 0.
+    pub fn push_step(&mut self, now: &[f64], next: &[f64], pixels: usize) {
+        assert!(pixels > 0, "popping: frames have no pixels");
         assert_eq!(
             now.len(),
             next.len(),
@@ -65,15 +63,23 @@ pub fn popping(weights: &[Vec<f64>], pixels: usize) -> PoppingMetrics {
                 moved += change;
             }
         }
-        pops.push(count);
-        mass.push(moved / pixels as f64);
+        self.pops.push(count);
+        self.mass.push(moved / pixels as f64);
     }
-    PoppingMetrics { pops, mass }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Every step of the frames whose visible weights are `weights[t][k]`.
+    fn popping(weights: &[Vec<f64>], pixels: usize) -> PoppingMetrics {
+        let mut m = PoppingMetrics::default();
+        for pair in weights.windows(2) {
+            m.push_step(&pair[0], &pair[1], pixels);
+        }
+        m
+    }
 
     #[test]
     fn counts_halving_and_appearing_gaussians_but_not_fades_or_specks() {
