@@ -2,6 +2,10 @@
 //! (self-adjoint, so the SSIM backward reuses it as its own transpose).
 
 use maaf_autodiff::Float;
+use rayon::prelude::*;
+
+/// Image rows per rayon task of each blur pass (an 800-wide RGB row is 2400 values).
+const ROWS_PER_TASK: usize = 8;
 
 /// Normalised 1D Gaussian taps `w_k = exp(-(k - r)^2 / (2 sigma^2)) / sum`,
 /// `k = 0..size`, `r = size / 2` (the 3DGS `gaussian(window_size, sigma)`; the same as
@@ -19,11 +23,43 @@ pub fn gaussian_taps(size: usize, sigma: f64) -> Vec<f64> {
     raw.into_iter().map(|w| w / total).collect()
 }
 
+/// Output values per register block of a blur pass.
+const BLOCK: usize = 32;
+
+/// `dst[e] = sum_k taps[k] src[e + k * stride]` for every `e < dst.len()`, summed in
+/// tap order; `src` holds `dst.len() + (taps.len() - 1) * stride` values. Blocks of
+/// [`BLOCK`] outputs are accumulated in registers and stored once.
+fn correlate<T: Float>(src: &[T], dst: &mut [T], taps: &[T], stride: usize) {
+    let n = dst.len();
+    let full = n - n % BLOCK;
+    for e0 in (0..full).step_by(BLOCK) {
+        let mut acc = [T::zero(); BLOCK];
+        for (k, &wt) in taps.iter().enumerate() {
+            let s = &src[e0 + k * stride..e0 + k * stride + BLOCK];
+            for (a, &v) in acc.iter_mut().zip(s) {
+                *a += wt * v;
+            }
+        }
+        dst[e0..e0 + BLOCK].copy_from_slice(&acc);
+    }
+    for (e, d) in dst.iter_mut().enumerate().skip(full) {
+        let mut a = T::zero();
+        for (k, &wt) in taps.iter().enumerate() {
+            a += wt * src[e + k * stride];
+        }
+        *d = a;
+    }
+}
+
 /// Separable blur of an interleaved `[h, w, c]` image with symmetric odd-length taps
 /// and zero-padded "same" borders:
 /// `out[i, j] = sum_{a, b} taps[a] taps[b] img[i + a - r, j + b - r]`, out-of-range
 /// samples read as 0 (weights are not renormalised at the border). Because `taps` is
 /// symmetric this linear map is self-adjoint, so it also computes its own transpose.
+///
+/// Both passes run over blocks of rows in parallel, each a correlation of a
+/// zero-padded copy; every output value is summed in tap order whatever the thread
+/// count.
 pub fn blur_same<T: Float>(img: &[T], h: usize, w: usize, c: usize, taps: &[T]) -> Vec<T> {
     assert_eq!(
         img.len(),
@@ -33,42 +69,30 @@ pub fn blur_same<T: Float>(img: &[T], h: usize, w: usize, c: usize, taps: &[T]) 
     );
     let r = taps.len() / 2;
     let row = w * c;
-    // Horizontal pass, one tap at a time: for tap `k` (offset `k - r`), every output
-    // pixel `j` whose source `j + k - r` is in range gets `taps[k] * src[j + k - r]`;
-    // both ranges are contiguous in the interleaved row, so this is a plain axpy.
-    let mut tmp = vec![T::zero(); img.len()];
-    for i in 0..h {
-        let src = &img[i * row..(i + 1) * row];
-        let dst = &mut tmp[i * row..(i + 1) * row];
-        for (k, &wt) in taps.iter().enumerate() {
-            // Output pixels j in [j0, j1) read source pixels j + k - r in [0, w).
-            let j0 = r.saturating_sub(k);
-            let j1 = (w + r).saturating_sub(k).min(w);
-            if j0 >= j1 {
-                continue;
-            }
-            let s0 = j0 + k - r;
-            let len = (j1 - j0) * c;
-            for (d, &v) in dst[j0 * c..j0 * c + len]
-                .iter_mut()
-                .zip(&src[s0 * c..s0 * c + len])
-            {
-                *d += wt * v;
-            }
-        }
+    if row == 0 {
+        return Vec::new();
     }
-    // Vertical pass: whole rows at a time, contiguous in memory.
+    // Horizontal pass: each row padded with r zero pixels on both sides. It writes
+    // rows r..r + h of `tmp`, whose r zero rows above and below pad the vertical pass.
+    let mut tmp = vec![T::zero(); (h + 2 * r) * row];
+    tmp[r * row..(r + h) * row]
+        .par_chunks_mut(ROWS_PER_TASK * row)
+        .zip(img.par_chunks(ROWS_PER_TASK * row))
+        .for_each(|(dst_rows, src_rows)| {
+            let mut padded = vec![T::zero(); row + 2 * r * c];
+            for (dst, src) in dst_rows.chunks_mut(row).zip(src_rows.chunks(row)) {
+                padded[r * c..r * c + row].copy_from_slice(src);
+                correlate(&padded, dst, taps, c);
+            }
+        });
+    // Vertical pass over the padded rows.
     let mut out = vec![T::zero(); img.len()];
-    for i in 0..h {
-        let lo = i.saturating_sub(r);
-        let hi = (i + r).min(h - 1);
-        let dst = &mut out[i * row..(i + 1) * row];
-        for ii in lo..=hi {
-            let wt = taps[ii + r - i];
-            for (d, &v) in dst.iter_mut().zip(&tmp[ii * row..(ii + 1) * row]) {
-                *d += wt * v;
-            }
-        }
-    }
+    out.par_chunks_mut(ROWS_PER_TASK * row)
+        .enumerate()
+        .for_each(|(block, dst_rows)| {
+            let first = block * ROWS_PER_TASK * row;
+            let src = &tmp[first..first + dst_rows.len() + 2 * r * row];
+            correlate(src, dst_rows, taps, row);
+        });
     out
 }

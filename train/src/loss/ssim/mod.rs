@@ -35,6 +35,7 @@ mod blur;
 
 pub use blur::{blur_same, gaussian_taps};
 use maaf_autodiff::{BackwardCtx, Float, Op, Tensor, Var};
+use rayon::prelude::*;
 
 /// Side of the SSIM window (11 taps).
 pub const SSIM_WINDOW: usize = 11;
@@ -82,16 +83,25 @@ impl Ssim {
     }
 }
 
-/// Per-pixel maps the backward needs, kept from the forward.
-pub struct SsimSaved<T> {
-    mu_x: Vec<T>,
-    mu_y: Vec<T>,
-    a1: Vec<T>,
-    a2: Vec<T>,
-    b1: Vec<T>,
-    b2: Vec<T>,
-    s: Vec<T>,
+/// The per-pixel terms of the SSIM map that the backward reuses (module docs).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct PixelTerms<T> {
+    mu_x: T,
+    mu_y: T,
+    a1: T,
+    a2: T,
+    b1: T,
+    b2: T,
+    s: T,
 }
+
+/// What the forward keeps for the backward: one [`PixelTerms`] per map entry.
+pub struct SsimSaved<T> {
+    terms: Vec<PixelTerms<T>>,
+}
+
+/// Map entries per rayon task of the elementwise passes.
+const ENTRIES_PER_TASK: usize = 4096;
 
 fn image_dims(t: &[usize], what: &str) -> (usize, usize, usize) {
     assert!(
@@ -101,12 +111,17 @@ fn image_dims(t: &[usize], what: &str) -> (usize, usize, usize) {
     (t[0], t[1], t[2])
 }
 
-/// Elementwise product of two equal-length slices.
-fn mul<T: Float>(a: &[T], b: &[T]) -> Vec<T> {
-    a.iter().zip(b).map(|(&p, &q)| p * q).collect()
+/// `f(k)` for every `k < n`, in parallel blocks; each entry is computed alone, so the
+/// result does not depend on the thread count.
+fn par_map<T: Send>(n: usize, f: impl Fn(usize) -> T + Sync + Send) -> Vec<T> {
+    (0..n)
+        .into_par_iter()
+        .with_min_len(ENTRIES_PER_TASK)
+        .map(f)
+        .collect()
 }
 
-/// Forward of SSIM: the per-pixel map plus everything the backward reuses.
+/// Forward of SSIM: the per-pixel terms, whose `s` is the map.
 fn ssim_forward<T: Float>(op: &Ssim, x: &Tensor<T>, y: &Tensor<T>) -> SsimSaved<T> {
     let (h, w, c) = image_dims(x.shape(), "x");
     assert_eq!(
@@ -118,24 +133,15 @@ fn ssim_forward<T: Float>(op: &Ssim, x: &Tensor<T>, y: &Tensor<T>) -> SsimSaved<
     );
     let taps: Vec<T> = op.taps.iter().map(|&t| T::of(t)).collect();
     let (xd, yd) = (x.data(), y.data());
+    let n = xd.len();
     let blur = |v: &[T]| blur_same(v, h, w, c, &taps);
     let mu_x = blur(xd);
     let mu_y = blur(yd);
-    let e_xx = blur(&mul(xd, xd));
-    let e_yy = blur(&mul(yd, yd));
-    let e_xy = blur(&mul(xd, yd));
+    let e_xx = blur(&par_map(n, |k| xd[k] * xd[k]));
+    let e_yy = blur(&par_map(n, |k| yd[k] * yd[k]));
+    let e_xy = blur(&par_map(n, |k| xd[k] * yd[k]));
     let (c1, c2, two) = (T::of(op.c1), T::of(op.c2), T::of(2.0));
-    let n = xd.len();
-    let mut saved = SsimSaved {
-        mu_x: Vec::with_capacity(n),
-        mu_y: Vec::with_capacity(n),
-        a1: Vec::with_capacity(n),
-        a2: Vec::with_capacity(n),
-        b1: Vec::with_capacity(n),
-        b2: Vec::with_capacity(n),
-        s: Vec::with_capacity(n),
-    };
-    for k in 0..n {
+    let terms = par_map(n, |k| {
         let (mx, my) = (mu_x[k], mu_y[k]);
         let sxx = e_xx[k] - mx * mx;
         let syy = e_yy[k] - my * my;
@@ -144,71 +150,62 @@ fn ssim_forward<T: Float>(op: &Ssim, x: &Tensor<T>, y: &Tensor<T>) -> SsimSaved<
         let a2 = two * sxy + c2;
         let b1 = mx * mx + my * my + c1;
         let b2 = sxx + syy + c2;
-        saved.s.push(a1 * a2 / (b1 * b2));
-        saved.a1.push(a1);
-        saved.a2.push(a2);
-        saved.b1.push(b1);
-        saved.b2.push(b2);
-    }
-    saved.mu_x = mu_x;
-    saved.mu_y = mu_y;
-    saved
+        PixelTerms {
+            mu_x: mx,
+            mu_y: my,
+            a1,
+            a2,
+            b1,
+            b2,
+            s: a1 * a2 / (b1 * b2),
+        }
+    });
+    SsimSaved { terms }
 }
 
 /// Adjoint blur used by the backward; a parameter so the tests can inject a wrong one.
-type AdjointBlur<'a, T> = &'a dyn Fn(&[T]) -> Vec<T>;
+type AdjointBlur<'a, T> = &'a (dyn Fn(&[T]) -> Vec<T> + Sync);
 
 /// VJP of the SSIM map: `g` is the cotangent of every map entry. Returns
-/// `(dL/dx, dL/dy)`, each only when asked for.
-fn ssim_backward<T: Float>(
+/// `(dL/dx, dL/dy)`, each only when asked for. Generic in `g` so that the
+/// per-entry cotangent inlines into the elementwise passes.
+fn ssim_backward<T: Float, G: Fn(usize) -> T + Sync>(
     x: &[T],
     y: &[T],
     st: &SsimSaved<T>,
-    g: &dyn Fn(usize) -> T,
+    g: &G,
     need: (bool, bool),
     blur_t: AdjointBlur<'_, T>,
 ) -> (Option<Vec<T>>, Option<Vec<T>>) {
     let n = x.len();
     let two = T::of(2.0);
-    // Shared maps: cotangents of G(x^2) (= that of G(y^2)) and of G(xy).
-    let mut g_sq = Vec::with_capacity(n);
-    let mut g_xy = Vec::with_capacity(n);
-    let mut g_mx = Vec::with_capacity(if need.0 { n } else { 0 });
-    let mut g_my = Vec::with_capacity(if need.1 { n } else { 0 });
-    for k in 0..n {
-        let (a1, a2, b1, b2, s) = (st.a1[k], st.a2[k], st.b1[k], st.b2[k], st.s[k]);
-        let gk = g(k);
-        let d = b1 * b2;
-        // dS/dA1 = A2/D, dS/dA2 = A1/D, dS/dB1 = -S/B1, dS/dB2 = -S/B2; no division by
-        // A1 or A2, which may vanish.
-        let da1 = a2 / d;
-        let da2 = a1 / d;
-        let db1 = -s / b1;
-        let db2 = -s / b2;
-        g_sq.push(gk * db2);
-        g_xy.push(gk * two * da2);
-        // mu_x enters A1 (2 mu_y), A2 (-2 mu_y), B1 (2 mu_x), B2 (-2 mu_x).
-        let (mx, my) = (st.mu_x[k], st.mu_y[k]);
-        if need.0 {
-            g_mx.push(gk * two * (my * (da1 - da2) + mx * (db1 - db2)));
-        }
-        if need.1 {
-            g_my.push(gk * two * (mx * (da1 - da2) + my * (db1 - db2)));
-        }
-    }
-    let b_sq = blur_t(&g_sq);
-    let b_xy = blur_t(&g_xy);
+    let terms = &st.terms;
+    // dS/dA1 = A2/D, dS/dA2 = A1/D, dS/dB1 = -S/B1, dS/dB2 = -S/B2 with D = B1 B2; no
+    // division by A1 or A2, which may vanish. Cotangents of G(x^2) (= that of G(y^2))
+    // and of G(xy):
+    let b_sq = blur_t(&par_map(n, |k| {
+        let t = &terms[k];
+        g(k) * (-t.s / t.b2)
+    }));
+    let b_xy = blur_t(&par_map(n, |k| {
+        let t = &terms[k];
+        g(k) * two * (t.a1 / (t.b1 * t.b2))
+    }));
+    // mu_x enters A1 (2 mu_y), A2 (-2 mu_y), B1 (2 mu_x), B2 (-2 mu_x); mu_y likewise.
+    let g_mu = |k: usize, mine: T, other: T| {
+        let t = &terms[k];
+        let d = t.b1 * t.b2;
+        let (da1, da2) = (t.a2 / d, t.a1 / d);
+        let (db1, db2) = (-t.s / t.b1, -t.s / t.b2);
+        g(k) * two * (other * (da1 - da2) + mine * (db1 - db2))
+    };
     let dx = need.0.then(|| {
-        let b_mx = blur_t(&g_mx);
-        (0..n)
-            .map(|k| b_mx[k] + two * x[k] * b_sq[k] + y[k] * b_xy[k])
-            .collect()
+        let b_mx = blur_t(&par_map(n, |k| g_mu(k, terms[k].mu_x, terms[k].mu_y)));
+        par_map(n, |k| b_mx[k] + two * x[k] * b_sq[k] + y[k] * b_xy[k])
     });
     let dy = need.1.then(|| {
-        let b_my = blur_t(&g_my);
-        (0..n)
-            .map(|k| b_my[k] + two * y[k] * b_sq[k] + x[k] * b_xy[k])
-            .collect()
+        let b_my = blur_t(&par_map(n, |k| g_mu(k, terms[k].mu_y, terms[k].mu_x)));
+        par_map(n, |k| b_my[k] + two * y[k] * b_sq[k] + x[k] * b_xy[k])
     });
     (dx, dy)
 }
@@ -229,10 +226,13 @@ impl<T: Float> Op<T> for Ssim {
         let out = match self.output {
             SsimOutput::Mean => {
                 // Accumulate in f64: 1.2e5 f32 terms summed naively lose ~1e-3 relative.
-                let total: f64 = saved.s.iter().map(|&v| Float::to_f64(v)).sum();
-                Tensor::scalar(T::of(total / saved.s.len() as f64))
+                let total: f64 = saved.terms.iter().map(|t| Float::to_f64(t.s)).sum();
+                Tensor::scalar(T::of(total / saved.terms.len() as f64))
             }
-            SsimOutput::Map => Tensor::from_vec(saved.s.clone(), inputs[0].shape()),
+            SsimOutput::Map => {
+                let map = saved.terms.iter().map(|t| t.s).collect();
+                Tensor::from_vec(map, inputs[0].shape())
+            }
         };
         (vec![out], saved)
     }
