@@ -16,40 +16,80 @@ pub(super) const ROWS_PER_TASK: usize = 2048;
 /// Up to 8 (pyramid texel, weight) taps: 4 bilinear taps on each of two levels.
 type Taps = [(usize, f64); 8];
 
-/// Taps of one lookup of a plane: point (u, v) in \[0,1]^2 (clamped at the border),
-/// mip level `level` (clamped to the pyramid). Returns the number of taps used.
-fn plane_taps(g: &PlaneGeom, u: f64, v: f64, level: f64, taps: &mut Taps) -> usize {
-    let max_level = (g.levels - 1) as f64;
+/// One mip level of a plane's pyramid: width, height and texel offset.
+#[derive(Clone, Copy, Debug)]
+struct Level {
+    w: usize,
+    h: usize,
+    offset: usize,
+}
+
+/// The levels of `g`'s pyramid, finest first.
+fn levels_of(g: &PlaneGeom) -> Vec<Level> {
+    (0..g.levels)
+        .map(|l| {
+            let (w, h) = g.dims(l);
+            Level {
+                w,
+                h,
+                offset: g.offset(l),
+            }
+        })
+        .collect()
+}
+
+/// `x.floor()` for the texel coordinates of a lookup, without the libm call that
+/// baseline x86-64 makes of `f64::floor`: exact for finite `|x| < 2^63`, and 0 for
+/// NaN (which `plane_taps` then clamps exactly as it clamps `NaN.floor()`).
+#[inline]
+fn floor(x: f64) -> f64 {
+    let t = x as i64 as f64;
+    if t > x { t - 1.0 } else { t }
+}
+
+/// Taps of one lookup of a plane with pyramid `levels`: point (u, v) in \[0,1]^2
+/// (clamped at the border), mip level `level` (clamped to the pyramid). Returns the
+/// number of taps used.
+fn plane_taps(levels: &[Level], u: f64, v: f64, level: f64, taps: &mut Taps) -> usize {
+    let max_level = (levels.len() - 1) as f64;
     let level = if level.is_nan() {
         0.0
     } else {
         level.clamp(0.0, max_level)
     };
-    let l0 = level.floor() as usize;
+    let l0 = level as usize;
     let f = level - l0 as f64;
     let mut count = 0;
-    let mut add_level = |l: usize, wl: f64, count: &mut usize| {
-        let (w, h) = g.dims(l);
-        let off = g.offset(l);
-        let x = u * w as f64 - 0.5;
-        let y = v * h as f64 - 0.5;
-        let (x0, y0) = (x.floor(), y.floor());
+    let mut add_level = |lv: Level, wl: f64, count: &mut usize| {
+        let x = u * lv.w as f64 - 0.5;
+        let y = v * lv.h as f64 - 0.5;
+        let (x0, y0) = (floor(x), floor(y));
         let (fx, fy) = (x - x0, y - y0);
         let clampi = |i: f64, n: usize| (i.max(0.0) as usize).min(n - 1);
-        let (ix0, ix1) = (clampi(x0, w), clampi(x0 + 1.0, w));
-        let (iy0, iy1) = (clampi(y0, h), clampi(y0 + 1.0, h));
+        let (ix0, ix1) = (clampi(x0, lv.w), clampi(x0 + 1.0, lv.w));
+        let (iy0, iy1) = (clampi(y0, lv.h), clampi(y0 + 1.0, lv.h));
         for (iy, wy) in [(iy0, 1.0 - fy), (iy1, fy)] {
             for (ix, wx) in [(ix0, 1.0 - fx), (ix1, fx)] {
-                taps[*count] = (off + iy * w + ix, wl * wx * wy);
+                taps[*count] = (lv.offset + iy * lv.w + ix, wl * wx * wy);
                 *count += 1;
             }
         }
     };
-    add_level(l0, 1.0 - f, &mut count);
-    if f > 0.0 && l0 + 1 < g.levels {
-        add_level(l0 + 1, f, &mut count);
+    add_level(levels[l0], 1.0 - f, &mut count);
+    if f > 0.0 && l0 + 1 < levels.len() {
+        add_level(levels[l0 + 1], f, &mut count);
     }
     count
+}
+
+/// `dst += w * src` over equal-length channel rows.
+#[inline]
+fn axpy<T: Float>(dst: &mut [T], w: T, src: &[T]) {
+    let n = dst.len().min(src.len());
+    let (dst, src) = (&mut dst[..n], &src[..n]);
+    for k in 0..n {
+        dst[k] += w * src[k];
+    }
 }
 
 /// The (u, v, level) at which Gaussian `i` looks up plane `p`.
@@ -103,6 +143,7 @@ pub fn build_pyramid<T: Float>(g: &PlaneGeom, plane: &[T], c: usize) -> Vec<T> {
 pub struct PlaneSample {
     query: Arc<FieldQuery>,
     geoms: [PlaneGeom; 6],
+    levels: [Vec<Level>; 6],
     channels: usize,
     /// Test-only corruption of the backward (negative control of the gradchecks).
     corrupt_backward: bool,
@@ -114,6 +155,7 @@ impl PlaneSample {
         PlaneSample {
             query,
             geoms: std::array::from_fn(|p| field.geom(p)),
+            levels: std::array::from_fn(|p| levels_of(&field.geom(p))),
             channels: field.config.channels,
             corrupt_backward: false,
         }
@@ -159,17 +201,13 @@ impl<T: Float> Op<T> for PlaneSample {
                 .enumerate()
                 .for_each(|(chunk, rows)| {
                     let mut taps: Taps = [(0, 0.0); 8];
-                    for (p, (g, pyr)) in self.geoms.iter().zip(&pyramids).enumerate() {
+                    for (p, (levels, pyr)) in self.levels.iter().zip(&pyramids).enumerate() {
                         for (r, row) in rows.chunks_exact_mut(c).enumerate() {
                             let i = chunk * ROWS_PER_TASK + r;
                             let (u, v, level) = lookup(&self.query, i, p);
-                            let used = plane_taps(g, u, v, level, &mut taps);
+                            let used = plane_taps(levels, u, v, level, &mut taps);
                             for &(texel, w) in &taps[..used] {
-                                let w = T::of(w);
-                                let src = &pyr[texel * c..(texel + 1) * c];
-                                for (o, &s) in row.iter_mut().zip(src) {
-                                    *o += w * s;
-                                }
+                                axpy(row, T::of(w), &pyr[texel * c..(texel + 1) * c]);
                             }
                         }
                     }
@@ -195,15 +233,12 @@ impl<T: Float> Op<T> for PlaneSample {
                 let mut taps: Taps = [(0, 0.0); 8];
                 for (i, gi) in g_out.chunks_exact(c).enumerate() {
                     let (u, v, level) = lookup(&self.query, i, p);
-                    let mut used = plane_taps(g, u, v, level, &mut taps);
+                    let mut used = plane_taps(&self.levels[p], u, v, level, &mut taps);
                     if self.corrupt_backward {
                         used = used.min(4);
                     }
                     for &(texel, w) in &taps[..used] {
-                        let w = T::of(w);
-                        for (d, &s) in gp[texel * c..(texel + 1) * c].iter_mut().zip(gi) {
-                            *d += w * s;
-                        }
+                        axpy(&mut gp[texel * c..(texel + 1) * c], T::of(w), gi);
                     }
                 }
                 // Adjoint of the pyramid: coarsest level first, so a parent's total
