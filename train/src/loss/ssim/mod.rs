@@ -84,7 +84,7 @@ impl Ssim {
 }
 
 /// The per-pixel terms of the SSIM map that the backward reuses (module docs).
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Copy, Debug)]
 pub struct PixelTerms<T> {
     mu_x: T,
     mu_y: T,

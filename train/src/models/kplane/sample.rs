@@ -152,10 +152,11 @@ pub struct PlaneSample {
 impl PlaneSample {
     /// The op for `field`'s layout and a detached `query`.
     pub fn new(field: &KPlaneField, query: Arc<FieldQuery>) -> Self {
+        let geoms: [PlaneGeom; 6] = std::array::from_fn(|p| field.geom(p));
         PlaneSample {
             query,
-            geoms: std::array::from_fn(|p| field.geom(p)),
-            levels: std::array::from_fn(|p| levels_of(&field.geom(p))),
+            levels: geoms.each_ref().map(levels_of),
+            geoms,
             channels: field.config.channels,
             corrupt_backward: false,
         }
