@@ -87,10 +87,29 @@ pub fn gaussians_at<T: Float>(
     filter: &FilterState,
     time: f64,
 ) -> [Tensor<T>; 5] {
+    frame(model, Some(filter), time)
+}
+
+/// The deformed Gaussians of `model` at `time` before the 3D filter, as plain tensors
+/// `[means, scales, quats, opacity, sh]` (what [`fold_filter`] receives).
+pub fn deformed_at<T: Float>(model: &dyn Representation<T>, time: f64) -> [Tensor<T>; 5] {
+    frame(model, None, time)
+}
+
+/// The Gaussians of `model` at `time` on a tape of constants, with `filter` folded in
+/// when given.
+fn frame<T: Float>(
+    model: &dyn Representation<T>,
+    filter: Option<&FilterState>,
+    time: f64,
+) -> [Tensor<T>; 5] {
     let tape = maaf_autodiff::Tape::new();
     let params = model.params().bind_constants(&tape);
     let (g, _) = deform(model, &params, time);
-    let g = fold_filter(g, filter, time);
+    let g = match filter {
+        Some(filter) => fold_filter(g, filter, time),
+        None => g,
+    };
     [g.means, g.scales, g.quats, g.opacity, g.sh].map(|v| v.value().clone())
 }
 

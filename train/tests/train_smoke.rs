@@ -9,7 +9,9 @@ use maaf_filter::FilterKind;
 use maaf_train::data::{Dataset, DatasetOptions, Split};
 use maaf_train::models::ModelConfig;
 use maaf_train::params::Rows;
-use maaf_train::trainer::{DensifyPlan, TrainConfig, Trainer, load_checkpoint, save_checkpoint};
+use maaf_train::trainer::{
+    DensifyPlan, TrainConfig, Trainer, keep_highest, load_checkpoint, save_checkpoint,
+};
 
 fn mutant() -> Option<Dataset> {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/dnerf/mutant");
@@ -317,6 +319,54 @@ fn one_plan_resizes_every_container_in_lock_step() {
     }
     assert_eq!(t.skipped_steps, 0);
     assert_eq!(t.num_gaussians(), m);
+}
+
+/// Sensitivity pruning at its scheduled iteration removes exactly the lowest-scoring
+/// fraction (the scores of the model it prunes, `keep_highest` of them), keeps the
+/// survivors' parameters and densification statistics, and training goes on.
+#[test]
+fn sensitivity_pruning_removes_the_lowest_scores_at_its_iteration() {
+    let Some(data) = mutant() else { return };
+    for kind in ["saro", "deform"] {
+        let mut c = tiny_config_of(kind, FilterKind::Motion);
+        c.prune.every = 30;
+        c.prune.from = 30;
+        c.prune.until = 30;
+        c.prune.ratio_densifying = 0.5;
+        let mut t = Trainer::new(&data, c).expect("trainer");
+        for _ in 0..29 {
+            t.step();
+        }
+        t.update();
+        let n = t.num_gaussians();
+        let scores = t.sensitivity_scores(t.iteration).expect("scores");
+        assert_eq!(scores.len(), n);
+        assert!(scores.iter().all(|s| s.is_finite() && *s >= 0.0));
+        assert!(scores.iter().any(|&s| s > 0.0), "{kind}: every score is 0");
+        let keep = keep_highest(&scores, 0.5);
+        let xyz = t.model.canonical().means;
+        let grad_accum = t.stats.grad_accum.clone();
+        t.schedule();
+        assert_eq!(t.num_gaussians(), keep.len(), "{kind}");
+        assert_eq!(keep.len(), n - n / 2);
+        assert_eq!(t.filter.rows(), keep.len());
+        assert_eq!(t.observations.rows(), keep.len());
+        let after = t.model.canonical().means;
+        for (r, &i) in keep.iter().enumerate() {
+            assert_eq!(
+                &after.data()[3 * r..3 * r + 3],
+                &xyz.data()[3 * i..3 * i + 3]
+            );
+            assert_eq!(
+                t.stats.grad_accum[r], grad_accum[i],
+                "{kind}: stats row {r}"
+            );
+        }
+        for _ in 0..3 {
+            t.step();
+        }
+        assert_eq!(t.skipped_steps, 0, "{kind}");
+    }
 }
 
 /// `val_psnr` is logged every `val_every` iterations (and at the end) and leaves the

@@ -50,6 +50,39 @@ impl Default for DensifyConfig {
     }
 }
 
+/// Sensitivity pruning (Speedy-Splat's soft and hard pruning, scheduled as SpeeDe3DGS
+/// does for deformable Gaussians: from iteration 6000 every 3000, 80 % of the
+/// Gaussians while densification runs, 30 % after it). Off by default (`every` = 0):
+/// turning it on changes the model a run ends with, so it is a choice, not a default.
+/// The score is [`crate::trainer::Trainer::sensitivity_scores`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct PruneConfig {
+    /// Interval in iterations (0 = never prune by sensitivity).
+    pub every: usize,
+    /// First pruning iteration.
+    pub from: usize,
+    /// Last pruning iteration.
+    pub until: usize,
+    /// Fraction of the Gaussians removed at a pruning before `densify.until`
+    /// (Speedy-Splat's soft pruning; densification grows them back).
+    pub ratio_densifying: f64,
+    /// Fraction removed at a pruning from `densify.until` on (hard pruning).
+    pub ratio_after: f64,
+}
+
+impl Default for PruneConfig {
+    fn default() -> Self {
+        PruneConfig {
+            every: 0,
+            from: 6000,
+            until: 30_000,
+            ratio_densifying: 0.8,
+            ratio_after: 0.3,
+        }
+    }
+}
+
 /// Everything a training run needs besides the data.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -96,6 +129,8 @@ pub struct TrainConfig {
     pub filter: FilterConfig,
     /// Densification.
     pub densify: DensifyConfig,
+    /// Sensitivity pruning (off unless `prune.every` > 0).
+    pub prune: PruneConfig,
 }
 
 impl Default for TrainConfig {
@@ -118,6 +153,7 @@ impl Default for TrainConfig {
             model: ModelConfig::default(),
             filter: FilterConfig::default(),
             densify: DensifyConfig::default(),
+            prune: PruneConfig::default(),
         }
     }
 }
@@ -225,6 +261,16 @@ impl TrainConfig {
                 ),
             )
         })?;
+        let p = &self.prune;
+        if p.every > 0 && p.from > p.until {
+            return Err(bad(
+                "prune.from",
+                &p.from,
+                &format!("<= prune.until = {}", p.until),
+            ));
+        }
+        in_range("prune.ratio_densifying", p.ratio_densifying, 0.0, 0.99)?;
+        in_range("prune.ratio_after", p.ratio_after, 0.0, 0.99)?;
         self.model
             .validate()
             .map_err(|e| Error::Input(format!("config: {e}")))?;
@@ -264,6 +310,21 @@ mod tests {
                 Box::new(|c| c.densify.max_gaussians = 0),
             ),
             ("densify.from", Box::new(|c| c.densify.from = 20_000)),
+            (
+                "prune.from",
+                Box::new(|c| {
+                    c.prune.every = 100;
+                    c.prune.from = 40_000;
+                }),
+            ),
+            (
+                "prune.ratio_densifying",
+                Box::new(|c| c.prune.ratio_densifying = 1.0),
+            ),
+            (
+                "prune.ratio_after",
+                Box::new(|c| c.prune.ratio_after = -0.1),
+            ),
             (
                 "densify.min_opacity",
                 Box::new(|c| c.densify.min_opacity = -0.1),

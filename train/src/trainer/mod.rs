@@ -10,6 +10,7 @@ mod checkpoint;
 mod config;
 mod densify;
 mod health;
+mod prune;
 mod refresh;
 mod resume;
 mod run;
@@ -25,8 +26,9 @@ use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 
 pub use checkpoint::{checkpoint_iteration, load_checkpoint, save_checkpoint};
-pub use config::{DensifyConfig, MAX_BATCH, TrainConfig};
+pub use config::{DensifyConfig, MAX_BATCH, PruneConfig, TrainConfig};
 pub use densify::{DensifyPlan, DensifyStats, ViewGrad, plan as plan_densify};
+pub use prune::{keep_highest, removal_sensitivity};
 pub use resume::{checkpoints_newest_first, load_newest, repair_run_dir, truncate_log};
 pub use run::{RunSummary, checkpoint_dir, train_run, train_run_with};
 pub use timings::Timings;

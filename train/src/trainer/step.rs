@@ -214,8 +214,8 @@ impl Trainer {
         self.timings.filter_refresh += t5.elapsed().as_secs_f64();
     }
 
-    /// Densify / prune / reset opacity when the schedule says so; returns whether the
-    /// set of Gaussians changed.
+    /// Densify, prune by sensitivity, reset opacity, in that order, when the schedule
+    /// says so; returns whether the set of Gaussians changed.
     fn maybe_densify(&mut self, it: usize) -> bool {
         let d = self.config.densify.clone();
         let mut changed = false;
@@ -238,6 +238,7 @@ impl Trainer {
             self.apply_plan(&plan);
             changed = plan.cloned + plan.split + plan.pruned > 0;
         }
+        changed |= self.maybe_prune(it);
         if d.opacity_reset_every > 0 && it <= d.until && it.is_multiple_of(d.opacity_reset_every) {
             for name in self.model.reset_opacity(0.01) {
                 if let Some(m) = self.adam.moments_mut(&name) {
