@@ -240,7 +240,8 @@ impl Trainer {
     }
 
     /// Applies a densification plan to the model, its Adam moments, the filter state,
-    /// the observations and the statistics with one index list.
+    /// the observations and the statistics with one index list (each row's statistics
+    /// travel with it; a densification then restarts them, a pruning keeps them).
     pub fn apply_plan(&mut self, plan: &DensifyPlan) {
         let n_old = self.model.num_gaussians();
         let names = self.model.params().per_gaussian_names();
@@ -262,7 +263,7 @@ impl Trainer {
         }
         self.filter.select_rows(&plan.index);
         self.observations.select_rows(&plan.index);
-        self.stats = DensifyStats::new(plan.index.len());
+        self.stats.select_rows(&plan.index);
     }
 }
 

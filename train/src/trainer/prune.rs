@@ -4,7 +4,7 @@
 //! Gaussian that matters only while it moves keeps its score; the Gaussians with
 //! the lowest scores are removed.
 
-use maaf_autodiff::{PerGaussian, Tape, Tensor};
+use maaf_autodiff::{Tape, Tensor};
 use maaf_filter::FilterState;
 use maaf_splat::{Camera, GaussianVars, RenderSettings, SplatFloat};
 
@@ -17,19 +17,21 @@ use crate::forward::{deformed_at, fold_filter};
 /// to a factor `e_i` that scales the Gaussian's alpha (`alpha_i = e_i o_i G_i`) at
 /// `e_i = 1`: the first-order change of the image when the Gaussian fades out, signed.
 ///
-/// `deformed` is `[means, scales, quats, opacity, sh]` before the 3D filter; `filter`
+/// `deformed` is `[means, scales, quats, opacity, sh]` before the 3D filter (moved onto
+/// the tape, not copied); `filter`
 /// is folded in at `time` as in training (its opacity compensation is a factor, so
 /// the derivative is the same before and after it).
 pub fn removal_sensitivity<T: SplatFloat>(
-    deformed: &[Tensor<T>; 5],
+    deformed: [Tensor<T>; 5],
     filter: &FilterState,
     time: f64,
     camera: &Camera,
     settings: &RenderSettings,
 ) -> Result<Vec<f64>, String> {
     let tape = Tape::new();
-    let [means, scales, quats, _, sh] = deformed.clone().map(|t| tape.constant(t));
-    let opacity = tape.var(deformed[3].clone());
+    let [means, scales, quats, opacity, sh] = deformed;
+    let [means, scales, quats, sh] = [means, scales, quats, sh].map(|t| tape.constant(t));
+    let opacity = tape.var(opacity);
     let g = GaussianVars {
         means,
         scales,
@@ -43,7 +45,8 @@ pub fn removal_sensitivity<T: SplatFloat>(
     let grads = tape
         .backward_from(&[(render.image, ones)])
         .map_err(|e| e.to_string())?;
-    let o = deformed[3].data();
+    let o = opacity.value();
+    let o = o.data();
     Ok(match grads.wrt(opacity) {
         Some(d) => o
             .iter()
@@ -78,7 +81,7 @@ impl Trainer {
         let mut scores = vec![0.0; self.model.num_gaussians()];
         for (view, camera) in self.views.iter().zip(&self.cameras) {
             let deformed = deformed_at(self.model.as_ref(), view.time);
-            let s = removal_sensitivity(&deformed, &self.filter, view.time, camera, &settings)?;
+            let s = removal_sensitivity(deformed, &self.filter, view.time, camera, &settings)?;
             for (acc, v) in scores.iter_mut().zip(s) {
                 *acc += v * v;
             }
@@ -89,7 +92,7 @@ impl Trainer {
     /// Sensitivity pruning when `config.prune` schedules it at `it`: the soft ratio
     /// before `densify.until`, the hard one from then on. Returns whether Gaussians
     /// were removed. The densification statistics of the survivors are kept (3DGS
-    /// `prune_points`), unlike after a densification, which restarts them.
+    /// `prune_points`): `apply_plan` carries them with their rows.
     pub(super) fn maybe_prune(&mut self, it: usize) -> bool {
         let p = &self.config.prune;
         if p.every == 0 || it < p.from || it > p.until || !it.is_multiple_of(p.every) {
@@ -113,14 +116,11 @@ impl Trainer {
         if pruned == 0 {
             return false;
         }
-        let mut stats = std::mem::take(&mut self.stats);
-        stats.select_rows(&index);
         self.apply_plan(&DensifyPlan {
             index,
             pruned,
             ..Default::default()
         });
-        self.stats = stats;
         log_line(&format!(
             "iteration {it}: sensitivity pruning removed {pruned} of {n} Gaussians"
         ));
@@ -218,7 +218,8 @@ mod tests {
         ];
         let h = 1e-6;
         for filter in &filters {
-            let s = removal_sensitivity(&g, filter, 0.5, &camera, &settings).expect("backward");
+            let s =
+                removal_sensitivity(g.clone(), filter, 0.5, &camera, &settings).expect("backward");
             let scale = s.iter().fold(0.0f64, |a, v| a.max(v.abs()));
             assert!(
                 scale > 1.0,

@@ -13,7 +13,7 @@ use rand_pcg::Pcg64;
 
 use super::ViewGrad;
 use super::refresh::centres;
-use super::{Trainer, log_line, plan_densify};
+use super::{DensifyStats, Trainer, log_line, plan_densify};
 use crate::forward::{batch_mean, forward_bound};
 use crate::loss::Evaluated;
 
@@ -236,6 +236,8 @@ impl Trainer {
                 seed,
             );
             self.apply_plan(&plan);
+            // 3DGS restarts the gradient statistics after every densify_and_prune.
+            self.stats = DensifyStats::new(plan.index.len());
             changed = plan.cloned + plan.split + plan.pruned > 0;
         }
         changed |= self.maybe_prune(it);
