@@ -189,12 +189,24 @@ impl<T: Float> Adam<T> {
         let wd = T::of(weight_decay);
         let decay = weight_decay != 0.0;
         let (m, v) = (state.m.data_mut(), state.v.data_mut());
+        // Each factor is zeroed where its product would be subnormal, as on a
+        // flush-to-zero FPU (see `zero_below`).
+        let tiny = T::min_positive_value();
+        let p_min = if decay { tiny / wd } else { T::infinity() };
+        let (g_min, g2_min) = (tiny / (one - b1), (tiny / (one - b2)).sqrt());
+        let (m_min, v_min) = (tiny / b1, tiny / b2);
         let update = |p: &mut [T], g: &[T], m: &mut [T], v: &mut [T], step: T| {
+            let step_min = tiny / step;
             for (((p, &g), m), v) in p.iter_mut().zip(g).zip(m.iter_mut()).zip(v.iter_mut()) {
-                let g = if decay { g + wd * *p } else { g };
-                *m = b1 * *m + (one - b1) * g;
-                *v = b2 * *v + (one - b2) * g * g;
-                *p -= step * *m / ((*v * inv_c2).sqrt() + eps);
+                let g = if decay {
+                    g + wd * zero_below(*p, p_min)
+                } else {
+                    g
+                };
+                *m = b1 * zero_below(*m, m_min) + (one - b1) * zero_below(g, g_min);
+                let g2 = zero_below(g, g2_min);
+                *v = b2 * zero_below(*v, v_min) + (one - b2) * g2 * g2;
+                *p -= step * zero_below(*m, step_min) / ((*v * inv_c2).sqrt() + eps);
             }
         };
         match row_scale {
@@ -246,6 +258,23 @@ impl<T: Float> Adam<T> {
     }
 }
 
+/// `x`, or zero when `|x| < min`: Adam's guard against subnormal arithmetic. A
+/// moment that decays with no gradient (a K-plane cell or a Gaussian that no view
+/// reaches) goes subnormal after a few hundred steps at beta1 = 0.9, and L2 decay
+/// drives such parameters towards zero until `weight_decay * p` and `g * g` underflow.
+/// Every multiply that reads or writes a subnormal takes a microcode assist of about
+/// a hundred cycles: on a SaRO model trained 20k iterations, most cells of the spatial
+/// planes were in that state and Adam took 23 ms per step. `step_rows` zeroes each
+/// factor where its product would be subnormal (`min` is the smallest normal over the
+/// other factor), which is what a flush-to-zero FPU returns, without touching the
+/// FPU's mode (Rust treats a changed MXCSR as undefined behaviour); in the normal
+/// range nothing changes. The products are taken after the select, so no lane of a
+/// vectorised loop computes the subnormal value it then discards.
+#[inline(always)]
+fn zero_below<T: Float>(x: T, min: T) -> T {
+    if x.abs() < min { T::zero() } else { x }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -274,6 +303,80 @@ mod tests {
             "{} vs {want}",
             p.data()[0]
         );
+    }
+
+    /// Adam as written in the paper, with no guard: the oracle of the tests below.
+    fn plain_step(p: &mut [f32], g: &[f32], m: &mut [f32], v: &mut [f32], t: i32, wd: f32) {
+        // The constants as `step_rows` rounds them: bias corrections in f64.
+        let (b1, b2, eps) = (0.9f32, 0.999f32, 1e-15f32);
+        let step = (1e-3 / (1.0 - 0.9f64.powi(t))) as f32;
+        let inv_c2 = (1.0 / (1.0 - 0.999f64.powi(t))) as f32;
+        for i in 0..p.len() {
+            let g = g[i] + wd * p[i];
+            m[i] = b1 * m[i] + (1.0 - b1) * g;
+            v[i] = b2 * v[i] + (1.0 - b2) * g * g;
+            p[i] -= step * m[i] / ((v[i] * inv_c2).sqrt() + eps);
+        }
+    }
+
+    fn subnormal(x: f32) -> bool {
+        x != 0.0 && x.abs() < f32::MIN_POSITIVE
+    }
+
+    fn trainer_like_adam() -> Adam<f32> {
+        Adam::new(AdamConfig {
+            beta1: 0.9,
+            beta2: 0.999,
+            eps: 1e-15,
+        })
+        .with_group("p", LrSchedule::Constant(1e-3))
+    }
+
+    #[test]
+    fn in_the_normal_range_the_guards_change_no_bit() {
+        let n = 64;
+        let mut adam = trainer_like_adam();
+        let mut p = Tensor::from_vec((0..n).map(|i| (i as f32 * 0.37).sin()).collect(), &[n]);
+        let (mut q, mut m, mut v) = (p.data().to_vec(), vec![0.0; n], vec![0.0; n]);
+        for t in 1..=50 {
+            let g: Vec<f32> = (0..n).map(|i| ((i * t) as f32 * 0.11).cos()).collect();
+            adam.step_l2("p", &mut p, &Tensor::from_vec(g.clone(), &[n]), t, 8e-7);
+            plain_step(&mut q, &g, &mut m, &mut v, t as i32, 8e-7);
+            assert_eq!(p.data(), &q[..], "step {t}");
+        }
+    }
+
+    #[test]
+    fn parameters_without_gradient_never_make_subnormal_moments() {
+        // Plane cells that no Gaussian samples: zero gradient, L2 decay, values from
+        // ordinary down to ones whose decay term underflows.
+        let init: Vec<f32> = [1e-2, 3e-9, 1e-14, 1e-25, 1e-33, -1e-36, 0.0].to_vec();
+        let n = init.len();
+        let zero = vec![0.0f32; n];
+        let mut adam = trainer_like_adam();
+        let mut p = Tensor::from_vec(init.clone(), &[n]);
+        let (mut q, mut m, mut v) = (init, vec![0.0; n], vec![0.0; n]);
+        let mut plain_subnormals = 0;
+        for t in 1..=3000 {
+            adam.step_l2(
+                "p",
+                &mut p,
+                &Tensor::from_vec(zero.clone(), &[n]),
+                t - 1,
+                8e-7,
+            );
+            plain_step(&mut q, &zero, &mut m, &mut v, t as i32, 8e-7);
+            plain_subnormals += m.iter().chain(&v).filter(|&&x| subnormal(x)).count();
+            let mo = adam.moments("p").expect("moments");
+            let stored = mo.m.data().iter().chain(mo.v.data()).chain(p.data());
+            assert!(
+                !stored.clone().any(|&x| subnormal(x)),
+                "step {t}: {stored:?}"
+            );
+            assert!(p.data().iter().all(|x| x.is_finite()));
+        }
+        // The oracle does go subnormal on these inputs, so the check above is live.
+        assert!(plain_subnormals > 100, "{plain_subnormals}");
     }
 
     #[test]
