@@ -2,7 +2,13 @@
 
 use std::collections::HashMap;
 
+use rayon::prelude::*;
+
 use crate::{Float, PerGaussian, Tensor};
+
+/// Elements per rayon task of an Adam update (whole rows when rows are scaled): each
+/// element is updated alone, so the blocks change no value, only who computes it.
+const ADAM_BLOCK: usize = 32 * 1024;
 
 /// A learning rate as a function of the iteration.
 #[derive(Clone, Debug, PartialEq)]
@@ -210,7 +216,15 @@ impl<T: Float> Adam<T> {
             }
         };
         match row_scale {
-            None => update(param.data_mut(), grad.data(), m, v, step),
+            None => param
+                .data_mut()
+                .par_chunks_mut(ADAM_BLOCK)
+                .zip(grad.data().par_chunks(ADAM_BLOCK))
+                .zip(
+                    m.par_chunks_mut(ADAM_BLOCK)
+                        .zip(v.par_chunks_mut(ADAM_BLOCK)),
+                )
+                .for_each(|((p, g), (m, v))| update(p, g, m, v, step)),
             Some(scale) => {
                 let rows = param.rows();
                 assert_eq!(
@@ -223,14 +237,23 @@ impl<T: Float> Adam<T> {
                     return;
                 }
                 let width = param.len() / rows;
-                let chunks = param
+                let block_rows = (ADAM_BLOCK / width).max(1);
+                let block = block_rows * width;
+                param
                     .data_mut()
-                    .chunks_mut(width)
-                    .zip(grad.data().chunks(width))
-                    .zip(m.chunks_mut(width).zip(v.chunks_mut(width)));
-                for (((p, g), (m, v)), &s) in chunks.zip(scale) {
-                    update(p, g, m, v, step * s);
-                }
+                    .par_chunks_mut(block)
+                    .zip(grad.data().par_chunks(block))
+                    .zip(m.par_chunks_mut(block).zip(v.par_chunks_mut(block)))
+                    .zip(scale.par_chunks(block_rows))
+                    .for_each(|(((p, g), (m, v)), scale)| {
+                        let rows = p
+                            .chunks_mut(width)
+                            .zip(g.chunks(width))
+                            .zip(m.chunks_mut(width).zip(v.chunks_mut(width)));
+                        for (((p, g), (m, v)), &s) in rows.zip(scale) {
+                            update(p, g, m, v, step * s);
+                        }
+                    });
             }
         }
     }
@@ -377,6 +400,42 @@ mod tests {
         }
         // The oracle does go subnormal on these inputs, so the check above is live.
         assert!(plain_subnormals > 100, "{plain_subnormals}");
+    }
+
+    #[test]
+    fn row_scales_stay_with_their_rows_across_parallel_blocks() {
+        // Width 2: blocks of ADAM_BLOCK / 2 rows; rows on both sides of each boundary
+        // must move at their own scaled rate.
+        let (width, rows) = (2, 3 * ADAM_BLOCK / 4 + 5);
+        let value = |k: usize| ((k as f64) * 0.713).sin();
+        let init = Tensor::from_vec((0..rows * width).map(value).collect(), &[rows, width]);
+        let grad = Tensor::from_vec(
+            (0..rows * width).map(|k| value(k + 7) - 0.2).collect(),
+            &[rows, width],
+        );
+        let scale: Vec<f64> = (0..rows).map(|r| 1.0 + (r % 7) as f64).collect();
+        let cfg = AdamConfig::default();
+        let mut all = Adam::<f64>::new(cfg.clone()).with_group("p", LrSchedule::Constant(0.01));
+        let mut p = init.clone();
+        for i in 0..2 {
+            all.step_rows("p", &mut p, &grad, i, 0.1, Some(&scale));
+        }
+        let half = ADAM_BLOCK / width;
+        for r in [0, half - 1, half, half + 1, rows - 1] {
+            let mut one = Adam::<f64>::new(cfg.clone())
+                .with_group("q", LrSchedule::Constant(0.01 * scale[r]));
+            let pick = |t: &Tensor<f64>| {
+                Tensor::from_vec(t.data()[width * r..width * (r + 1)].to_vec(), &[1, width])
+            };
+            let mut q = pick(&init);
+            for i in 0..2 {
+                one.step_l2("q", &mut q, &pick(&grad), i, 0.1);
+            }
+            for c in 0..width {
+                let (got, want) = (p.data()[width * r + c], q.data()[c]);
+                assert!((got - want).abs() < 1e-14, "row {r}: {got} vs {want}");
+            }
+        }
     }
 
     #[test]
