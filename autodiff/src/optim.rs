@@ -215,16 +215,9 @@ impl<T: Float> Adam<T> {
                 *p -= step * zero_below(*m, step_min) / ((*v * inv_c2).sqrt() + eps);
             }
         };
-        match row_scale {
-            None => param
-                .data_mut()
-                .par_chunks_mut(ADAM_BLOCK)
-                .zip(grad.data().par_chunks(ADAM_BLOCK))
-                .zip(
-                    m.par_chunks_mut(ADAM_BLOCK)
-                        .zip(v.par_chunks_mut(ADAM_BLOCK)),
-                )
-                .for_each(|((p, g), (m, v))| update(p, g, m, v, step)),
+        // Rows (one element each when unscaled) in blocks of about ADAM_BLOCK elements.
+        let width = match row_scale {
+            None => 1,
             Some(scale) => {
                 let rows = param.rows();
                 assert_eq!(
@@ -236,26 +229,29 @@ impl<T: Float> Adam<T> {
                 if param.is_empty() {
                     return;
                 }
-                let width = param.len() / rows;
-                let block_rows = (ADAM_BLOCK / width).max(1);
-                let block = block_rows * width;
-                param
-                    .data_mut()
-                    .par_chunks_mut(block)
-                    .zip(grad.data().par_chunks(block))
-                    .zip(m.par_chunks_mut(block).zip(v.par_chunks_mut(block)))
-                    .zip(scale.par_chunks(block_rows))
-                    .for_each(|(((p, g), (m, v)), scale)| {
-                        let rows = p
-                            .chunks_mut(width)
-                            .zip(g.chunks(width))
-                            .zip(m.chunks_mut(width).zip(v.chunks_mut(width)));
-                        for (((p, g), (m, v)), &s) in rows.zip(scale) {
-                            update(p, g, m, v, step * s);
-                        }
-                    });
+                param.len() / rows
             }
-        }
+        };
+        let block_rows = (ADAM_BLOCK / width).max(1);
+        let block = block_rows * width;
+        param
+            .data_mut()
+            .par_chunks_mut(block)
+            .zip(grad.data().par_chunks(block))
+            .zip(m.par_chunks_mut(block).zip(v.par_chunks_mut(block)))
+            .enumerate()
+            .for_each(|(b, ((p, g), (m, v)))| match row_scale {
+                None => update(p, g, m, v, step),
+                Some(scale) => {
+                    let rows = p
+                        .chunks_mut(width)
+                        .zip(g.chunks(width))
+                        .zip(m.chunks_mut(width).zip(v.chunks_mut(width)));
+                    for (((p, g), (m, v)), &s) in rows.zip(&scale[b * block_rows..]) {
+                        update(p, g, m, v, step * s);
+                    }
+                }
+            });
     }
 
     /// The moments of `name`, for resizing with its parameter or checkpointing.

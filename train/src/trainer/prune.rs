@@ -18,8 +18,7 @@ use crate::forward::{deformed_at, fold_filter};
 /// `e_i = 1`: the first-order change of the image when the Gaussian fades out, signed.
 ///
 /// `deformed` is `[means, scales, quats, opacity, sh]` before the 3D filter (moved onto
-/// the tape, not copied); `filter`
-/// is folded in at `time` as in training (its opacity compensation is a factor, so
+/// the tape, not copied); `filter` is folded in at `time` as in training (its opacity compensation is a factor, so
 /// the derivative is the same before and after it).
 pub fn removal_sensitivity<T: SplatFloat>(
     deformed: [Tensor<T>; 5],
