@@ -125,26 +125,45 @@ fn resume_is_bit_identical() {
     let Some(data) = mutant() else { return };
     // A batch of views per iteration resumes on the same view sequence.
     for (kind, batch) in [("saro", 1), ("deform", 1), ("saro", 3)] {
-        resume_is_bit_identical_for(&data, kind, batch);
+        let cfg = TrainConfig {
+            iterations: 50,
+            batch,
+            ..tiny_config_of(kind, FilterKind::Motion)
+        };
+        resume_is_bit_identical_for(&data, &format!("{kind}_{batch}"), cfg);
+    }
+    // GroupFlow fitted before the checkpoint at 25, and at 25 itself (loading that
+    // checkpoint passes the fitting iteration again: the saved groups must win).
+    for at in [22, 25] {
+        let mut cfg = TrainConfig {
+            iterations: 50,
+            ..tiny_config_of("deform", FilterKind::Motion)
+        };
+        let ModelConfig::Deform(d) = &mut cfg.model else {
+            unreachable!("a deform config")
+        };
+        d.group_flow.groups = 16;
+        d.group_flow.at = at;
+        resume_is_bit_identical_for(&data, &format!("deform_groups_at_{at}"), cfg);
     }
 }
 
-fn resume_is_bit_identical_for(data: &Dataset, kind: &str, batch: usize) {
-    let cfg = TrainConfig {
-        iterations: 50,
-        batch,
-        ..tiny_config_of(kind, FilterKind::Motion)
-    };
+fn resume_is_bit_identical_for(data: &Dataset, kind: &str, cfg: TrainConfig) {
     let mut straight = Trainer::new(data, cfg.clone()).expect("trainer");
     for _ in 0..50 {
         straight.step();
     }
+    let grouped = straight
+        .model
+        .buffers()
+        .iter()
+        .any(|(n, _)| n == "group_flow/labels");
+    assert_eq!(grouped, kind.contains("groups"), "{kind}: GroupFlow stage");
     let mut first = Trainer::new(data, cfg).expect("trainer");
     for _ in 0..25 {
         first.step();
     }
-    let dir =
-        std::env::temp_dir().join(format!("maaf_resume_{kind}_{batch}_{}", std::process::id()));
+    let dir = std::env::temp_dir().join(format!("maaf_resume_{kind}_{}", std::process::id()));
     save_checkpoint(&first, &dir).expect("checkpoint");
     let mut resumed = load_checkpoint(data, &dir).expect("resume");
     assert_eq!(resumed.iteration, 25);

@@ -132,11 +132,11 @@ pub fn build_model(config: &ModelConfig, init: &ModelInit) -> Box<dyn Representa
             init.extent,
             init.seed,
         )),
-        ModelConfig::Deform(c) => Box::new(DeformModel::<f32>::from_point_cloud(
-            &init.cloud,
-            c.clone(),
-            init.seed,
-        )),
+        ModelConfig::Deform(c) => {
+            let mut m = DeformModel::<f32>::from_point_cloud(&init.cloud, c.clone(), init.seed);
+            m.set_frames(init.frames);
+            Box::new(m)
+        }
     }
 }
 

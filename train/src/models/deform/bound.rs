@@ -8,6 +8,7 @@ use maaf_autodiff::{Float, Var};
 use maaf_splat::GaussianVars;
 
 use super::DeformModel;
+use super::grouped::GroupMotion;
 use crate::models::Bound;
 use crate::models::encoding::positional_encoding;
 use crate::params::BoundParams;
@@ -20,6 +21,7 @@ pub struct DeformBound<'t, T: Float> {
     opacity: Var<'t, T>,
     sh: Var<'t, T>,
     net: Option<Network<'t, T>>,
+    groups: Option<GroupMotion<'t, T>>,
 }
 
 struct Network<'t, T: Float> {
@@ -68,6 +70,10 @@ impl<'t, T: Float> DeformBound<'t, T> {
                 after_skip: ids.after_skip.as_ref().map(|m| m.bind(p)),
             }
         });
+        let groups = model.grouped.as_ref().map(|g| {
+            let offsets = ids.group_nodes.expect("GroupFlow has its node parameter");
+            GroupMotion::new(g.clone(), model.params.value(ids.xyz), p.get(offsets))
+        });
         DeformBound {
             xyz,
             scales: p.get(ids.log_scale).exp(),
@@ -75,6 +81,7 @@ impl<'t, T: Float> DeformBound<'t, T> {
             opacity: p.get(ids.opacity).sigmoid(),
             sh,
             net,
+            groups,
         }
     }
 }
@@ -103,6 +110,15 @@ impl<'t, T: Float> Network<'t, T> {
 
 impl<'t, T: Float> Bound<'t, T> for DeformBound<'t, T> {
     fn deform(&self, time: f64) -> GaussianVars<'t, T> {
+        if let Some(groups) = &self.groups {
+            return GaussianVars {
+                means: self.xyz + groups.displacement(time),
+                scales: self.scales,
+                quats: self.unit_quats,
+                opacity: self.opacity,
+                sh: self.sh,
+            };
+        }
         let Some(net) = &self.net else {
             return GaussianVars {
                 means: self.xyz,

@@ -89,6 +89,42 @@ pub struct DeformConfig {
     pub spatial_lr_scale: f64,
     /// Learning rates.
     pub lr: DeformLr,
+    /// SpeeDe3DGS's GroupFlow (off by default: `groups` = 0).
+    pub group_flow: GroupFlowConfig,
+}
+
+/// GroupFlow (SpeeDe3DGS `OptimizationParams`: `gflow_num` 500 groups from
+/// `gflow_iteration` 15 000, at most `gflow_tnum_max` 200 time knots, node learning
+/// rate `gflow_xyz_lr` 1e-5). From iteration `at` on, Gaussians move with their
+/// group's rigid motion instead of the MLP (module `group_flow`).
+///
+/// The reference also trains the knots' rotations and translations, at a learning
+/// rate of 1e-7: an Adam step moves a value by about its learning rate, so over the
+/// 15 000 iterations left there they move by at most 1.5e-3. Here they stay as fitted
+/// and only the nodes train.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct GroupFlowConfig {
+    /// Number of groups (0 = off; the reference's 500 when on).
+    pub groups: usize,
+    /// Iteration at which the groups are fitted (the reference's 15 000, where
+    /// densification ends).
+    pub at: usize,
+    /// Most time knots (one per training frame up to this many).
+    pub max_knots: usize,
+    /// Learning rate of the group nodes.
+    pub node_lr: f64,
+}
+
+impl Default for GroupFlowConfig {
+    fn default() -> Self {
+        GroupFlowConfig {
+            groups: 0,
+            at: 15_000,
+            max_knots: 200,
+            node_lr: 1e-5,
+        }
+    }
 }
 
 impl Default for DeformConfig {
@@ -121,6 +157,7 @@ impl DeformConfig {
             warm_up: 3000,
             spatial_lr_scale: 5.0,
             lr: DeformLr::default(),
+            group_flow: GroupFlowConfig::default(),
         }
     }
 
@@ -200,6 +237,23 @@ impl DeformConfig {
         if self.sh_degree > 3 {
             return bad("sh_degree", "in 0..=3", &self.sh_degree);
         }
+        let g = &self.group_flow;
+        if g.groups > 0 && g.at < self.warm_up {
+            return bad(
+                "group_flow.at",
+                &format!(
+                    ">= warm_up = {} (the groups follow the MLP's motion)",
+                    self.warm_up
+                ),
+                &g.at,
+            );
+        }
+        if g.groups > 1_000_000 {
+            return bad("group_flow.groups", "in 0..=1000000", &g.groups);
+        }
+        if g.max_knots < 2 {
+            return bad("group_flow.max_knots", ">= 2", &g.max_knots);
+        }
         let l = &self.lr;
         if l.position_max_steps == 0 {
             return bad("lr.position_max_steps", ">= 1", &0);
@@ -217,6 +271,7 @@ impl DeformConfig {
             ("lr.opacity", l.opacity),
             ("lr.scaling", l.scaling),
             ("lr.rotation", l.rotation),
+            ("group_flow.node_lr", g.node_lr),
         ];
         for (name, v) in non_negative {
             if !(v.is_finite() && v >= 0.0) {

@@ -19,24 +19,42 @@
 //! the centre's gradient comes only through `mu(t) = x + dx`. For iterations
 //! `< warm_up` the model renders the canonical Gaussians (no network).
 //!
+//! With `group_flow.groups > 0`, from iteration `group_flow.at` on the Gaussians
+//! follow SpeeDe3DGS's GroupFlow instead of the MLP (module [`group_flow`] gives the
+//! fit): Gaussian i of group g, with stored centre x and knot-0 offset o (the MLP's
+//! `dx` at t = 0 when the groups were fitted), sits at
+//! `mu(t) = x + R_g(t) (sg(x) + o - n_g) + n_g + T_g(t) - sg(x)` (the reference's
+//! `x + d_xyz` with `d_xyz` computed from the detached centre), with quaternion and
+//! scale as stored (the reference's default, `gflow_local_rot = False`). The nodes
+//! `n_g` = fitted centroid + a trained offset.
+//!
 //! Ours, not the reference's: the head starts at zero (PyTorch's default
 //! initialisation there), so the first dynamic iteration renders the warmed-up
 //! scene unchanged instead of a random deformation of it.
 
 mod bound;
 mod config;
+mod group_flow;
+mod grouped;
+mod rigid_fit;
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_group_flow;
+
+use std::sync::Arc;
 
 use maaf_autodiff::nn::Mlp;
 use maaf_autodiff::optim::LrSchedule;
-use maaf_autodiff::{Float, Tensor};
+use maaf_autodiff::{Float, PerGaussian, Tensor};
 
 use super::{Bound, CanonicalIds, InitialGaussians, PointCloud, Representation};
 use crate::params::{BoundParams, MlpParams, ParamId, ParamStore, Rows};
 
 pub use bound::DeformBound;
-pub use config::{DeformConfig, DeformLr};
+pub use config::{DeformConfig, DeformLr, GroupFlowConfig};
+pub use group_flow::GroupFlow;
+pub use grouped::Grouped;
 
 /// Where each parameter sits in the store.
 #[derive(Clone, Debug, PartialEq)]
@@ -60,6 +78,8 @@ pub struct DeformIds {
     pub trunk: MlpParams,
     /// Layers after the skip and the 10-output head (`None` without `skip`).
     pub after_skip: Option<MlpParams>,
+    /// Trained offsets of the GroupFlow nodes \[groups, 3] (with `group_flow.groups > 0`).
+    pub group_nodes: Option<ParamId>,
 }
 
 /// The Deformable-3DGS model: parameters, where each one is, and its stage.
@@ -72,6 +92,12 @@ pub struct DeformModel<T: Float> {
     /// Where each one is.
     pub ids: DeformIds,
     dynamic: bool,
+    /// Number of training frames (the GroupFlow knots follow it; 0 = unknown).
+    frames: usize,
+    /// The GroupFlow stage, once fitted.
+    grouped: Option<Arc<Grouped>>,
+    /// Group buffers of a checkpoint, kept until all of them have arrived.
+    pending: Vec<(String, Tensor<T>)>,
     /// Test-only: treat `|q|` as a constant in the backward (negative control).
     #[cfg(test)]
     detach_norm: bool,
@@ -135,6 +161,15 @@ impl<T: Float> DeformModel<T> {
             ),
             (all, None) => (mlp("deform", &all, true, 2), None),
         };
+        let group_nodes = (config.group_flow.groups > 0).then(|| {
+            p.add(
+                "group_nodes",
+                Tensor::zeros(&[config.group_flow.groups, 3]),
+                Rows::Shared,
+                LrSchedule::Constant(config.group_flow.node_lr),
+                0.0,
+            )
+        });
         DeformModel {
             config,
             params: p,
@@ -148,16 +183,50 @@ impl<T: Float> DeformModel<T> {
                 time_net,
                 trunk,
                 after_skip,
+                group_nodes,
             },
             dynamic: false,
+            frames: 0,
+            grouped: None,
+            pending: Vec::new(),
             #[cfg(test)]
             detach_norm: false,
         }
     }
 
-    /// Whether the network is used (iteration >= `warm_up`).
+    /// Sets the number of training frames, which fixes the GroupFlow knots
+    /// (`min(frames, group_flow.max_knots)`, at least 2).
+    pub fn set_frames(&mut self, frames: usize) {
+        self.frames = frames;
+    }
+
+    /// The fitted GroupFlow stage, if reached.
+    pub fn grouped(&self) -> Option<&Grouped> {
+        self.grouped.as_deref()
+    }
+
+    /// Fits the groups to the MLP's motion now (normally at iteration
+    /// `group_flow.at`, from [`Representation::set_iteration`]), with one knot per
+    /// training frame up to `max_knots` (`max_knots` when the frames are unknown).
+    pub fn fit_groups(&mut self) {
+        self.grouped = None;
+        let cap = self.config.group_flow.max_knots;
+        let knots = if self.frames == 0 {
+            cap
+        } else {
+            self.frames.min(cap)
+        }
+        .max(2);
+        let times: Vec<f64> = (0..knots).map(|k| k as f64 / (knots - 1) as f64).collect();
+        let centres = Representation::centres_at_times(self, &times);
+        let stored = self.params.value(self.ids.xyz).clone();
+        let groups = self.config.group_flow.groups;
+        self.grouped = Some(Arc::new(Grouped::fit(&stored, &centres, groups)));
+    }
+
+    /// Whether the network is used (iteration >= `warm_up`, before GroupFlow).
     pub fn is_dynamic(&self) -> bool {
-        self.dynamic
+        self.dynamic && self.grouped.is_none()
     }
 
     /// Forces the stage (normally set by [`Representation::set_iteration`]).
@@ -169,6 +238,7 @@ impl<T: Float> DeformModel<T> {
     pub fn network_params(&self) -> usize {
         let p = &self.params;
         let mut n = self.ids.trunk.num_params(p);
+        n += self.ids.group_nodes.map_or(0, |id| p.value(id).len());
         n += self.ids.after_skip.as_ref().map_or(0, |m| m.num_params(p));
         n + self.ids.time_net.as_ref().map_or(0, |m| m.num_params(p))
     }
@@ -206,8 +276,47 @@ impl<T: Float> Representation<T> for DeformModel<T> {
     }
 
     /// Static for iterations `< warm_up`, deformed from then on (Deformable-3DGS
-    /// `train.py`: `if iteration < opt.warm_up: d_xyz = 0`).
+    /// `train.py`: `if iteration < opt.warm_up: d_xyz = 0`); with GroupFlow, the groups
+    /// are fitted at iteration `group_flow.at` (SpeeDe3DGS `train.py`:
+    /// `if iteration == opt.gflow_iteration: do_group_flow`).
     fn set_iteration(&mut self, iteration: usize) {
         self.dynamic = iteration >= self.config.warm_up;
+        let g = &self.config.group_flow;
+        if g.groups > 0 && iteration == g.at && self.grouped.is_none() {
+            self.fit_groups();
+        }
+    }
+
+    fn select_rows(&mut self, index: &[usize]) {
+        self.params.select_rows(index);
+        if let Some(g) = &mut self.grouped {
+            Arc::make_mut(g).select_rows(index);
+        }
+    }
+
+    /// Parameters plus the GroupFlow tables once fitted.
+    fn num_scalars(&self) -> usize {
+        self.params.num_scalars() + self.grouped.as_ref().map_or(0, |g| g.num_scalars())
+    }
+
+    fn buffers(&self) -> Vec<(String, Tensor<T>)> {
+        self.grouped
+            .as_ref()
+            .map_or_else(Vec::new, |g| g.to_buffers())
+    }
+
+    /// Collects the GroupFlow buffers; the stage is restored once all have arrived.
+    fn load_buffer(&mut self, name: &str, value: Tensor<T>) -> Result<(), String> {
+        if !Grouped::BUFFERS.contains(&name) {
+            return Err(format!("deform has no buffer `{name}`"));
+        }
+        self.pending.retain(|(n, _)| n != name);
+        self.pending.push((name.to_string(), value));
+        if self.pending.len() == Grouped::BUFFERS.len() {
+            let n = self.params.value(self.ids.xyz).rows();
+            let g = Grouped::from_buffers(std::mem::take(&mut self.pending), n)?;
+            self.grouped = Some(Arc::new(g));
+        }
+        Ok(())
     }
 }

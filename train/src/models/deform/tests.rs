@@ -4,7 +4,7 @@ use maaf_autodiff::{Tape, Var};
 
 use super::*;
 
-fn tiny_config() -> DeformConfig {
+pub(super) fn tiny_config() -> DeformConfig {
     DeformConfig {
         depth: 4,
         width: 5,
@@ -27,7 +27,7 @@ fn tiny_model<T: Float>(config: DeformConfig, n: usize, seed: u64) -> DeformMode
 
 /// Nothing trivially zero or unit: a random head, random higher SH bands, scales and
 /// unnormalised quaternions.
-fn busy_model(config: DeformConfig, n: usize) -> DeformModel<f64> {
+pub(super) fn busy_model(config: DeformConfig, n: usize) -> DeformModel<f64> {
     let mut m = tiny_model::<f64>(config, n, 5);
     let head = m
         .ids
@@ -192,7 +192,7 @@ fn zero_head_and_warm_up_render_the_canonical_gaussians() {
 }
 
 /// Every deformed output at two times, flattened into one vector.
-fn all_outputs<'t>(m: &DeformModel<f64>, v: &[Var<'t, f64>]) -> Var<'t, f64> {
+pub(super) fn all_outputs<'t>(m: &DeformModel<f64>, v: &[Var<'t, f64>]) -> Var<'t, f64> {
     let params = BoundParams::from_vars(&m.params, v);
     crate::models::flatten_outputs(&*m.bind(&params), &[0.2, 0.75])
 }
