@@ -9,7 +9,8 @@ use crate::models::ModelConfig;
 
 /// Densification schedule and thresholds (3DGS `densify_and_prune`, SaRO-GS D-NeRF
 /// config: from 500 to 15 000 every 100, gradient threshold 2e-4, opacity reset every
-/// 2000, prune below opacity 0.005, clone/split boundary 0.01 x scene extent).
+/// 2000, prune below opacity 0.005, clone/split boundary 0.01 x scene extent, and
+/// after the first reset prune above 0.1 x scene extent).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct DensifyConfig {
@@ -28,7 +29,15 @@ pub struct DensifyConfig {
     pub min_opacity: f64,
     /// Clone if the largest scale is at most this fraction of the scene extent, else split.
     pub percent_dense: f64,
-    /// After the first opacity reset, prune Gaussians whose screen radius exceeded this (pixels).
+    /// After the first opacity reset, prune Gaussians whose largest activated scale
+    /// exceeds this fraction of the scene extent (3DGS `big_points_ws`, 0.1; 0 = off).
+    pub max_world_size: f64,
+    /// After the first opacity reset, prune Gaussians whose screen radius since the
+    /// last densification exceeded this many pixels (0 = off, the default). 3DGS and
+    /// the 4D references pass 20, but `densification_postfix` zeroes `max_radii2D`
+    /// before `densify_and_prune` reads it, so their test never fires; gsplat leaves it
+    /// off too. Live, it prunes by a pixel count that does not follow the training
+    /// resolution: at 400x400 it emptied a Deformable-3DGS mutant run by iteration 6000.
     pub max_screen_size: f64,
     /// Hard cap on the number of Gaussians (CPU budget); growth stops there.
     pub max_gaussians: usize,
@@ -44,7 +53,8 @@ impl Default for DensifyConfig {
             opacity_reset_every: 2000,
             min_opacity: 0.005,
             percent_dense: 0.01,
-            max_screen_size: 20.0,
+            max_world_size: 0.1,
+            max_screen_size: 0.0,
             max_gaussians: 60_000,
         }
     }
@@ -237,11 +247,19 @@ impl TrainConfig {
         let positive = [
             ("densify.grad_threshold", d.grad_threshold),
             ("densify.percent_dense", d.percent_dense),
-            ("densify.max_screen_size", d.max_screen_size),
         ];
         for (field, v) in positive {
             if !(v.is_finite() && v > 0.0) {
                 return Err(bad(field, &v, "a finite number > 0"));
+            }
+        }
+        let off_or_positive = [
+            ("densify.max_world_size", d.max_world_size),
+            ("densify.max_screen_size", d.max_screen_size),
+        ];
+        for (field, v) in off_or_positive {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(bad(field, &v, "a finite number >= 0 (0 = off)"));
             }
         }
         in_range("densify.min_opacity", d.min_opacity, 0.0, 1.0)?;

@@ -125,9 +125,10 @@ pub struct DensifyPlan {
 ///   scale is `<= percent_dense * extent` are cloned (a copy at the same place),
 ///   the others split into two Gaussians sampled from the original
 ///   (`mu + R (s * n)`, `n ~ N(0, I)`) with scale `s / 1.6`;
-/// - pruned: base opacity `< min_opacity`, screen radius above `max_screen_size`
-///   when `big_screen` is set (after the first opacity reset), and whatever the
-///   representation reports as short-lived; a pruned Gaussian is neither cloned nor split;
+/// - pruned: base opacity `< min_opacity`; when `big_screen` is set (after the first
+///   opacity reset) largest scale `> max_world_size * extent` and, if enabled, screen
+///   radius above `max_screen_size`; and whatever the representation reports as
+///   short-lived; a pruned Gaussian is neither cloned nor split;
 /// - growth stops at `max_gaussians`, taking the largest gradients first;
 /// - the mean gradient is first multiplied by the representation's
 ///   [`Representation::densify_grad_scale`] (SaRO: the adaptive-optimisation scale).
@@ -151,17 +152,21 @@ pub fn plan(
     for i in model.short_lived() {
         prune[i] = true;
     }
-    for (i, p) in prune.iter_mut().enumerate() {
-        let o = canon.opacity.data()[i] as f64;
-        if o < cfg.min_opacity || (big_screen && stats.max_radii[i] as f64 > cfg.max_screen_size) {
-            *p = true;
-        }
-    }
     let max_scale = |i: usize| {
         canon.scales.data()[3 * i..3 * i + 3]
             .iter()
             .fold(0.0f32, |a, &b| a.max(b)) as f64
     };
+    let too_big = |i: usize| {
+        let world = cfg.max_world_size > 0.0 && max_scale(i) > cfg.max_world_size * extent;
+        let screen = cfg.max_screen_size > 0.0 && stats.max_radii[i] as f64 > cfg.max_screen_size;
+        big_screen && (world || screen)
+    };
+    for (i, p) in prune.iter_mut().enumerate() {
+        if (canon.opacity.data()[i] as f64) < cfg.min_opacity || too_big(i) {
+            *p = true;
+        }
+    }
     let mut candidates: Vec<usize> = (0..n)
         .filter(|&i| !prune[i] && grad[i] as f64 >= cfg.grad_threshold)
         .collect();
@@ -302,5 +307,41 @@ mod tests {
         assert_eq!(s.grad_accum, vec![6.0, 2.0, 0.0]);
         assert_eq!(s.denom, vec![1.0, 1.0, 0.0]);
         assert_eq!(s.max_radii, vec![6.0, 4.0, 0.0]);
+    }
+    /// After the first reset, a Gaussian larger than 0.1 x the extent in the world is
+    /// pruned (3DGS `big_points_ws`) and one large on screen only when the screen
+    /// test is switched on; before it, neither.
+    #[test]
+    fn big_gaussians_are_pruned_by_world_size_and_screen_size_only_on_request() {
+        use crate::models::{DeformConfig, DeformModel, PointCloud};
+        let cloud = PointCloud::random_in_box(3, -1.0, 1.0, 4);
+        let mut model = DeformModel::<f32>::from_point_cloud(&cloud, DeformConfig::default(), 4);
+        let ids = model.canonical_ids();
+        // Row 0: 0.5 wide (extent 4: 0.125 x extent); rows 1-2: 0.05 wide.
+        let scales = [0.5f32, 0.05, 0.05]
+            .iter()
+            .flat_map(|&s| [s.ln(); 3])
+            .collect();
+        *model.params_mut().value_mut(ids.log_scales) = Tensor::from_vec(scales, &[3, 3]);
+        *model.params_mut().value_mut(ids.opacity_logits) = Tensor::from_vec(vec![2.0; 3], &[3]);
+        let mut stats = DensifyStats::new(3);
+        stats.max_radii = vec![1.0, 30.0, 1.0];
+        let cfg = DensifyConfig::default();
+        let pruned = |cfg: &DensifyConfig, after_reset| {
+            let p = plan(&model, &stats, cfg, 4.0, after_reset, 0);
+            (0..3).filter(|i| !p.index.contains(i)).collect::<Vec<_>>()
+        };
+        assert_eq!(pruned(&cfg, false), Vec::<usize>::new());
+        assert_eq!(pruned(&cfg, true), vec![0]);
+        let screen = DensifyConfig {
+            max_screen_size: 20.0,
+            ..cfg.clone()
+        };
+        assert_eq!(pruned(&screen, true), vec![0, 1]);
+        let neither = DensifyConfig {
+            max_world_size: 0.0,
+            ..cfg
+        };
+        assert_eq!(pruned(&neither, true), Vec::<usize>::new());
     }
 }
