@@ -224,6 +224,21 @@ fn a_nan_is_caught_and_never_checkpointed() {
     }
 }
 
+#[test]
+fn a_run_without_gaussians_stops_with_one_line() {
+    let Some(data) = mutant() else { return };
+    let mut t = Trainer::new(&data, tiny_config(FilterKind::Mip3d)).expect("trainer");
+    t.step();
+    assert!(t.check_health().is_ok());
+    t.apply_plan(&DensifyPlan::default());
+    assert_eq!(t.num_gaussians(), 0);
+    let e = t
+        .check_health()
+        .expect_err("an empty model is not healthy")
+        .to_string();
+    assert!(e.contains("pruned every Gaussian"), "{e}");
+}
+
 /// After clone, split and prune through `Trainer::apply_plan`, the parameters, their
 /// Adam moments, the motion filter's curves, the observation table and the
 /// densification statistics all have the new length, survivors keep their values

@@ -1,4 +1,5 @@
-//! Divergence: a run whose parameters stop being finite, or that skips more than
+//! Divergence: a run whose parameters stop being finite, that has pruned every
+//! Gaussian, or that skips more than
 //! `max_skipped_fraction` of its steps (after `skip_grace` iterations), is stopped
 //! with one line naming the iteration and the last reason a step was skipped (with
 //! `validate: true` the tape names the first op that produced a non-finite value).
@@ -17,10 +18,15 @@ impl Trainer {
     }
 
     /// `Err` when the run has diverged at its current iteration: a non-finite
-    /// parameter, or `skipped_steps > max_skipped_fraction * iteration` once
-    /// `iteration >= skip_grace`.
+    /// parameter, no Gaussian left, or `skipped_steps > max_skipped_fraction *
+    /// iteration` once `iteration >= skip_grace`.
     pub fn check_health(&self) -> Result<(), Error> {
         let it = self.iteration;
+        if self.num_gaussians() == 0 {
+            return Err(Error::Input(format!(
+                "iteration {it}: training collapsed: densification pruned every Gaussian (see `densify` in the config)"
+            )));
+        }
         if let Some((name, index, value)) = self.first_non_finite_param() {
             return Err(Error::Input(format!(
                 "iteration {it}: training diverged: parameter `{name}` is {value} at flat index {index}; lower the learning rates"
