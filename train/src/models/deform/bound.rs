@@ -72,7 +72,13 @@ impl<'t, T: Float> DeformBound<'t, T> {
         });
         let groups = model.grouped.as_ref().map(|g| {
             let offsets = ids.group_nodes.expect("GroupFlow has its node parameter");
-            GroupMotion::new(g.clone(), model.params.value(ids.xyz), p.get(offsets))
+            let rotate = model.config.group_flow.rotate_gaussians;
+            GroupMotion::new(
+                g.clone(),
+                model.params.value(ids.xyz),
+                p.get(offsets),
+                rotate,
+            )
         });
         DeformBound {
             xyz,
@@ -108,25 +114,34 @@ impl<'t, T: Float> Network<'t, T> {
     }
 }
 
+impl<'t, T: Float> DeformBound<'t, T> {
+    /// The canonical Gaussians: stored centres, activated scales, unit quaternions.
+    pub fn deform_canonical(&self) -> GaussianVars<'t, T> {
+        GaussianVars {
+            means: self.xyz,
+            scales: self.scales,
+            quats: self.unit_quats,
+            opacity: self.opacity,
+            sh: self.sh,
+        }
+    }
+}
+
 impl<'t, T: Float> Bound<'t, T> for DeformBound<'t, T> {
     fn deform(&self, time: f64) -> GaussianVars<'t, T> {
         if let Some(groups) = &self.groups {
+            let motions = groups.motions(time);
+            let (scales, quats) = groups.shape(self.scales, self.unit_quats, &motions);
             return GaussianVars {
-                means: self.xyz + groups.displacement(time),
-                scales: self.scales,
-                quats: self.unit_quats,
+                means: self.xyz + groups.displacement(&motions),
+                scales,
+                quats,
                 opacity: self.opacity,
                 sh: self.sh,
             };
         }
         let Some(net) = &self.net else {
-            return GaussianVars {
-                means: self.xyz,
-                scales: self.scales,
-                quats: self.unit_quats,
-                opacity: self.opacity,
-                sh: self.sh,
-            };
+            return self.deform_canonical();
         };
         let d = net.residuals(time);
         GaussianVars {

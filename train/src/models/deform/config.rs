@@ -114,6 +114,9 @@ pub struct GroupFlowConfig {
     pub max_knots: usize,
     /// Learning rate of the group nodes.
     pub node_lr: f64,
+    /// Turn each Gaussian's quaternion with its group (the reference's
+    /// `gflow_local_rot`, off there by default; on here).
+    pub rotate_gaussians: bool,
 }
 
 impl Default for GroupFlowConfig {
@@ -123,6 +126,7 @@ impl Default for GroupFlowConfig {
             at: 15_000,
             max_knots: 200,
             node_lr: 1e-5,
+            rotate_gaussians: true,
         }
     }
 }

@@ -46,7 +46,7 @@ use std::sync::Arc;
 
 use maaf_autodiff::nn::Mlp;
 use maaf_autodiff::optim::LrSchedule;
-use maaf_autodiff::{Float, PerGaussian, Tensor};
+use maaf_autodiff::{Float, PerGaussian, Tape, Tensor};
 
 use super::{Bound, CanonicalIds, InitialGaussians, PointCloud, Representation};
 use crate::params::{BoundParams, MlpParams, ParamId, ParamStore, Rows};
@@ -54,7 +54,7 @@ use crate::params::{BoundParams, MlpParams, ParamId, ParamStore, Rows};
 pub use bound::DeformBound;
 pub use config::{DeformConfig, DeformLr, GroupFlowConfig};
 pub use group_flow::GroupFlow;
-pub use grouped::Grouped;
+pub use grouped::{Grouped, KnotZero};
 
 /// Where each parameter sits in the store.
 #[derive(Clone, Debug, PartialEq)]
@@ -219,9 +219,26 @@ impl<T: Float> DeformModel<T> {
         .max(2);
         let times: Vec<f64> = (0..knots).map(|k| k as f64 / (knots - 1) as f64).collect();
         let centres = Representation::centres_at_times(self, &times);
-        let stored = self.params.value(self.ids.xyz).clone();
+        let tape = Tape::new();
+        let params = self.params.bind_constants(&tape);
+        let bound = self.bind_deform(&params);
+        let at0 = bound.deform(0.0);
+        let canonical = bound.deform_canonical();
         let groups = self.config.group_flow.groups;
-        self.grouped = Some(Arc::new(Grouped::fit(&stored, &centres, groups)));
+        let fitted = Grouped::fit(
+            &KnotZero {
+                stored: self.params.value(self.ids.xyz),
+                scales: &canonical.scales.value(),
+                unit_quats: &canonical.quats.value(),
+                scales_at_0: &at0.scales.value(),
+                quats_at_0: &at0.quats.value(),
+            },
+            &centres,
+            groups,
+        );
+        drop(bound);
+        drop(params);
+        self.grouped = Some(Arc::new(fitted));
     }
 
     /// Whether the network is used (iteration >= `warm_up`, before GroupFlow).

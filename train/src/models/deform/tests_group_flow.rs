@@ -2,6 +2,7 @@ use glam::{DQuat, DVec3};
 use maaf_autodiff::Tape;
 use maaf_autodiff::check::{GradcheckConfig, gradcheck, tests_support::random_tensor};
 
+use super::group_flow::GroupFlow;
 use super::tests::{all_outputs, busy_model, tiny_config};
 use super::*;
 
@@ -13,6 +14,7 @@ fn grouped_config() -> DeformConfig {
             at: 9,
             max_knots: 5,
             node_lr: 1e-5,
+            rotate_gaussians: true,
         },
         ..tiny_config()
     }
@@ -127,12 +129,44 @@ fn exp_rot(w: [f64; 3]) -> M3 {
     r
 }
 
-/// `mu(t)` of Gaussian i by the reference's formulas, one Gaussian at a time, with
-/// rotation matrices: `R = R_k exp(r log(R_k^T R_k+1))`.
-fn slow_centre(m: &DeformModel<f64>, i: usize, time: f64) -> [f64; 3] {
-    let g = m.grouped().expect("grouped");
-    let f = &g.flow;
-    let l = f.labels[i];
+/// Rotation matrix to a unit quaternion (w, x, y, z), up to sign (Shepperd's method).
+fn quat_of(r: &M3) -> [f64; 4] {
+    let tr = r[0][0] + r[1][1] + r[2][2];
+    let cands = [
+        1.0 + tr,
+        1.0 + r[0][0] - r[1][1] - r[2][2],
+        1.0 - r[0][0] + r[1][1] - r[2][2],
+        1.0 - r[0][0] - r[1][1] + r[2][2],
+    ];
+    let k = (0..4)
+        .max_by(|&a, &b| cands[a].total_cmp(&cands[b]))
+        .unwrap_or(0);
+    let s = 2.0 * cands[k].sqrt();
+    let (a, b, c) = (r[2][1] - r[1][2], r[0][2] - r[2][0], r[1][0] - r[0][1]);
+    let (d, e, f) = (r[0][1] + r[1][0], r[0][2] + r[2][0], r[1][2] + r[2][1]);
+    match k {
+        0 => [s / 4.0, a / s, b / s, c / s],
+        1 => [a / s, s / 4.0, d / s, e / s],
+        2 => [b / s, d / s, s / 4.0, f / s],
+        _ => [c / s, e / s, f / s, s / 4.0],
+    }
+}
+
+/// Hamilton product of (w, x, y, z) quaternions.
+fn hamilton(p: [f64; 4], q: [f64; 4]) -> [f64; 4] {
+    let [a, b, c, d] = p;
+    let [e, f, g, h] = q;
+    [
+        a * e - b * f - c * g - d * h,
+        a * f + b * e + c * h - d * g,
+        a * g - b * h + c * e + d * f,
+        a * h + b * g - c * f + d * e,
+    ]
+}
+
+/// The group's rotation matrix and translation at `time` by the reference's formula
+/// `R = R_k exp(r log(R_k^T R_k+1))`, `T = lerp`.
+fn slow_rotation(f: &GroupFlow, l: usize, time: f64) -> (M3, DVec3) {
     let s = time.clamp(0.0, 1.0) * (f.knots - 1) as f64;
     let k = (s.floor() as usize).min(f.knots - 2);
     let r = s - k as f64;
@@ -148,7 +182,27 @@ fn slow_centre(m: &DeformModel<f64>, i: usize, time: f64) -> [f64; 3] {
         f.translations[l * f.knots + k],
         f.translations[l * f.knots + k + 1],
     );
-    let tr = ta * (1.0 - r) + tb * r;
+    (rot, ta * (1.0 - r) + tb * r)
+}
+
+/// Quaternion of Gaussian i at `time`, one Gaussian at a time: the group's turn times
+/// the knot-0 quaternion `q / |q| + dq_0`.
+fn slow_quat(m: &DeformModel<f64>, i: usize, time: f64) -> [f64; 4] {
+    let g = m.grouped().expect("grouped");
+    let q = &m.params.value(m.ids.rotation).data()[4 * i..4 * i + 4];
+    let norm = q.iter().map(|v| v * v).sum::<f64>().sqrt();
+    let q0: [f64; 4] = std::array::from_fn(|j| q[j] / norm + g.quat0[i][j]);
+    let (rot, _) = slow_rotation(&g.flow, g.flow.labels[i], time);
+    hamilton(quat_of(&rot), q0)
+}
+
+/// `mu(t)` of Gaussian i by the reference's formulas, one Gaussian at a time, with
+/// rotation matrices: `R = R_k exp(r log(R_k^T R_k+1))`.
+fn slow_centre(m: &DeformModel<f64>, i: usize, time: f64) -> [f64; 3] {
+    let g = m.grouped().expect("grouped");
+    let f = &g.flow;
+    let l = f.labels[i];
+    let (rot, tr) = slow_rotation(f, l, time);
     let delta = &m.params.value(m.ids.group_nodes.expect("on")).data()[3 * l..3 * l + 3];
     let node = f.nodes[l] + DVec3::from_slice(delta);
     let x = DVec3::from_slice(&m.params.value(m.ids.xyz).data()[3 * i..3 * i + 3]);
@@ -160,7 +214,7 @@ fn slow_centre(m: &DeformModel<f64>, i: usize, time: f64) -> [f64; 3] {
 }
 
 #[test]
-fn grouped_centres_match_a_per_gaussian_loop_and_keep_the_canonical_shape() {
+fn grouped_gaussians_match_a_per_gaussian_loop() {
     let m = grouped_model(9);
     let tape = Tape::new();
     let bound = m.bind_deform(&m.params.bind(&tape));
@@ -178,8 +232,25 @@ fn grouped_centres_match_a_per_gaussian_loop_and_keep_the_canonical_shape() {
                 );
             }
         }
-        // No local rotation or scale residual (the reference's default).
-        assert_eq!(*g.scales.value(), canon.scales);
+        let grouped = m.grouped().expect("grouped");
+        for i in 0..9 {
+            for a in 0..3 {
+                let want = canon.scales.data()[3 * i + a] + grouped.scale0[i][a];
+                assert!((g.scales.value().data()[3 * i + a] - want).abs() < 1e-12);
+            }
+            // A quaternion and its negative are the same turn.
+            let want = slow_quat(&m, i, time);
+            let got = g.quats.value().data()[4 * i..4 * i + 4].to_vec();
+            let err = |sign: f64| {
+                (0..4)
+                    .map(|j| (got[j] - sign * want[j]).abs())
+                    .fold(0.0, f64::max)
+            };
+            assert!(
+                err(1.0).min(err(-1.0)) < 1e-12,
+                "row {i} t {time}: {got:?} vs {want:?}"
+            );
+        }
         assert_eq!(*g.opacity.value(), canon.opacity);
     }
 }
@@ -189,13 +260,19 @@ fn at_the_fit_the_groups_continue_the_mlp_at_knot_zero() {
     let mut before = busy_model(grouped_config(), 12);
     before.set_frames(4);
     before.set_iteration(8);
-    let mlp = before.centres_at_times(&[0.0]).remove(0);
     let mut after = before.clone();
     after.set_iteration(9);
     assert!(before.is_dynamic() && !after.is_dynamic());
-    let grouped = after.centres_at_times(&[0.0]).remove(0);
-    for (a, b) in mlp.data().iter().zip(grouped.data()) {
-        assert!((a - b).abs() < 1e-12, "{a} vs {b}");
+    // Centre, scale and quaternion: the MLP's knot-0 residuals are kept.
+    let at0 = |m: &DeformModel<f64>| {
+        let tape = Tape::new();
+        let g = m.bind_deform(&m.params.bind(&tape)).deform(0.0);
+        [g.means, g.scales, g.quats].map(|v| v.value().clone())
+    };
+    for (mlp, grouped) in at0(&before).iter().zip(at0(&after)) {
+        for (a, b) in mlp.data().iter().zip(grouped.data()) {
+            assert!((a - b).abs() < 1e-12, "{a} vs {b}");
+        }
     }
     // A second call at the same iteration (a checkpoint load) keeps the fit.
     let fit = after.grouped.clone().expect("fitted");
@@ -232,7 +309,7 @@ fn buffers_restore_the_stage_bit_for_bit_and_bad_ones_are_named() {
     let mut fresh = busy_model(grouped_config(), 8);
     *fresh.params.value_mut(fresh.ids.xyz) = m.params.value(m.ids.xyz).clone();
     for (j, (name, value)) in buffers.iter().enumerate() {
-        assert!(fresh.grouped().is_none(), "restored after {j} of 5 buffers");
+        assert!(fresh.grouped().is_none(), "restored after {j} of 7 buffers");
         fresh.load_buffer(name, value.clone()).expect("load");
     }
     assert_eq!(fresh.grouped(), m.grouped());
