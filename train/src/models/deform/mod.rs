@@ -24,9 +24,12 @@
 //! fit): Gaussian i of group g, with stored centre x and knot-0 offset o (the MLP's
 //! `dx` at t = 0 when the groups were fitted), sits at
 //! `mu(t) = x + R_g(t) (sg(x) + o - n_g) + n_g + T_g(t) - sg(x)` (the reference's
-//! `x + d_xyz` with `d_xyz` computed from the detached centre), with quaternion and
-//! scale as stored (the reference's default, `gflow_local_rot = False`). The nodes
-//! `n_g` = fitted centroid + a trained offset.
+//! `x + d_xyz` with `d_xyz` computed from the detached centre), scale
+//! `exp(log s) + ds_0` and quaternion `r_g(t) (q / |q| + dq_0)`, where `ds_0`, `dq_0`
+//! are the MLP's residuals at t = 0 when the groups were fitted and `r_g(t)` the
+//! group's turn (ours: the reference drops the residuals, and turns the quaternion
+//! only with `gflow_local_rot`; on mutant dropping them cost 20 dB at the switch).
+//! The nodes `n_g` = fitted centroid + a trained offset.
 //!
 //! Ours, not the reference's: the head starts at zero (PyTorch's default
 //! initialisation there), so the first dynamic iteration renders the warmed-up
