@@ -70,20 +70,22 @@ impl<'t, T: Float> DeformBound<'t, T> {
                 after_skip: ids.after_skip.as_ref().map(|m| m.bind(p)),
             }
         });
+        let scales = p.get(ids.log_scale).exp();
+        let unit_quats = q / norm;
         let groups = model.grouped.as_ref().map(|g| {
             let offsets = ids.group_nodes.expect("GroupFlow has its node parameter");
-            let rotate = model.config.group_flow.rotate_gaussians;
             GroupMotion::new(
                 g.clone(),
                 model.params.value(ids.xyz),
                 p.get(offsets),
-                rotate,
+                [scales, unit_quats],
+                model.config.group_flow.rotate_gaussians,
             )
         });
         DeformBound {
             xyz,
-            scales: p.get(ids.log_scale).exp(),
-            unit_quats: q / norm,
+            scales,
+            unit_quats,
             opacity: p.get(ids.opacity).sigmoid(),
             sh,
             net,
@@ -131,7 +133,7 @@ impl<'t, T: Float> Bound<'t, T> for DeformBound<'t, T> {
     fn deform(&self, time: f64) -> GaussianVars<'t, T> {
         if let Some(groups) = &self.groups {
             let motions = groups.motions(time);
-            let (scales, quats) = groups.shape(self.scales, self.unit_quats, &motions);
+            let (scales, quats) = groups.shape(&motions);
             return GaussianVars {
                 means: self.xyz + groups.displacement(&motions),
                 scales,

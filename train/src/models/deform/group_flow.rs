@@ -67,14 +67,15 @@ impl GroupFlow {
         let labels: Vec<usize> = (0..n)
             .into_par_iter()
             .map(|i| {
-                let cost = |&s: &usize| {
-                    let d: Vec<f64> = assign
-                        .iter()
-                        .map(|&k| trajectories[k][i].distance(trajectories[k][s]))
-                        .collect();
+                // One distance buffer per Gaussian, reused for every seed.
+                let mut d = vec![0.0; assign.len()];
+                let mut cost = |s: usize| {
+                    for (dj, &k) in d.iter_mut().zip(&assign) {
+                        *dj = trajectories[k][i].distance(trajectories[k][s]);
+                    }
                     0.5 * std_unbiased(&d) + 0.5 * mean(&d)
                 };
-                let costs: Vec<f64> = seeds.iter().map(cost).collect();
+                let costs: Vec<f64> = seeds.iter().map(|&s| cost(s)).collect();
                 (0..seeds.len())
                     .min_by(|&a, &b| costs[a].total_cmp(&costs[b]))
                     .unwrap_or(0)
@@ -85,16 +86,16 @@ impl GroupFlow {
         for (i, &g) in labels.iter().enumerate() {
             members[g].push(i);
         }
+        // A seed is its own nearest trajectory, so no group is empty; guard anyway
+        // (coincident seeds tie).
+        for (m, &seed) in members.iter_mut().zip(&seeds) {
+            if m.is_empty() {
+                m.push(seed);
+            }
+        }
         let per_group: Vec<(DVec3, Vec<DQuat>, Vec<DVec3>)> = members
             .par_iter()
-            .enumerate()
-            .map(|(g, m)| {
-                // A seed is its own nearest trajectory, so no group is empty; guard anyway.
-                let m = if m.is_empty() {
-                    vec![seeds[g]]
-                } else {
-                    m.clone()
-                };
+            .map(|m| {
                 let at =
                     |k: usize| -> Vec<DVec3> { m.iter().map(|&i| trajectories[k][i]).collect() };
                 let centroid = |p: &[DVec3]| p.iter().copied().sum::<DVec3>() / p.len() as f64;

@@ -226,23 +226,38 @@ pub(super) struct GroupMotion<'t, T: Float> {
     node_offsets: Var<'t, T>,
     /// Whether each Gaussian turns with its group.
     rotate: bool,
+    /// `s + ds_0` \[N,3], time-independent.
+    scales0: Var<'t, T>,
+    /// `q / |q| + dq_0` \[N,4], time-independent.
+    quats0: Var<'t, T>,
 }
 
 impl<'t, T: Float> GroupMotion<'t, T> {
-    /// Binds the stage for stored centres `stored` \[N,3] and the node-offset parameter
-    /// (at least G rows; the first G are used).
+    /// Binds the stage for stored centres `stored` \[N,3], the node-offset parameter
+    /// (at least G rows; the first G are used) and the canonical activated scales and
+    /// unit quaternions, to which the knot-0 residuals are added once here.
     pub(super) fn new(
         grouped: Arc<Grouped>,
         stored: &Tensor<T>,
         node_offsets: Var<'t, T>,
+        [scales, unit_quats]: [Var<'t, T>; 2],
         rotate: bool,
     ) -> Self {
+        let n = grouped.offset0.len();
+        let tape = scales.tape();
+        let constant = |data: Vec<T>, w: usize| tape.constant(Tensor::from_vec(data, &[n, w]));
+        let ds0 = grouped.scale0.iter().flat_map(|v| v.to_array().map(T::of));
+        let dq0 = grouped.quat0.iter().flat_map(|q| q.map(T::of));
+        let scales0 = scales + constant(ds0.collect(), 3);
+        let quats0 = unit_quats + constant(dq0.collect(), 4);
         let g = grouped.flow.groups();
         GroupMotion {
             grouped,
             stored: points(stored),
             node_offsets: node_offsets.slice(0, 0, g),
             rotate,
+            scales0,
+            quats0,
         }
     }
 
@@ -285,39 +300,31 @@ impl<'t, T: Float> GroupMotion<'t, T> {
         tape.constant(Tensor::from_vec(fixed, &[f.labels.len(), 3])) + trained
     }
 
-    /// Scales and quaternions: `s + ds_0` and `r_g(t) (q / |q| + dq_0)` (quaternion
-    /// product with the group's turn `r_g`; without it when `rotate` is off).
-    pub(super) fn shape(
-        &self,
-        scales: Var<'t, T>,
-        unit_quats: Var<'t, T>,
-        motions: &[(DQuat, DVec3)],
-    ) -> (Var<'t, T>, Var<'t, T>) {
-        let n = self.stored.len();
-        let tape = scales.tape();
-        let constant = |v: Vec<f64>, w: usize| {
-            let data = v.into_iter().map(T::of).collect();
-            tape.constant(Tensor::from_vec(data, &[n, w]))
-        };
-        let g = &self.grouped;
-        let ds0 = constant(g.scale0.iter().flat_map(|v| v.to_array()).collect(), 3);
-        let dq0 = constant(g.quat0.iter().flat_map(|q| *q).collect(), 4);
-        let q0 = unit_quats + dq0;
+    /// Scales and quaternions at the motions' time: `s + ds_0` and
+    /// `r_g(t) (q / |q| + dq_0)` (quaternion product with the group's turn `r_g`;
+    /// without it when `rotate` is off).
+    pub(super) fn shape(&self, motions: &[(DQuat, DVec3)]) -> (Var<'t, T>, Var<'t, T>) {
         if !self.rotate {
-            return (scales + ds0, q0);
+            return (self.scales0, self.quats0);
         }
         // Left multiplication by r = (w, x, y, z), as a 4x4 matrix acting on (w, x, y, z).
-        let left: Vec<f64> = g
+        let left: Vec<T> = self
+            .grouped
             .flow
             .labels
             .iter()
             .flat_map(|&l| {
                 let r = motions[l].0;
                 let (w, x, y, z) = (r.w, r.x, r.y, r.z);
-                [w, -x, -y, -z, x, w, -z, y, y, z, w, -x, z, -y, x, w]
+                [w, -x, -y, -z, x, w, -z, y, y, z, w, -x, z, -y, x, w].map(T::of)
             })
             .collect();
-        (scales + ds0, row_products(constant(left, 16), q0, 4))
+        let n = self.stored.len();
+        let left = self
+            .quats0
+            .tape()
+            .constant(Tensor::from_vec(left, &[n, 16]));
+        (self.scales0, row_products(left, self.quats0, 4))
     }
 }
 
