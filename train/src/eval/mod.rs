@@ -311,7 +311,7 @@ pub fn filter_analysis(trainer: &Trainer) -> Option<AnalysisExport> {
 pub fn run_report(trainer: &Trainer, data: &Dataset) -> EvalReport {
     let n = trainer.num_gaussians();
     EvalReport {
-        model: trainer.model.name().to_string(),
+        model: trainer.model.label(),
         filter: filter_name(&trainer.filter),
         train_scale: trainer.config.train_scale,
         iterations: trainer.iteration,

@@ -204,7 +204,7 @@ impl PoppingResult {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct EvalReport {
-    /// Representation name (`saro`).
+    /// Representation label (`saro`, `deform + GroupFlow (500 groups)`).
     pub model: String,
     /// Filter: `none`, `mip3d` or `motion`.
     pub filter: String,

@@ -120,6 +120,13 @@ pub trait Representation<T: Float> {
     /// representation of the same name.
     fn name(&self) -> &str;
 
+    /// What eval and report call this model: the name plus any variant that changes
+    /// what is trained (e.g. `deform + GroupFlow (500 groups)`). Defaults to
+    /// [`Self::name`].
+    fn label(&self) -> String {
+        self.name().to_string()
+    }
+
     /// The parameters.
     fn params(&self) -> &ParamStore<T>;
 

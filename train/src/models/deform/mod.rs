@@ -274,6 +274,13 @@ impl<T: Float> Representation<T> for DeformModel<T> {
         "deform"
     }
 
+    fn label(&self) -> String {
+        match self.config.group_flow.groups {
+            0 => "deform".into(),
+            g => format!("deform + GroupFlow ({g} groups)"),
+        }
+    }
+
     fn params(&self) -> &ParamStore<T> {
         &self.params
     }

@@ -223,13 +223,9 @@ fn grouped_gaussians_match_a_per_gaussian_loop() {
         let g = bound.deform(time);
         for i in 0..9 {
             let want = slow_centre(&m, i, time);
-            for a in 0..3 {
+            for (a, w) in want.iter().enumerate() {
                 let got = g.means.value().data()[3 * i + a];
-                assert!(
-                    (got - want[a]).abs() < 1e-12,
-                    "row {i} t {time}: {got} vs {}",
-                    want[a]
-                );
+                assert!((got - w).abs() < 1e-12, "row {i} t {time}: {got} vs {w}");
             }
         }
         let grouped = m.grouped().expect("grouped");
@@ -314,7 +310,9 @@ fn buffers_restore_the_stage_bit_for_bit_and_bad_ones_are_named() {
     }
     assert_eq!(fresh.grouped(), m.grouped());
 
-    let err = fresh.load_buffer("nope", Tensor::zeros(&[3])).unwrap_err();
+    let err = fresh
+        .load_buffer("nope", Tensor::zeros(&[3]))
+        .expect_err("an unknown buffer is refused");
     assert!(err.contains("nope"), "{err}");
     let mut short = busy_model(grouped_config(), 8);
     for (name, value) in &buffers {
@@ -325,7 +323,7 @@ fn buffers_restore_the_stage_bit_for_bit_and_bad_ones_are_named() {
         };
         let r = short.load_buffer(name, value);
         if name == "group_flow/translations" {
-            let e = r.unwrap_err();
+            let e = r.expect_err("labels of the wrong length are refused");
             assert!(e.contains("group_flow/labels") && e.contains("[7]"), "{e}");
         }
     }
@@ -361,9 +359,23 @@ fn selected_rows_keep_their_group_and_offset() {
 fn validate_names_the_group_flow_field() {
     let mut c = grouped_config();
     c.group_flow.at = 3;
-    let e = c.validate().unwrap_err();
+    let e = c.validate().expect_err("fit before the warm-up ends");
     assert!(e.contains("group_flow.at") && e.contains("warm_up"), "{e}");
     c.group_flow.at = 9;
     c.group_flow.max_knots = 1;
-    assert!(c.validate().unwrap_err().contains("group_flow.max_knots"));
+    let e = c.validate().expect_err("one knot");
+    assert!(e.contains("group_flow.max_knots"), "{e}");
+}
+
+#[test]
+fn eval_and_report_tell_a_groupflow_model_from_a_plain_one() {
+    let plain = busy_model(tiny_config(), 4);
+    let grouped = busy_model(grouped_config(), 4);
+    assert_eq!(Representation::<f64>::label(&plain), "deform");
+    assert_eq!(
+        Representation::<f64>::label(&grouped),
+        "deform + GroupFlow (3 groups)"
+    );
+    // Checkpoints keep recording the representation name.
+    assert_eq!(Representation::<f64>::name(&grouped), "deform");
 }
