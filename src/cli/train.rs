@@ -8,7 +8,7 @@ use maaf_train::data::{Dataset, DatasetOptions, Split};
 use maaf_train::eval::render_image;
 use maaf_train::metrics::psnr;
 use maaf_train::models::ModelConfig;
-use maaf_train::trainer::{TrainConfig, load_checkpoint, train_run};
+use maaf_train::trainer::{TrainConfig, branch_run, load_checkpoint, train_run};
 
 use super::BackgroundArg;
 
@@ -22,6 +22,13 @@ pub struct TrainArgs {
     /// settings (only --iters may change the budget; absent, the run's is kept).
     #[arg(long)]
     pub resume: Option<PathBuf>,
+    /// Start the new run (--out) from another run's checkpoint folder
+    /// (RUN/checkpoints/iter_N or RUN/model) with this run's settings: a branch
+    /// continues the checkpoint's iteration, model, optimiser and filter state, so
+    /// late-stage options are compared without training the shared prefix again.
+    /// The filter kind and training scale must be the checkpoint's.
+    #[arg(long, conflicts_with = "resume")]
+    pub from: Option<PathBuf>,
     /// What to train on and with which settings.
     #[command(flatten)]
     pub settings: SettingsArgs,
@@ -222,7 +229,10 @@ pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
             background: settings.background.rgb(),
         },
     )?;
-    let summary = train_run(&data, config, &out, args.resume.is_some())?;
+    let summary = match &args.from {
+        Some(from) => branch_run(&data, config, &out, from)?,
+        None => train_run(&data, config, &out, args.resume.is_some())?,
+    };
     maaf_train::eval::render::record_data(&out, &data)?;
     println!(
         "trained {} iterations in {:.1} s: {} Gaussians, {} skipped steps",

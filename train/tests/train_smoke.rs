@@ -485,3 +485,90 @@ fn validation_sees_the_model_before_an_opacity_reset() {
     assert_ne!(l1_at_30(&log), l1_at_30(&log_no_reset), "{log}");
     let _ = std::fs::remove_dir_all(&base);
 }
+
+#[test]
+fn a_branch_continues_a_checkpoint_with_its_own_settings() {
+    let Some(data) = mutant() else { return };
+    let cfg = TrainConfig {
+        iterations: 40,
+        ..tiny_config_of("deform", FilterKind::Motion)
+    };
+    let mut straight = Trainer::new(&data, cfg.clone()).expect("trainer");
+    for _ in 0..25 {
+        straight.step();
+    }
+    let dir = std::env::temp_dir().join(format!("maaf_branch_{}", std::process::id()));
+    save_checkpoint(&straight, &dir).expect("checkpoint");
+    for _ in 25..40 {
+        straight.step();
+    }
+
+    // Same settings: the branch is the straight run, bit for bit.
+    let mut same = Trainer::new(&data, cfg.clone()).expect("trainer");
+    assert!(same.branch_from(&dir).expect("branch").is_empty());
+    assert_eq!(same.iteration, 25);
+    for _ in 25..40 {
+        same.step();
+    }
+    let (a, b) = (params(&mut straight), params(&mut same));
+    assert_eq!(a.len(), b.len());
+    for ((na, ta), (_, tb)) in a.iter().zip(&b) {
+        assert!(
+            ta.data()
+                .iter()
+                .zip(tb.data())
+                .all(|(x, y)| x.to_bits() == y.to_bits()),
+            "{na} differs"
+        );
+    }
+
+    // GroupFlow from the checkpoint's iteration: its node offsets start at zero,
+    // the groups are fitted on load, and the branch keeps its own settings.
+    let mut grouped_cfg = TrainConfig {
+        iterations: 30,
+        ..cfg.clone()
+    };
+    let ModelConfig::Deform(d) = &mut grouped_cfg.model else {
+        unreachable!("a deform config")
+    };
+    d.group_flow.groups = 16;
+    d.group_flow.at = 25;
+    let mut grouped = Trainer::new(&data, grouped_cfg.clone()).expect("trainer");
+    let fresh = grouped.branch_from(&dir).expect("branch");
+    assert_eq!(fresh, ["group_nodes"]);
+    assert_eq!(grouped.config, grouped_cfg);
+    let fitted = |t: &Trainer| {
+        t.model
+            .buffers()
+            .iter()
+            .any(|(n, _)| n == "group_flow/labels")
+    };
+    assert!(fitted(&grouped), "groups fitted when the branch loads");
+    for _ in 25..30 {
+        grouped.step();
+    }
+    assert!(fitted(&grouped));
+
+    // A plain resume of a checkpoint without the node offsets still refuses it.
+    let err = load_into(&data, grouped_cfg, &dir);
+    assert!(err.contains("group_nodes"), "{err}");
+
+    // The filter state belongs to the checkpoint's filter kind.
+    let mut other = cfg.clone();
+    other.filter.kind = FilterKind::Mip3d;
+    let err = Trainer::new(&data, other)
+        .expect("trainer")
+        .branch_from(&dir)
+        .expect_err("another filter kind is refused");
+    assert!(err.to_string().contains("filter kind"), "{err}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// The error of [`Trainer::restore`] of `dir` into a trainer built with `cfg`.
+fn load_into(data: &Dataset, cfg: TrainConfig, dir: &std::path::Path) -> String {
+    Trainer::new(data, cfg)
+        .expect("trainer")
+        .restore(dir)
+        .expect_err("the checkpoint lacks a parameter")
+        .to_string()
+}

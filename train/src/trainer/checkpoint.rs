@@ -17,6 +17,7 @@ use serde::{Deserialize, Serialize};
 use super::{DensifyStats, Timings, TrainConfig, Trainer};
 use crate::Error;
 use crate::data::Dataset;
+use crate::params::Rows;
 
 /// Non-tensor state of a run.
 #[derive(Serialize, Deserialize)]
@@ -159,7 +160,7 @@ pub fn checkpoint_iteration(dir: &Path) -> Result<usize, Error> {
 pub fn load_checkpoint(data: &Dataset, dir: &Path) -> Result<Trainer, Error> {
     let state = read_state(dir)?;
     let mut trainer = Trainer::new(data, state.config.clone())?;
-    trainer.restore_state(dir, state)?;
+    trainer.restore_state(dir, state, false)?;
     Ok(trainer)
 }
 
@@ -172,10 +173,45 @@ impl Trainer {
     /// trainer the same way as the first time.
     pub fn restore(&mut self, dir: &Path) -> Result<(), Error> {
         let state = read_state(dir)?;
-        self.restore_state(dir, state)
+        self.restore_state(dir, state, false).map(drop)
     }
 
-    fn restore_state(&mut self, dir: &Path, state: State) -> Result<(), Error> {
+    /// Starts this trainer, built with a branch's own configuration, from another
+    /// run's checkpoint: everything [`Self::restore`] loads except the configuration,
+    /// which stays this trainer's, so a run continues from a shared prefix with
+    /// changed late-stage settings (GroupFlow from its fitting iteration, another
+    /// pruning or densification schedule, a longer budget). Shared parameters the
+    /// checkpoint lacks (a stage the first run never had, e.g. GroupFlow's node
+    /// offsets) keep their initial values and zero Adam moments; their names are
+    /// returned. Refused when the representation, the filter kind or the training
+    /// scale differ: the restored filter state and observations belong to those.
+    pub fn branch_from(&mut self, dir: &Path) -> Result<Vec<String>, Error> {
+        let state = read_state(dir)?;
+        let (ours, theirs) = (&self.config, &state.config);
+        if ours.filter.kind != theirs.filter.kind || ours.train_scale != theirs.train_scale {
+            return Err(Error::Input(format!(
+                "{}: a branch keeps the checkpoint's filter kind and training scale ({:?} at {}), not {:?} at {}",
+                dir.display(),
+                theirs.filter.kind,
+                theirs.train_scale,
+                ours.filter.kind,
+                ours.train_scale
+            )));
+        }
+        let config = self.config.clone();
+        let fresh = self.restore_state(dir, state, true)?;
+        self.config = config;
+        Ok(fresh)
+    }
+
+    /// [`Self::restore`], and with `branch` [`Self::branch_from`]'s leniency: returns
+    /// the shared parameters that kept their values (none without `branch`).
+    fn restore_state(
+        &mut self,
+        dir: &Path,
+        state: State,
+        branch: bool,
+    ) -> Result<Vec<String>, Error> {
         if state.model != self.model.name() {
             return Err(Error::Input(format!(
                 "{}: holds a `{}` model but the trainer was built with `{}` (build the trainer with the same representation)",
@@ -188,10 +224,22 @@ impl Trainer {
         let blob = std::fs::read(&blob_path).map_err(|e| Error::io(&blob_path, e))?;
         let st = SafeTensors::deserialize(&blob)
             .map_err(|e| Error::Input(format!("{}: {e}", blob_path.display())))?;
+        // A branch's shared parameters that the checkpoint lacks keep their values.
+        let kept: HashMap<String, Tensor<f32>> = self
+            .model
+            .params()
+            .iter()
+            .filter(|p| branch && p.rows == Rows::Shared)
+            .filter(|p| st.tensor(&format!("param/{}", p.name)).is_err())
+            .map(|p| (p.name.clone(), p.value.clone()))
+            .collect();
         self.model
             .params_mut()
-            .load(|name| {
-                tensor(&st, &format!("param/{name}"), &blob_path).map_err(|e| e.to_string())
+            .load(|name| match kept.get(name) {
+                Some(value) => Ok(value.clone()),
+                None => {
+                    tensor(&st, &format!("param/{name}"), &blob_path).map_err(|e| e.to_string())
+                }
             })
             .map_err(|e| Error::Input(format!("{}: {e}", blob_path.display())))?;
         if let Some((name, index, value)) = self.first_non_finite_param() {
@@ -259,6 +307,8 @@ impl Trainer {
         self.last_reset = state.last_reset;
         self.timings = state.timings;
         self.config = state.config;
-        Ok(())
+        let mut fresh: Vec<String> = kept.into_keys().collect();
+        fresh.sort_unstable();
+        Ok(fresh)
     }
 }

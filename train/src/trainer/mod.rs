@@ -30,7 +30,7 @@ pub use config::{DensifyConfig, MAX_BATCH, PruneConfig, TrainConfig};
 pub use densify::{DensifyPlan, DensifyStats, ViewGrad, plan as plan_densify};
 pub use prune::{keep_highest, removal_sensitivity};
 pub use resume::{checkpoints_newest_first, load_newest, repair_run_dir, truncate_log};
-pub use run::{RunSummary, checkpoint_dir, train_run, train_run_with};
+pub use run::{RunSummary, branch_run, checkpoint_dir, train_run, train_run_with};
 pub use timings::Timings;
 
 use crate::Error;

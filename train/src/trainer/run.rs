@@ -61,6 +61,35 @@ pub fn train_run(
     run_trainer(trainer, out, resume)
 }
 
+/// A new run in `out` that starts from another run's checkpoint folder `from`
+/// (`RUN/checkpoints/iter_N` or `RUN/model`) with `config`, its own settings
+/// ([`Trainer::branch_from`]): iteration, parameters, Adam moments, statistics,
+/// observations, filter state and the training time so far come from the
+/// checkpoint; `log.csv` starts at the branch iteration. Two branches of one
+/// checkpoint share their first iterations bit for bit, so a late-stage option is
+/// compared without training the prefix twice.
+pub fn branch_run(
+    data: &Dataset,
+    config: TrainConfig,
+    out: &Path,
+    from: &Path,
+) -> Result<RunSummary, Error> {
+    let mut trainer = Trainer::new(data, config)?;
+    let fresh = trainer.branch_from(from)?;
+    log_line(&format!(
+        "branching from {} at iteration {} of {}{}",
+        from.display(),
+        trainer.iteration,
+        trainer.config.iterations,
+        if fresh.is_empty() {
+            String::new()
+        } else {
+            format!(" (starting fresh: {})", fresh.join(", "))
+        }
+    ));
+    run_trainer(trainer, out, false)
+}
+
 /// [`train_run`] for a trainer the caller built ([`Trainer::with_model`] for a
 /// representation of its own, custom terms pushed onto [`Trainer::objective`]): the
 /// library's run entry point for research code. With `resume`, the newest complete
