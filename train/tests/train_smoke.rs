@@ -55,6 +55,23 @@ fn params(t: &mut Trainer) -> Vec<(String, Tensor<f32>)> {
         .collect()
 }
 
+/// Asserts that two trainers hold the same parameters, bit for bit (`what` names the
+/// case in the message).
+fn assert_same_params(a: &mut Trainer, b: &mut Trainer, what: &str) {
+    let (a, b) = (params(a), params(b));
+    assert_eq!(a.len(), b.len(), "{what}: parameter count");
+    for ((na, ta), (nb, tb)) in a.iter().zip(&b) {
+        assert_eq!(na, nb);
+        assert!(
+            ta.data()
+                .iter()
+                .zip(tb.data())
+                .all(|(x, y)| x.to_bits() == y.to_bits()),
+            "{what}: {na} differs"
+        );
+    }
+}
+
 #[test]
 fn loss_falls_with_every_filter_and_representation() {
     let Some(data) = mutant() else { return };
@@ -184,17 +201,7 @@ fn resume_is_bit_identical_for(data: &Dataset, kind: &str, cfg: TrainConfig) {
     }
     std::fs::remove_dir_all(&dir).ok();
     assert_eq!(resumed.num_gaussians(), straight.num_gaussians());
-    let (a, b) = (params(&mut straight), params(&mut resumed));
-    for ((na, ta), (nb, tb)) in a.iter().zip(&b) {
-        assert_eq!(na, nb);
-        assert!(
-            ta.data()
-                .iter()
-                .zip(tb.data())
-                .all(|(x, y)| x.to_bits() == y.to_bits()),
-            "{kind}: {na} differs"
-        );
-    }
+    assert_same_params(&mut straight, &mut resumed, kind);
     assert_eq!(straight.filter, resumed.filter);
 }
 
@@ -510,17 +517,7 @@ fn a_branch_continues_a_checkpoint_with_its_own_settings() {
     for _ in 25..40 {
         same.step();
     }
-    let (a, b) = (params(&mut straight), params(&mut same));
-    assert_eq!(a.len(), b.len());
-    for ((na, ta), (_, tb)) in a.iter().zip(&b) {
-        assert!(
-            ta.data()
-                .iter()
-                .zip(tb.data())
-                .all(|(x, y)| x.to_bits() == y.to_bits()),
-            "{na} differs"
-        );
-    }
+    assert_same_params(&mut straight, &mut same, "branch");
 
     // GroupFlow from the checkpoint's iteration: its node offsets start at zero,
     // the groups are fitted on load, and the branch keeps its own settings.
@@ -550,8 +547,11 @@ fn a_branch_continues_a_checkpoint_with_its_own_settings() {
     assert!(fitted(&grouped));
 
     // A plain resume of a checkpoint without the node offsets still refuses it.
-    let err = load_into(&data, grouped_cfg, &dir);
-    assert!(err.contains("group_nodes"), "{err}");
+    let err = Trainer::new(&data, grouped_cfg)
+        .expect("trainer")
+        .restore(&dir)
+        .expect_err("the checkpoint lacks a parameter");
+    assert!(err.to_string().contains("group_nodes"), "{err}");
 
     // The filter state belongs to the checkpoint's filter kind.
     let mut other = cfg.clone();
@@ -562,13 +562,4 @@ fn a_branch_continues_a_checkpoint_with_its_own_settings() {
         .expect_err("another filter kind is refused");
     assert!(err.to_string().contains("filter kind"), "{err}");
     std::fs::remove_dir_all(&dir).ok();
-}
-
-/// The error of [`Trainer::restore`] of `dir` into a trainer built with `cfg`.
-fn load_into(data: &Dataset, cfg: TrainConfig, dir: &std::path::Path) -> String {
-    Trainer::new(data, cfg)
-        .expect("trainer")
-        .restore(dir)
-        .expect_err("the checkpoint lacks a parameter")
-        .to_string()
 }

@@ -198,14 +198,12 @@ impl Trainer {
                 ours.train_scale
             )));
         }
-        let config = self.config.clone();
-        let fresh = self.restore_state(dir, state, true)?;
-        self.config = config;
-        Ok(fresh)
+        self.restore_state(dir, state, true)
     }
 
-    /// [`Self::restore`], and with `branch` [`Self::branch_from`]'s leniency: returns
-    /// the shared parameters that kept their values (none without `branch`).
+    /// [`Self::restore`], and with `branch` [`Self::branch_from`]'s leniency and its
+    /// own configuration kept: returns the shared parameters that kept their values
+    /// (none without `branch`).
     fn restore_state(
         &mut self,
         dir: &Path,
@@ -225,7 +223,7 @@ impl Trainer {
         let st = SafeTensors::deserialize(&blob)
             .map_err(|e| Error::Input(format!("{}: {e}", blob_path.display())))?;
         // A branch's shared parameters that the checkpoint lacks keep their values.
-        let kept: HashMap<String, Tensor<f32>> = self
+        let mut kept: HashMap<String, Tensor<f32>> = self
             .model
             .params()
             .iter()
@@ -233,10 +231,12 @@ impl Trainer {
             .filter(|p| st.tensor(&format!("param/{}", p.name)).is_err())
             .map(|p| (p.name.clone(), p.value.clone()))
             .collect();
+        let mut fresh: Vec<String> = kept.keys().cloned().collect();
+        fresh.sort_unstable();
         self.model
             .params_mut()
-            .load(|name| match kept.get(name) {
-                Some(value) => Ok(value.clone()),
+            .load(|name| match kept.remove(name) {
+                Some(value) => Ok(value),
                 None => {
                     tensor(&st, &format!("param/{name}"), &blob_path).map_err(|e| e.to_string())
                 }
@@ -306,9 +306,9 @@ impl Trainer {
         self.skipped_steps = state.skipped_steps;
         self.last_reset = state.last_reset;
         self.timings = state.timings;
-        self.config = state.config;
-        let mut fresh: Vec<String> = kept.into_keys().collect();
-        fresh.sort_unstable();
+        if !branch {
+            self.config = state.config;
+        }
         Ok(fresh)
     }
 }

@@ -275,9 +275,10 @@ impl<T: Float> Representation<T> for DeformModel<T> {
     }
 
     fn label(&self) -> String {
+        let name = Representation::<T>::name(self);
         match self.config.group_flow.groups {
-            0 => "deform".into(),
-            g => format!("deform + GroupFlow ({g} groups)"),
+            0 => name.into(),
+            g => format!("{name} + GroupFlow ({g} groups)"),
         }
     }
 
