@@ -12,8 +12,8 @@ use maaf_splat::GaussianVars;
 use maaf_splat::compositing::drawable;
 
 use super::SaroModel;
+use super::residuals::{ApplyResiduals, SaroInput, saro_input};
 use crate::models::Bound;
-use crate::models::encoding::positional_encoding;
 use crate::params::BoundParams;
 
 /// Name under which SaRO provides its scale-residual regulariser
@@ -22,8 +22,6 @@ pub const L_SR: &str = "l_sr";
 
 /// A SaRO model bound on a tape (see [`Bound`]).
 pub struct SaroBound<'t, T: Float> {
-    n: usize,
-    k: usize,
     time_freqs: usize,
     xyz: Var<'t, T>,
     log_scale: Var<'t, T>,
@@ -44,20 +42,12 @@ struct DynamicVars<'t, T: Float> {
     l_sr: Var<'t, T>,
 }
 
-/// `\[d, sin(2^0 d), cos(2^0 d), ..., sin(2^(F-1) d), cos(2^(F-1) d)]` per row (NeRF
-/// embedder with `include_input`, log sampling; SaRO-GS `get_embedder`), as a constant:
-/// [`positional_encoding`] of one column.
-pub fn time_embedding<T: Float>(d: impl ExactSizeIterator<Item = f64>, freqs: usize) -> Tensor<T> {
-    positional_encoding(&d.collect::<Vec<f64>>(), 1, freqs)
-}
-
 impl<'t, T: Float> SaroBound<'t, T> {
     /// Binds `model` on the tape of `p`. The field query and sg(mu_t) are read from
     /// the model's stored values (stop-gradient inputs).
     pub(super) fn new(model: &SaroModel<T>, p: &BoundParams<'t, T>) -> Self {
         let ids = &model.ids;
         let n = model.num_rows();
-        let k = model.config.sh_coeffs();
         let sh = match ids.sh_rest {
             Some(rest) => concat(&[p.get(ids.sh_dc), p.get(rest)], 1),
             None => p.get(ids.sh_dc),
@@ -69,9 +59,11 @@ impl<'t, T: Float> SaroBound<'t, T> {
             let features = model.field_features(&planes);
             let life = ids.life.bind(p);
             let lifespan = model.lifespan_of(&life, features);
-            // L_SR: the scale residual at Dt = 0, i.e. PE(0).
-            let pe0 = time_embedding::<T>(std::iter::repeat_n(0.0, n), model.config.time_freqs);
-            let h0 = concat(&[features, tape.constant(pe0)], 1);
+            // L_SR: the scale residual at Dt = 0, i.e. PE(0), on every row.
+            let h0 = saro_input(
+                features,
+                SaroInput::every_row(n, 0.0, model.config.time_freqs),
+            );
             let rot = ids.rot.bind(p);
             let l_sr = tape.apply1(Norm2, &[rot.forward(h0).slice(1, 4, 7)]);
             DynamicVars {
@@ -86,8 +78,6 @@ impl<'t, T: Float> SaroBound<'t, T> {
             }
         });
         SaroBound {
-            n,
-            k,
             time_freqs: model.config.time_freqs,
             xyz: p.get(ids.xyz),
             log_scale: p.get(ids.log_scale),
@@ -133,34 +123,35 @@ impl<'t, T: Float> Bound<'t, T> for SaroBound<'t, T> {
         // opacity o(t) has no support (`255 o <= 1`) is never drawn (the 2D and 3D
         // filters only lower opacity), so its residuals are zero and its gradients
         // are exactly those of the full evaluation.
-        let present = present_rows(&opacity.value());
-        let features = if present.len() == self.n {
-            d.features
-        } else {
-            d.features.gather_rows(&present)
-        };
-        let tape = self.xyz.tape();
-        let pe = time_embedding::<T>(
-            present.iter().map(|&i| time - d.t_centre_detached[i]),
-            self.time_freqs,
+        let present: Arc<[usize]> = present_rows(&opacity.value()).into();
+        let dt = present
+            .iter()
+            .map(|&i| time - d.t_centre_detached[i])
+            .collect();
+        let h = saro_input(
+            d.features,
+            SaroInput {
+                rows: present.clone(),
+                dt,
+                freqs: self.time_freqs,
+            },
         );
-        let h = concat(&[features, tape.constant(pe)], 1);
-        let all_rows = |v: Var<'t, T>| {
-            if present.len() == self.n {
-                v
-            } else {
-                v.scatter_add_rows(&present, self.n)
-            }
-        };
-        let dx = all_rows(d.motion.forward(h));
-        let r = all_rows(d.rot.forward(h));
-        let means = self.xyz + dx;
-        let quats = self.rotation + r.slice(1, 0, 4);
-        let scales = (self.log_scale + r.slice(1, 4, 7)).exp();
-        let sh = match &d.sh {
-            Some(m) => self.sh + all_rows(m.forward(h)).reshape(&[self.n, self.k, 3]),
-            None => self.sh,
-        };
+        let mut inputs = vec![
+            self.xyz,
+            self.rotation,
+            self.log_scale,
+            d.motion.forward(h),
+            d.rot.forward(h),
+        ];
+        if let Some(m) = &d.sh {
+            inputs.extend([self.sh, m.forward(h)]);
+        }
+        let out = self
+            .xyz
+            .tape()
+            .apply(ApplyResiduals { rows: present }, &inputs);
+        let (means, quats, scales) = (out[0], out[1], out[2]);
+        let sh = out.get(3).copied().unwrap_or(self.sh);
         GaussianVars {
             means,
             scales,

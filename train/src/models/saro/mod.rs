@@ -22,8 +22,11 @@
 mod bound;
 mod config;
 mod lifespan;
+mod residuals;
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_residuals;
 
 use std::sync::Arc;
 
@@ -38,7 +41,8 @@ use super::kplane::{KPlaneField, PLANE_NAMES};
 use super::{Bound, CanonicalIds, InitialGaussians, PointCloud, Representation};
 use crate::params::{BoundParams, MlpParams, ParamId, ParamStore, Rows};
 
-pub use bound::{Norm2, SaroBound, time_embedding};
+pub use bound::{Norm2, SaroBound};
+pub use residuals::{ApplyResiduals, SaroInput, saro_input};
 
 /// Checkpoint name of the adaptive-optimisation scale.
 const ADAPTIVE: &str = "adaptive_lr_scale";
@@ -392,13 +396,18 @@ impl<T: Float> Representation<T> for SaroModel<T> {
             .iter()
             .map(|&time| {
                 let tape = Tape::<T>::new();
-                let pe = time_embedding::<T>(
-                    t_centre.data().iter().map(|&m| time - Float::to_f64(m)),
-                    self.config.time_freqs,
-                );
-                let h = maaf_autodiff::ops::concat(
-                    &[tape.constant(features.clone()), tape.constant(pe)],
-                    1,
+                let dt = t_centre
+                    .data()
+                    .iter()
+                    .map(|&m| time - Float::to_f64(m))
+                    .collect();
+                let h = saro_input(
+                    tape.constant(features.clone()),
+                    SaroInput {
+                        rows: (0..xyz.rows()).collect(),
+                        dt,
+                        freqs: self.config.time_freqs,
+                    },
                 );
                 let dx = self
                     .ids
