@@ -14,16 +14,28 @@ pub fn positional_encoding<T: Float>(values: &[f64], cols: usize, freqs: usize) 
     );
     let rows = values.len() / cols;
     let width = cols * (1 + 2 * freqs);
-    let mut out = Vec::with_capacity(rows * width);
-    for row in values.chunks_exact(cols) {
-        out.extend(row.iter().map(|&v| T::of(v)));
-        for k in 0..freqs {
-            let f = (1u64 << k) as f64;
-            out.extend(row.iter().map(|&v| T::of((f * v).sin())));
-            out.extend(row.iter().map(|&v| T::of((f * v).cos())));
-        }
+    let mut out = vec![T::zero(); rows * width];
+    for (row, o) in values.chunks_exact(cols).zip(out.chunks_exact_mut(width)) {
+        encode_row(row, freqs, o);
     }
     Tensor::from_vec(out, &[rows, width])
+}
+
+/// `gamma(p)` of one row `p` into `out` (`len(p) (1 + 2F)` values, the layout of
+/// [`positional_encoding`]), computed in f64, then cast.
+pub fn encode_row<T: Float>(p: &[f64], freqs: usize, out: &mut [T]) {
+    let c = p.len();
+    for (o, &v) in out[..c].iter_mut().zip(p) {
+        *o = T::of(v);
+    }
+    for k in 0..freqs {
+        let f = (1u64 << k) as f64;
+        let (sin, cos) = out[c * (1 + 2 * k)..c * (3 + 2 * k)].split_at_mut(c);
+        for ((s, co), &v) in sin.iter_mut().zip(cos).zip(p) {
+            *s = T::of((f * v).sin());
+            *co = T::of((f * v).cos());
+        }
+    }
 }
 
 #[cfg(test)]

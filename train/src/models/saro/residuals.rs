@@ -10,13 +10,15 @@ use maaf_autodiff::op::{BackwardCtx, Op};
 use maaf_autodiff::{Float, Tensor, Var};
 use rayon::prelude::*;
 
+use crate::models::encoding::encode_row;
+
 /// Rows per parallel chunk (below it, rayon's hand-off costs more than the work).
 const CHUNK_ROWS: usize = 2048;
 
 /// `h = [f[rows], PE(dt)]`: row `j` holds the features of Gaussian `rows[j]` followed
 /// by the NeRF encoding of its time offset `dt[j]` (`[d, sin(2^k d), cos(2^k d)]`, k <
-/// `freqs`, computed in f64 then cast, as [`crate::models::encoding::positional_encoding`]
-/// of one column). The encoding is a constant (SaRO-GS detaches it), so the backward
+/// `freqs`: [`encode_row`], as [`crate::models::encoding::positional_encoding`] of one
+/// column). The encoding is a constant (SaRO-GS detaches it), so the backward
 /// only scatters `dh[:, ..C]` to the feature rows; others get zero.
 pub struct SaroInput {
     /// Feature row of each output row, strictly increasing.
@@ -87,13 +89,7 @@ impl<T: Float> Op<T> for SaroInput {
                     let j = b * CHUNK_ROWS + k;
                     let i = self.rows[j];
                     out[..c].copy_from_slice(&f.data()[i * c..(i + 1) * c]);
-                    let d = self.dt[j];
-                    out[c] = T::of(d);
-                    for q in 0..self.freqs {
-                        let a = (1u64 << q) as f64 * d;
-                        out[c + 1 + 2 * q] = T::of(a.sin());
-                        out[c + 2 + 2 * q] = T::of(a.cos());
-                    }
+                    encode_row(&[self.dt[j]], self.freqs, &mut out[c..]);
                 }
             });
         (vec![Tensor::from_vec(h, &[self.rows.len(), w])], ())
@@ -168,25 +164,6 @@ fn add_rows<T: Float>(
     out
 }
 
-/// Rows `rows` of `g` (`w` values each) written into columns `off..off + w` of a
-/// `[rows.len(), rw]` buffer.
-fn gather_into<T: Float>(
-    g: &[T],
-    w: usize,
-    rows: &[usize],
-    dst: &mut [T],
-    (rw, off): (usize, usize),
-) {
-    dst.par_chunks_mut(rw * CHUNK_ROWS)
-        .enumerate()
-        .for_each(|(b, block)| {
-            for (k, d) in block.chunks_exact_mut(rw).enumerate() {
-                let i = rows[b * CHUNK_ROWS + k];
-                d[off..off + w].copy_from_slice(&g[i * w..(i + 1) * w]);
-            }
-        });
-}
-
 impl<T: Float> Op<T> for ApplyResiduals {
     type Saved = ();
 
@@ -249,25 +226,28 @@ impl<T: Float> Op<T> for ApplyResiduals {
             .zip(ctx.outputs[2].data().par_iter())
             .map(|(&g, &s)| g * s)
             .collect();
+        // r = [dq, d log s]: each running row's quaternion and log-scale cotangents.
+        let (g_q, rows) = (g[1].data(), &self.rows);
         let mut dr = vec![T::zero(); p * 7];
-        gather_into(g[1].data(), 4, &self.rows, &mut dr, (7, 0));
-        gather_into(&g_log_s, 3, &self.rows, &mut dr, (7, 4));
-        let residual = |gv: &[T], w: usize| {
-            let mut d = vec![T::zero(); p * w];
-            gather_into(gv, w, &self.rows, &mut d, (w, 0));
-            Tensor::from_vec(d, &[p, w])
-        };
+        dr.par_chunks_mut(7 * CHUNK_ROWS)
+            .enumerate()
+            .for_each(|(b, block)| {
+                for (k, d) in block.chunks_exact_mut(7).enumerate() {
+                    let i = rows[b * CHUNK_ROWS + k];
+                    d[..4].copy_from_slice(&g_q[i * 4..i * 4 + 4]);
+                    d[4..].copy_from_slice(&g_log_s[i * 3..i * 3 + 3]);
+                }
+            });
         let mut grads = vec![
             need[0].then(|| g[0].clone()),
             need[1].then(|| g[1].clone()),
             need[2].then(|| Tensor::from_vec(g_log_s, ctx.inputs[2].shape())),
-            need[3].then(|| residual(g[0].data(), 3)),
+            need[3].then(|| g[0].gather_rows(rows)),
             need[4].then(|| Tensor::from_vec(dr, &[p, 7])),
         ];
         if let Some(gsh) = g.get(3) {
-            let w = gsh.row_len();
             grads.push(need[5].then(|| gsh.clone()));
-            grads.push(need[6].then(|| residual(gsh.data(), w)));
+            grads.push(need[6].then(|| gsh.gather_rows(rows).reshaped(&[p, gsh.row_len()])));
         }
         grads
     }
