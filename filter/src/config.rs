@@ -47,6 +47,22 @@ pub enum FilterKind {
     Motion,
 }
 
+/// How the motion-aware filter turns a Gaussian's observations `(t_j, x_j = f_j/d_j)`
+/// into nu(t). Both are stored as the same per-bin curve ([`crate::MotionCurves`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MotionEstimator {
+    /// The paper's estimator (Sec. 4, Algorithm 1): the mode in f/d of the Parzen
+    /// density with a Weibull kernel in f/d and a Gaussian kernel in t.
+    #[default]
+    Kde,
+    /// Ours, not the paper's: Mip-Splatting's Eq. 2 restricted to a time window,
+    /// `nu(t) = max { x_j : |t_j - t| <= h_t }` (normalised times), so nu(t) is the
+    /// highest sampling rate any training view has at times near t. It follows f/d
+    /// wherever it moves, without the KDE's upward bias of about `lambda h_x x_max`.
+    WindowMax,
+}
+
 /// When the filter is recomputed, outside the tape. It is always computed once
 /// before the first iteration (the trainer's first step does it, as Mip-Splatting
 /// does); this schedule says when it is recomputed.
@@ -119,6 +135,9 @@ impl RefreshSchedule {
 pub struct FilterConfig {
     /// Which filter the trainer applies.
     pub kind: FilterKind,
+    /// How the motion-aware filter estimates nu(t): the paper's KDE (default) or
+    /// our windowed maximum.
+    pub estimator: MotionEstimator,
     /// Filter size `s` of the variance `s / nu^2` (Mip-Splatting code: 0.2; the
     /// paper's Eq. 4 writes `s / nu`, we follow the code's squared form).
     pub s3d: f32,
@@ -129,7 +148,8 @@ pub struct FilterConfig {
     pub margin: f32,
     /// Bandwidth of the Weibull kernel in normalised f/d (Alg. 1 line 7), 0.3.
     pub h_x: f32,
-    /// Bandwidth of the Gaussian kernel in normalised time (Alg. 1 line 7), 0.05.
+    /// Bandwidth of the Gaussian kernel in normalised time (Alg. 1 line 7), 0.05;
+    /// the half-width of the time window for [`MotionEstimator::WindowMax`].
     pub h_t: f32,
     /// Weibull shape k (Alg. 1 line 1), 10. Must be >= 1 (pole at u = 0 below 1).
     pub weibull_k: f32,
@@ -162,6 +182,7 @@ impl Default for FilterConfig {
     fn default() -> Self {
         FilterConfig {
             kind: FilterKind::Motion,
+            estimator: MotionEstimator::Kde,
             s3d: 0.2,
             near: 0.2,
             margin: 0.15,

@@ -4,7 +4,9 @@
 //!   centres, the "SaRO-GS + 3D filter" baseline.
 //! * [`MotionCurves`]: the paper's motion-aware sampling rate nu_k(t) (Sec. 4,
 //!   Algorithm 1) from per-Gaussian observations ([`ObservationTable`]), computed
-//!   without the `D x T` density and stored as `T + 8` bytes per Gaussian.
+//!   without the `D x T` density and stored as `T + 8` bytes per Gaussian; or, with
+//!   [`MotionEstimator::WindowMax`] (ours), the windowed maximum of f/d in the same
+//!   storage.
 //! * [`FilterState::variance_at`]: the per-Gaussian variance `s3d / nu^2` that the
 //!   renderer's `apply_3d_filter` adds. Nothing here touches a tape.
 //! * [`reference::algorithm1`]: the literal, slow Algorithm 1 (test oracle).
@@ -59,8 +61,9 @@ mod motion;
 mod observations;
 pub mod reference;
 mod state;
+mod window_max;
 
-pub use config::{FilterConfig, FilterError, FilterKind, RefreshSchedule};
+pub use config::{FilterConfig, FilterError, FilterKind, MotionEstimator, RefreshSchedule};
 pub use export::{AnalysisExport, GaussianTrace};
 pub use kernels::Kernels;
 pub use mip::{Viewer, static_nu, variance_from_nu};

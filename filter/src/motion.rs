@@ -37,10 +37,11 @@ use maaf_autodiff::{Float, PerGaussian};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::config::{FilterConfig, FilterError};
+use crate::config::{FilterConfig, FilterError, MotionEstimator};
 use crate::kernels::{Kernels, WeibullF32};
 use crate::mip::fill_unseen;
 use crate::observations::ObservationTable;
+use crate::window_max;
 
 /// Curve code meaning "use the fallback nu" (density ~ 0 in this time bin).
 pub const FALLBACK: u8 = u8::MAX;
@@ -165,48 +166,22 @@ struct Scratch {
 }
 
 impl MotionCurves {
-    /// Recomputes every Gaussian's curve from `table` (fast path of Algorithm 1,
-    /// parallel over Gaussians). Errors with the config error if `cfg` is invalid
+    /// Recomputes every Gaussian's curve from `table` with `cfg.estimator`: the
+    /// fast path of Algorithm 1 (the paper's KDE) or our windowed maximum
+    /// (`window_max.rs`), parallel over Gaussians. Errors with the config error if `cfg` is invalid
     /// (re-checked here, it costs nothing) and with [`FilterError::NothingVisible`]
     /// if the table has Gaussians but no observation.
     pub fn refresh(table: &ObservationTable, cfg: &FilterConfig) -> Result<Self, FilterError> {
         cfg.validate()?;
-        let kern = Kernels::new(cfg);
-        let plan = Plan::new(table.times(), cfg, &kern);
-        let rows = table.rows();
-        let (d, t) = (cfg.grid_x, cfg.grid_t);
-        let mut codes = vec![FALLBACK; rows * t];
-        let mut x_max = vec![0.0f32; rows];
-        let groups = plan.num_groups();
-        let max_group = plan
-            .group_start
-            .windows(2)
-            .map(|w| w[1] - w[0])
-            .max()
-            .unwrap_or(0);
-        codes
-            .par_chunks_mut(t)
-            .zip(x_max.par_iter_mut())
-            .enumerate()
-            .for_each_init(
-                || Scratch {
-                    h: vec![0.0; groups * d],
-                    band: vec![(0, 0); groups],
-                    xb_range: vec![(0.0, 0.0); groups],
-                    acc: vec![0.0; BLOCK_T * d],
-                    cache_x: vec![f32::NAN; max_group],
-                    cache_band: vec![(0, 0); max_group],
-                    cache_vals: vec![0.0; max_group * d],
-                },
-                |scratch, (n, (codes, xm))| {
-                    *xm = curve_one(table.row(n), &plan, scratch, codes);
-                },
-            );
+        let (codes, x_max) = match cfg.estimator {
+            MotionEstimator::Kde => kde_codes(table, cfg),
+            MotionEstimator::WindowMax => window_max::codes(table, cfg),
+        };
         let mut fallback = x_max.clone();
         fill_unseen(&mut fallback)?;
         Ok(MotionCurves {
-            grid_x: d,
-            grid_t: t,
+            grid_x: cfg.grid_x,
+            grid_t: cfg.grid_t,
             time_range: cfg.time_range,
             x_max,
             fallback,
@@ -299,6 +274,43 @@ impl MotionCurves {
     pub fn bytes_per_gaussian(&self) -> usize {
         self.grid_t + 2 * std::mem::size_of::<f32>()
     }
+}
+
+/// The paper's estimator for every Gaussian (fast Algorithm 1, parallel over
+/// Gaussians): the `T` argmax codes per row and each row's `x_max`.
+fn kde_codes(table: &ObservationTable, cfg: &FilterConfig) -> (Vec<u8>, Vec<f32>) {
+    let kern = Kernels::new(cfg);
+    let plan = Plan::new(table.times(), cfg, &kern);
+    let rows = table.rows();
+    let (d, t) = (cfg.grid_x, cfg.grid_t);
+    let mut codes = vec![FALLBACK; rows * t];
+    let mut x_max = vec![0.0f32; rows];
+    let groups = plan.num_groups();
+    let max_group = plan
+        .group_start
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .max()
+        .unwrap_or(0);
+    codes
+        .par_chunks_mut(t)
+        .zip(x_max.par_iter_mut())
+        .enumerate()
+        .for_each_init(
+            || Scratch {
+                h: vec![0.0; groups * d],
+                band: vec![(0, 0); groups],
+                xb_range: vec![(0.0, 0.0); groups],
+                acc: vec![0.0; BLOCK_T * d],
+                cache_x: vec![f32::NAN; max_group],
+                cache_band: vec![(0, 0); max_group],
+                cache_vals: vec![0.0; max_group * d],
+            },
+            |scratch, (n, (codes, xm))| {
+                *xm = curve_one(table.row(n), &plan, scratch, codes);
+            },
+        );
+    (codes, x_max)
 }
 
 /// Fast Algorithm 1 for one Gaussian: fills `codes` (length T) and returns x_max.

@@ -5,6 +5,8 @@
 //!
 //! It evaluates the same (truncated) kernels as the fast path ([`Kernels`]); the
 //! truncation itself is measured against untruncated kernels in the tests.
+//!
+//! [`window_max`] is the same kind of oracle for our windowed-maximum estimator.
 
 use crate::config::FilterConfig;
 use crate::kernels::Kernels;
@@ -87,4 +89,23 @@ impl Algorithm1 {
     pub fn at(&self, d: usize, s: usize) -> f64 {
         self.rho[d * self.grid_t + s]
     }
+}
+
+/// Our windowed maximum ([`crate::MotionEstimator::WindowMax`]), literally: for
+/// each time bin `g_t[s] = s / (T - 1)`, the largest `x_j` of a valid slot with
+/// `|g_t[s] - t_j| <= h_t`, or `None` when the window holds no observation.
+/// `times` are normalised, empty slots flagged by `t_j < 0` (as [`algorithm1`]).
+pub fn window_max(times: &[f64], xs: &[f64], cfg: &FilterConfig) -> Vec<Option<f64>> {
+    (0..cfg.grid_t)
+        .map(|s| {
+            let gs = s as f64 / (cfg.grid_t - 1) as f64;
+            let mut best: Option<f64> = None;
+            for (&t, &x) in times.iter().zip(xs) {
+                if t >= 0.0 && (gs - t).abs() <= f64::from(cfg.h_t) {
+                    best = Some(best.map_or(x, |b| b.max(x)));
+                }
+            }
+            best
+        })
+        .collect()
 }
