@@ -56,7 +56,7 @@ impl Windows {
                 let inside = |g: &usize| (gs - f64::from(group_time[*g])).abs() <= h;
                 let mut groups = (0..group_time.len()).filter(inside);
                 match groups.next() {
-                    Some(a) => (a, groups.last().unwrap_or(a) + 1),
+                    Some(a) => (a, groups.next_back().unwrap_or(a) + 1),
                     None => (0, 0),
                 }
             })
