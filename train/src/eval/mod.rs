@@ -15,6 +15,7 @@
 //! `RUN/eval/` only when complete, then `eval.json` is written atomically.
 
 pub mod export;
+pub mod filter_agreement;
 pub mod flow;
 pub mod images;
 pub mod popping;
@@ -468,6 +469,15 @@ pub fn evaluate_trainer(
             write_atomic(
                 &tmp_dir.join(FILTER_ANALYSIS_FILE),
                 export.to_json().as_bytes(),
+            )?;
+        }
+        if let Some(agreement) = filter_agreement::filter_agreement(trainer) {
+            eprintln!("maaf: filter agreement: {}", agreement.summary());
+            let json = serde_json::to_string_pretty(&agreement)
+                .map_err(|e| Error::Input(format!("filter agreement: {e}")))?;
+            write_atomic(
+                &tmp_dir.join(filter_agreement::FILTER_AGREEMENT_FILE),
+                json.as_bytes(),
             )?;
         }
         Ok(())

@@ -1,0 +1,143 @@
+//! Where a motion-aware filter could differ from the static one, measured on the
+//! trained model: for every Gaussian and time bin at which it is drawn (opacity at
+//! that time, temporal factor and filter compensation included, at least 1/255),
+//! the ratio `nu(t) / nu_static` of each estimator's sampling rate to
+//! Mip-Splatting's static nu on the canonical centres (paper Eq. 2, what the
+//! `mip3d` filter uses). A ratio of 1 means the same filter; below 1 the
+//! motion-aware filter is wider (`s / nu^2` grows as `1 / ratio^2`).
+//!
+//! Both estimators (the paper's KDE and our windowed maximum) are recomputed from
+//! the run's observation table, whichever the run trained with, so one run shows
+//! how far either could move the filter away from the static one.
+
+use maaf_filter::{FilterKind, MotionCurves, MotionEstimator, static_nu};
+use serde::{Deserialize, Serialize};
+
+use crate::trainer::Trainer;
+
+/// Where `maaf eval` writes the agreement of a motion-filter run (in `RUN/eval/`).
+pub const FILTER_AGREEMENT_FILE: &str = "filter_agreement.json";
+
+/// Drawn opacity from which a Gaussian counts at a time (3DGS's alpha floor).
+const DRAWN: f32 = 1.0 / 255.0;
+
+/// Distribution of `nu(t) / nu_static` over the drawn (Gaussian, time bin) pairs.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RatioSummary {
+    /// `"kde"` (the paper's) or `"window_max"` (ours).
+    pub estimator: String,
+    /// 5th, 50th and 95th percentiles of the ratio.
+    pub p05: f64,
+    /// Median ratio.
+    pub p50: f64,
+    /// 95th percentile.
+    pub p95: f64,
+    /// Share of pairs with ratio below 0.9 (filter over 23 % wider in variance).
+    pub below_0_9: f64,
+    /// Share of pairs with ratio above 1.1.
+    pub above_1_1: f64,
+}
+
+/// [`filter_agreement`]'s result.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FilterAgreement {
+    /// Drawn (Gaussian, time bin) pairs measured.
+    pub pairs: usize,
+    /// Gaussians drawn at some bin.
+    pub gaussians: usize,
+    /// One summary per estimator.
+    pub ratios: Vec<RatioSummary>,
+}
+
+/// Measures the agreement of a motion-filter run (`None` for other filters, or when
+/// no Gaussian is drawn or observed).
+pub fn filter_agreement(trainer: &Trainer) -> Option<FilterAgreement> {
+    let cfg = &trainer.config.filter;
+    if cfg.kind != FilterKind::Motion {
+        return None;
+    }
+    let canonical: Vec<[f32; 3]> = (trainer.model.canonical().means.data())
+        .chunks_exact(3)
+        .map(|c| [c[0], c[1], c[2]])
+        .collect();
+    let nu_static = static_nu(&canonical, trainer.cameras(), cfg).ok()?;
+    let estimators = [MotionEstimator::Kde, MotionEstimator::WindowMax];
+    let curves: Vec<MotionCurves> = estimators
+        .iter()
+        .map(|&estimator| {
+            let c = maaf_filter::FilterConfig {
+                estimator,
+                ..cfg.clone()
+            };
+            MotionCurves::refresh(&trainer.observations, &c).ok()
+        })
+        .collect::<Option<_>>()?;
+    let mut ratios: Vec<Vec<f64>> = vec![Vec::new(); estimators.len()];
+    let mut drawn_ever = vec![false; nu_static.len()];
+    for s in 0..cfg.grid_t {
+        let time = curves[0].bin_time(s);
+        let [_, _, _, opacity, _] = trainer.frame_at(f64::from(time));
+        for (n, &o) in opacity.data().iter().enumerate() {
+            if o < DRAWN {
+                continue;
+            }
+            drawn_ever[n] = true;
+            for (r, c) in ratios.iter_mut().zip(&curves) {
+                r.push(f64::from(c.nu(n, s)) / f64::from(nu_static[n]));
+            }
+        }
+    }
+    let pairs = ratios[0].len();
+    if pairs == 0 {
+        return None;
+    }
+    let ratios = estimators
+        .iter()
+        .zip(ratios)
+        .map(|(e, mut r)| {
+            r.sort_by(f64::total_cmp);
+            let q = |p: f64| r[((r.len() - 1) as f64 * p).round() as usize];
+            let share = |f: &dyn Fn(f64) -> bool| {
+                r.iter().filter(|&&v| f(v)).count() as f64 / r.len() as f64
+            };
+            RatioSummary {
+                estimator: match e {
+                    MotionEstimator::Kde => "kde",
+                    MotionEstimator::WindowMax => "window_max",
+                }
+                .into(),
+                p05: q(0.05),
+                p50: q(0.5),
+                p95: q(0.95),
+                below_0_9: share(&|v| v < 0.9),
+                above_1_1: share(&|v| v > 1.1),
+            }
+        })
+        .collect();
+    Some(FilterAgreement {
+        pairs,
+        gaussians: drawn_ever.iter().filter(|&&d| d).count(),
+        ratios,
+    })
+}
+
+impl FilterAgreement {
+    /// One line per estimator for the console.
+    pub fn summary(&self) -> String {
+        self.ratios
+            .iter()
+            .map(|r| {
+                format!(
+                    "{}: nu(t)/nu_static p05 {:.3} p50 {:.3} p95 {:.3}, {:.1} % below 0.9, {:.1} % above 1.1",
+                    r.estimator,
+                    r.p05,
+                    r.p50,
+                    r.p95,
+                    100.0 * r.below_0_9,
+                    100.0 * r.above_1_1
+                )
+            })
+            .collect::<Vec<_>>()
+            .join("; ")
+    }
+}
