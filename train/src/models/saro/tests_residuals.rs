@@ -124,7 +124,7 @@ fn fused_ops_backward_equals_the_op_chain() {
     let x = residual_inputs::<f64>();
     for count in [5, 7] {
         check_vjp(
-            |t, v| apply(t, v),
+            apply,
             |_, v| apply_chain(v),
             &x[..count],
             3,
