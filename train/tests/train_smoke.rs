@@ -546,6 +546,19 @@ fn a_branch_continues_a_checkpoint_with_its_own_settings() {
     }
     assert!(fitted(&grouped));
 
+    // GroupFlow due before the checkpoint's iteration: fitted when the branch loads
+    // as well, not never.
+    let mut late_cfg = grouped_cfg.clone();
+    if let ModelConfig::Deform(d) = &mut late_cfg.model {
+        d.group_flow.at = 20;
+    }
+    let mut late = Trainer::new(&data, late_cfg).expect("trainer");
+    late.branch_from(&dir).expect("branch");
+    assert!(
+        fitted(&late),
+        "groups fitted for a branch past group_flow.at"
+    );
+
     // A plain resume of a checkpoint without the node offsets still refuses it.
     let err = Trainer::new(&data, grouped_cfg)
         .expect("trainer")

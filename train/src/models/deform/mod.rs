@@ -306,11 +306,14 @@ impl<T: Float> Representation<T> for DeformModel<T> {
     /// Static for iterations `< warm_up`, deformed from then on (Deformable-3DGS
     /// `train.py`: `if iteration < opt.warm_up: d_xyz = 0`); with GroupFlow, the groups
     /// are fitted at iteration `group_flow.at` (SpeeDe3DGS `train.py`:
-    /// `if iteration == opt.gflow_iteration: do_group_flow`).
+    /// `if iteration == opt.gflow_iteration: do_group_flow`), or at the first
+    /// iteration after it that finds them unfitted: a branch from a checkpoint past
+    /// `at` of a run without GroupFlow. A restored GroupFlow checkpoint past `at` is
+    /// fitted here too and then replaced by its saved groups ([`Self::load_buffer`]).
     fn set_iteration(&mut self, iteration: usize) {
         self.dynamic = iteration >= self.config.warm_up;
         let g = &self.config.group_flow;
-        if g.groups > 0 && iteration == g.at && self.grouped.is_none() {
+        if g.groups > 0 && iteration >= g.at && self.grouped.is_none() {
             self.fit_groups();
         }
     }

@@ -123,14 +123,7 @@ fn fused_ops_backward_equals_the_op_chain() {
     .assert_passed();
     let x = residual_inputs::<f64>();
     for count in [5, 7] {
-        check_vjp(
-            apply,
-            |_, v| apply_chain(v),
-            &x[..count],
-            3,
-            &cfg,
-        )
-        .assert_passed();
+        check_vjp(apply, |_, v| apply_chain(v), &x[..count], 3, &cfg).assert_passed();
     }
 }
 
