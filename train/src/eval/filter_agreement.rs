@@ -8,18 +8,25 @@
 //!
 //! Both estimators (the paper's KDE and our windowed maximum) are recomputed from
 //! the run's observation table, whichever the run trained with, so one run shows
-//! how far either could move the filter away from the static one.
+//! how far either could move the filter away from the static one. The same
+//! distribution is also given for the *moving* Gaussians alone: those whose drawn
+//! centres span a bounding box with a diagonal of at least [`MOVING`] times the
+//! camera extent (most Gaussians of a dynamic scene are static background).
 
 use maaf_filter::{FilterKind, MotionCurves, MotionEstimator, static_nu};
 use serde::{Deserialize, Serialize};
 
-use crate::trainer::Trainer;
+use crate::trainer::{Trainer, camera_extent};
 
 /// Where `maaf eval` writes the agreement of a motion-filter run (in `RUN/eval/`).
 pub const FILTER_AGREEMENT_FILE: &str = "filter_agreement.json";
 
 /// Drawn opacity from which a Gaussian counts at a time (3DGS's alpha floor).
 const DRAWN: f32 = 1.0 / 255.0;
+
+/// A Gaussian is moving when its drawn centres span at least this fraction of the
+/// camera extent (3DGS's scene radius).
+pub const MOVING: f64 = 0.05;
 
 /// Distribution of `nu(t) / nu_static` over the drawn (Gaussian, time bin) pairs.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -45,8 +52,14 @@ pub struct FilterAgreement {
     pub pairs: usize,
     /// Gaussians drawn at some bin.
     pub gaussians: usize,
-    /// One summary per estimator.
+    /// One summary per estimator, over all drawn pairs.
     pub ratios: Vec<RatioSummary>,
+    /// Drawn pairs of moving Gaussians.
+    pub moving_pairs: usize,
+    /// Moving Gaussians (drawn centres span [`MOVING`] x the camera extent).
+    pub moving_gaussians: usize,
+    /// One summary per estimator over the moving Gaussians' pairs (empty if none).
+    pub moving_ratios: Vec<RatioSummary>,
 }
 
 /// Measures the agreement of a motion-filter run (`None` for other filters, or when
@@ -72,72 +85,140 @@ pub fn filter_agreement(trainer: &Trainer) -> Option<FilterAgreement> {
             MotionCurves::refresh(&trainer.observations, &c).ok()
         })
         .collect::<Option<_>>()?;
+    // Per drawn pair: the Gaussian and each estimator's ratio; per Gaussian: the
+    // bounding box of its drawn centres.
+    let mut who: Vec<usize> = Vec::new();
     let mut ratios: Vec<Vec<f64>> = vec![Vec::new(); estimators.len()];
-    let mut drawn_ever = vec![false; nu_static.len()];
+    let mut boxes = vec![
+        [
+            f32::INFINITY,
+            f32::INFINITY,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NEG_INFINITY,
+            f32::NEG_INFINITY
+        ];
+        nu_static.len()
+    ];
     for s in 0..cfg.grid_t {
         let time = curves[0].bin_time(s);
-        let [_, _, _, opacity, _] = trainer.frame_at(f64::from(time));
-        for (n, &o) in opacity.data().iter().enumerate() {
+        let [means, _, _, opacity, _] = trainer.frame_at(f64::from(time));
+        for (n, (&o, p)) in opacity
+            .data()
+            .iter()
+            .zip(means.data().chunks_exact(3))
+            .enumerate()
+        {
             if o < DRAWN {
                 continue;
             }
-            drawn_ever[n] = true;
+            who.push(n);
             for (r, c) in ratios.iter_mut().zip(&curves) {
                 r.push(f64::from(c.nu(n, s)) / f64::from(nu_static[n]));
             }
+            let b = &mut boxes[n];
+            for k in 0..3 {
+                b[k] = b[k].min(p[k]);
+                b[k + 3] = b[k + 3].max(p[k]);
+            }
         }
     }
-    let pairs = ratios[0].len();
-    if pairs == 0 {
+    if who.is_empty() {
         return None;
     }
-    let ratios = estimators
+    let min_span = MOVING * camera_extent(trainer.cameras());
+    let moving: Vec<bool> = boxes
         .iter()
-        .zip(ratios)
-        .map(|(e, mut r)| {
-            r.sort_by(f64::total_cmp);
-            let q = |p: f64| r[((r.len() - 1) as f64 * p).round() as usize];
-            let share = |f: &dyn Fn(f64) -> bool| {
-                r.iter().filter(|&&v| f(v)).count() as f64 / r.len() as f64
-            };
-            RatioSummary {
-                estimator: match e {
-                    MotionEstimator::Kde => "kde",
-                    MotionEstimator::WindowMax => "window_max",
-                }
-                .into(),
-                p05: q(0.05),
-                p50: q(0.5),
-                p95: q(0.95),
-                below_0_9: share(&|v| v < 0.9),
-                above_1_1: share(&|v| v > 1.1),
-            }
+        .map(|b| {
+            let d = (0..3)
+                .map(|k| f64::from(b[k + 3] - b[k]).powi(2))
+                .sum::<f64>();
+            d.is_finite() && d.sqrt() >= min_span
         })
         .collect();
+    let moving_ratios: Vec<Vec<f64>> = ratios
+        .iter()
+        .map(|r| {
+            r.iter()
+                .zip(&who)
+                .filter(|(_, n)| moving[**n])
+                .map(|(v, _)| *v)
+                .collect()
+        })
+        .collect();
+    let summaries = |rs: Vec<Vec<f64>>| -> Vec<RatioSummary> {
+        if rs[0].is_empty() {
+            return Vec::new();
+        }
+        estimators
+            .iter()
+            .zip(rs)
+            .map(|(&e, r)| summarise(e, r))
+            .collect()
+    };
+    let mut drawn = vec![false; nu_static.len()];
+    who.iter().for_each(|&n| drawn[n] = true);
     Some(FilterAgreement {
-        pairs,
-        gaussians: drawn_ever.iter().filter(|&&d| d).count(),
-        ratios,
+        pairs: who.len(),
+        gaussians: drawn.iter().filter(|&&d| d).count(),
+        moving_pairs: moving_ratios[0].len(),
+        moving_gaussians: moving
+            .iter()
+            .zip(&drawn)
+            .filter(|(m, d)| **m && **d)
+            .count(),
+        ratios: summaries(ratios),
+        moving_ratios: summaries(moving_ratios),
     })
 }
 
+/// Percentiles and shares of one estimator's ratios.
+fn summarise(estimator: MotionEstimator, mut r: Vec<f64>) -> RatioSummary {
+    r.sort_by(f64::total_cmp);
+    let q = |p: f64| r[((r.len() - 1) as f64 * p).round() as usize];
+    let share =
+        |f: &dyn Fn(f64) -> bool| r.iter().filter(|&&v| f(v)).count() as f64 / r.len() as f64;
+    RatioSummary {
+        estimator: match estimator {
+            MotionEstimator::Kde => "kde",
+            MotionEstimator::WindowMax => "window_max",
+        }
+        .into(),
+        p05: q(0.05),
+        p50: q(0.5),
+        p95: q(0.95),
+        below_0_9: share(&|v| v < 0.9),
+        above_1_1: share(&|v| v > 1.1),
+    }
+}
+
 impl FilterAgreement {
-    /// One line per estimator for the console.
+    /// The console line: every drawn pair, then the moving Gaussians' pairs.
     pub fn summary(&self) -> String {
-        self.ratios
-            .iter()
-            .map(|r| {
-                format!(
-                    "{}: nu(t)/nu_static p05 {:.3} p50 {:.3} p95 {:.3}, {:.1} % below 0.9, {:.1} % above 1.1",
-                    r.estimator,
-                    r.p05,
-                    r.p50,
-                    r.p95,
-                    100.0 * r.below_0_9,
-                    100.0 * r.above_1_1
-                )
-            })
-            .collect::<Vec<_>>()
-            .join("; ")
+        let line = |rs: &[RatioSummary]| {
+            rs.iter()
+                .map(|r| {
+                    format!(
+                        "{} p05 {:.3} p50 {:.3} p95 {:.3}, {:.1} % < 0.9, {:.1} % > 1.1",
+                        r.estimator,
+                        r.p05,
+                        r.p50,
+                        r.p95,
+                        100.0 * r.below_0_9,
+                        100.0 * r.above_1_1
+                    )
+                })
+                .collect::<Vec<_>>()
+                .join("; ")
+        };
+        format!(
+            "nu(t)/nu_static over {} drawn pairs of {} Gaussians: {}; over the {} pairs of {} moving Gaussians: {}",
+            self.pairs,
+            self.gaussians,
+            line(&self.ratios),
+            self.moving_pairs,
+            self.moving_gaussians,
+            line(&self.moving_ratios)
+        )
     }
 }
