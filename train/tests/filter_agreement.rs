@@ -62,6 +62,9 @@ fn agreement_counts_drawn_pairs_and_never_exceeds_the_static_nu_of_a_static_mode
         assert_eq!(r.above_1_1, 0.0, "{r:?}");
         assert!(r.p05 > 0.0, "{r:?}");
     }
+    // Nothing moves before training: no moving Gaussian, no moving summary.
+    assert_eq!((agreement.moving_gaussians, agreement.moving_pairs), (0, 0));
+    assert!(agreement.moving_ratios.is_empty());
     // One camera per time (D-NeRF): a +-h_t window holds 15 of the 150 views, so
     // the windowed maximum is below the static nu for most drawn pairs.
     let window = &agreement.ratios[1];
