@@ -40,7 +40,7 @@ use serde::{Deserialize, Serialize};
 use crate::config::{FilterConfig, FilterError, MotionEstimator};
 use crate::kernels::{Kernels, WeibullF32};
 use crate::mip::fill_unseen;
-use crate::observations::ObservationTable;
+use crate::observations::{ObservationTable, TimeGroups};
 use crate::window_max;
 
 /// Curve code meaning "use the fallback nu" (density ~ 0 in this time bin).
@@ -88,19 +88,11 @@ const BLOCK_T: usize = 20;
 
 impl Plan {
     fn new(times: &[f32], cfg: &FilterConfig, kern: &Kernels) -> Plan {
-        let tn: Vec<f32> = times.iter().map(|&t| cfg.normalise_time(t)).collect();
-        let mut frames: Vec<u32> = (0..times.len() as u32).collect();
-        frames.sort_by(|&a, &b| tn[a as usize].total_cmp(&tn[b as usize]));
-        let mut group_start = Vec::new();
-        let mut group_time = Vec::new();
-        for (i, &f) in frames.iter().enumerate() {
-            let t = tn[f as usize];
-            if group_time.last() != Some(&t) {
-                group_start.push(i);
-                group_time.push(t);
-            }
-        }
-        group_start.push(frames.len());
+        let TimeGroups {
+            frames,
+            start: group_start,
+            times: group_time,
+        } = TimeGroups::new(times, cfg);
         let norm = 1.0 / (2.0 * kern.h_x * kern.h_t);
         let (t_grid, groups) = (cfg.grid_t, group_time.len());
         let mut w = vec![0.0f32; t_grid * groups];

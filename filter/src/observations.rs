@@ -46,6 +46,50 @@ pub struct ObservationTable {
     rows: usize,
 }
 
+/// Training frames grouped by normalised time (all cameras of a multi-view
+/// timestamp share one group), the grouping both estimators of nu(t) start from.
+pub(crate) struct TimeGroups {
+    /// Frame indices sorted by time; group `g` is `frames[start[g]..start[g + 1]]`.
+    pub frames: Vec<u32>,
+    /// Group starts, then `frames.len()`.
+    pub start: Vec<usize>,
+    /// Normalised time of each group, increasing.
+    pub times: Vec<f32>,
+}
+
+impl TimeGroups {
+    /// Groups frames with the given times (in `cfg.time_range`).
+    pub fn new(times: &[f32], cfg: &FilterConfig) -> TimeGroups {
+        let tn: Vec<f32> = times.iter().map(|&t| cfg.normalise_time(t)).collect();
+        let mut frames: Vec<u32> = (0..times.len() as u32).collect();
+        frames.sort_by(|&a, &b| tn[a as usize].total_cmp(&tn[b as usize]));
+        let (mut start, mut group_times) = (Vec::new(), Vec::<f32>::new());
+        for (i, &f) in frames.iter().enumerate() {
+            let t = tn[f as usize];
+            if group_times.last() != Some(&t) {
+                start.push(i);
+                group_times.push(t);
+            }
+        }
+        start.push(frames.len());
+        TimeGroups {
+            frames,
+            start,
+            times: group_times,
+        }
+    }
+
+    /// Number of groups.
+    pub fn len(&self) -> usize {
+        self.times.len()
+    }
+
+    /// Frames of group `g`.
+    pub fn group(&self, g: usize) -> &[u32] {
+        &self.frames[self.start[g]..self.start[g + 1]]
+    }
+}
+
 impl ObservationTable {
     /// An empty table for `rows` Gaussians and the training frames with the given
     /// times (frame `f` has time `frame_times[f]`).

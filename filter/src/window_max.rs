@@ -23,60 +23,33 @@ use rayon::prelude::*;
 
 use crate::config::FilterConfig;
 use crate::motion::FALLBACK;
-use crate::observations::ObservationTable;
+use crate::observations::{ObservationTable, TimeGroups};
 
-/// Frames grouped by normalised time, and each time bin's window of groups.
-struct Windows {
-    /// Frame indices sorted by time; group `g` is `frames[start[g]..start[g + 1]]`.
-    frames: Vec<u32>,
-    start: Vec<usize>,
-    /// Per bin `s`: the groups `[a, b)` with `|g_t[s] - t_g| <= h_t` (empty: `a >= b`).
-    window: Vec<(usize, usize)>,
-}
-
-impl Windows {
-    fn new(times: &[f32], cfg: &FilterConfig) -> Windows {
-        let tn: Vec<f32> = times.iter().map(|&t| cfg.normalise_time(t)).collect();
-        let mut frames: Vec<u32> = (0..times.len() as u32).collect();
-        frames.sort_by(|&a, &b| tn[a as usize].total_cmp(&tn[b as usize]));
-        let mut start = Vec::new();
-        let mut group_time: Vec<f32> = Vec::new();
-        for (i, &f) in frames.iter().enumerate() {
-            let t = tn[f as usize];
-            if group_time.last() != Some(&t) {
-                start.push(i);
-                group_time.push(t);
+/// Each time bin `s`'s window: the groups `[a, b)` with `|g_t[s] - t_g| <= h_t`
+/// (empty: `a >= b`).
+fn windows(groups: &TimeGroups, cfg: &FilterConfig) -> Vec<(usize, usize)> {
+    let h = f64::from(cfg.h_t);
+    (0..cfg.grid_t)
+        .map(|s| {
+            let gs = s as f64 / (cfg.grid_t - 1) as f64;
+            let inside = |g: &usize| (gs - f64::from(groups.times[*g])).abs() <= h;
+            let mut within = (0..groups.len()).filter(inside);
+            match within.next() {
+                Some(a) => (a, within.next_back().unwrap_or(a) + 1),
+                None => (0, 0),
             }
-        }
-        start.push(frames.len());
-        let h = f64::from(cfg.h_t);
-        let window = (0..cfg.grid_t)
-            .map(|s| {
-                let gs = s as f64 / (cfg.grid_t - 1) as f64;
-                let inside = |g: &usize| (gs - f64::from(group_time[*g])).abs() <= h;
-                let mut groups = (0..group_time.len()).filter(inside);
-                match groups.next() {
-                    Some(a) => (a, groups.next_back().unwrap_or(a) + 1),
-                    None => (0, 0),
-                }
-            })
-            .collect();
-        Windows {
-            frames,
-            start,
-            window,
-        }
-    }
+        })
+        .collect()
 }
 
 /// The windowed maximum for every Gaussian of `table` (parallel over Gaussians):
 /// `T` codes per row and each row's `x_max` (0 for a Gaussian never observed).
 /// `cfg` must be valid.
 pub(crate) fn codes(table: &ObservationTable, cfg: &FilterConfig) -> (Vec<u8>, Vec<f32>) {
-    let win = Windows::new(table.times(), cfg);
+    let groups = TimeGroups::new(table.times(), cfg);
+    let window = windows(&groups, cfg);
     let (rows, t) = (table.rows(), cfg.grid_t);
     let steps = (cfg.grid_x - 1) as f32;
-    let groups = win.start.len() - 1;
     let mut codes = vec![FALLBACK; rows * t];
     let mut x_max = vec![0.0f32; rows];
     codes
@@ -84,12 +57,11 @@ pub(crate) fn codes(table: &ObservationTable, cfg: &FilterConfig) -> (Vec<u8>, V
         .zip(x_max.par_iter_mut())
         .enumerate()
         .for_each_init(
-            || vec![0.0f32; groups],
+            || vec![0.0f32; groups.len()],
             |group_max, (n, (codes, xm))| {
                 let row = table.row(n);
                 for (g, m) in group_max.iter_mut().enumerate() {
-                    *m = win.frames[win.start[g]..win.start[g + 1]]
-                        .iter()
+                    *m = (groups.group(g).iter())
                         .map(|&f| row[f as usize])
                         .fold(0.0f32, f32::max);
                 }
@@ -97,7 +69,7 @@ pub(crate) fn codes(table: &ObservationTable, cfg: &FilterConfig) -> (Vec<u8>, V
                 if *xm <= 0.0 {
                     return;
                 }
-                for (code, &(a, b)) in codes.iter_mut().zip(&win.window) {
+                for (code, &(a, b)) in codes.iter_mut().zip(&window) {
                     let nu = group_max[a.min(b)..b]
                         .iter()
                         .copied()

@@ -197,24 +197,35 @@ fn cam(dist: f64, f: f64, x_offset: f64) -> Camera {
     Camera::new(200, 200, f, f, 100.0, 100.0, w2c).expect("camera")
 }
 
+/// Three cameras at different distances, one with another focal.
+fn three_cameras() -> [Camera; 3] {
+    [
+        cam(2.0, 100.0, 0.0),
+        cam(3.0, 100.0, 0.1),
+        cam(5.0, 150.0, -0.2),
+    ]
+}
+
+/// Multi-view video layout: every one of `cameras` cameras at each of `times`
+/// evenly spaced times in [0, 1].
+fn multiview_frames(times: usize, cameras: usize) -> Vec<CameraTime> {
+    (0..times)
+        .flat_map(|i| {
+            (0..cameras).map(move |c| CameraTime {
+                camera: c,
+                time: i as f32 / (times - 1) as f32,
+            })
+        })
+        .collect()
+}
+
 #[test]
 fn static_gaussian_at_constant_f_over_d_gives_constant_nu() {
     let cfg = FilterConfig::default();
     // Three cameras at different distances: each sees the static Gaussian at its own
     // constant f/d, at every one of 50 times (multi-view video layout).
-    let cameras = [
-        cam(2.0, 100.0, 0.0),
-        cam(3.0, 100.0, 0.1),
-        cam(5.0, 150.0, -0.2),
-    ];
-    let frames: Vec<CameraTime> = (0..50)
-        .flat_map(|i| {
-            (0..3).map(move |c| CameraTime {
-                camera: c,
-                time: i as f32 / 49.0,
-            })
-        })
-        .collect();
+    let cameras = three_cameras();
+    let frames = multiview_frames(50, 3);
     let centres = vec![[0.0f32, 0.0, 0.0], [0.1, 0.2, 0.5]];
     let mut table = ObservationTable::for_frames(&frames, centres.len());
     table
@@ -609,19 +620,8 @@ fn window_max_of_a_static_scene_is_the_static_nu() {
         estimator: MotionEstimator::WindowMax,
         ..FilterConfig::default()
     };
-    let cameras = [
-        cam(2.0, 100.0, 0.0),
-        cam(3.0, 100.0, 0.1),
-        cam(5.0, 150.0, -0.2),
-    ];
-    let frames: Vec<CameraTime> = (0..40)
-        .flat_map(|i| {
-            (0..3).map(move |c| CameraTime {
-                camera: c,
-                time: i as f32 / 39.0,
-            })
-        })
-        .collect();
+    let cameras = three_cameras();
+    let frames = multiview_frames(40, 3);
     let centres = vec![[0.0f32, 0.0, 0.0], [0.1, 0.2, 0.5], [0.3, -0.2, 1.0]];
     let mut table = ObservationTable::for_frames(&frames, centres.len());
     table

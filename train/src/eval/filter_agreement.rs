@@ -85,57 +85,15 @@ pub fn filter_agreement(trainer: &Trainer) -> Option<FilterAgreement> {
             MotionCurves::refresh(&trainer.observations, &c).ok()
         })
         .collect::<Option<_>>()?;
-    // Per drawn pair: the Gaussian and each estimator's ratio; per Gaussian: the
-    // bounding box of its drawn centres.
-    let mut who: Vec<usize> = Vec::new();
-    let mut ratios: Vec<Vec<f64>> = vec![Vec::new(); estimators.len()];
-    let mut boxes = vec![
-        [
-            f32::INFINITY,
-            f32::INFINITY,
-            f32::INFINITY,
-            f32::NEG_INFINITY,
-            f32::NEG_INFINITY,
-            f32::NEG_INFINITY
-        ];
-        nu_static.len()
-    ];
-    for s in 0..cfg.grid_t {
-        let time = curves[0].bin_time(s);
-        let [means, _, _, opacity, _] = trainer.frame_at(f64::from(time));
-        for (n, (&o, p)) in opacity
-            .data()
-            .iter()
-            .zip(means.data().chunks_exact(3))
-            .enumerate()
-        {
-            if o < DRAWN {
-                continue;
-            }
-            who.push(n);
-            for (r, c) in ratios.iter_mut().zip(&curves) {
-                r.push(f64::from(c.nu(n, s)) / f64::from(nu_static[n]));
-            }
-            let b = &mut boxes[n];
-            for k in 0..3 {
-                b[k] = b[k].min(p[k]);
-                b[k + 3] = b[k + 3].max(p[k]);
-            }
-        }
-    }
-    if who.is_empty() {
+    let drawn = drawn_pairs(trainer, &curves, &nu_static);
+    if drawn.who.is_empty() {
         return None;
     }
-    let min_span = MOVING * camera_extent(trainer.cameras());
-    let moving: Vec<bool> = boxes
-        .iter()
-        .map(|b| {
-            let d = (0..3)
-                .map(|k| f64::from(b[k + 3] - b[k]).powi(2))
-                .sum::<f64>();
-            d.is_finite() && d.sqrt() >= min_span
-        })
-        .collect();
+    let DrawnPairs {
+        who,
+        ratios,
+        moving,
+    } = drawn;
     let moving_ratios: Vec<Vec<f64>> = ratios
         .iter()
         .map(|r| {
@@ -156,20 +114,67 @@ pub fn filter_agreement(trainer: &Trainer) -> Option<FilterAgreement> {
             .map(|(&e, r)| summarise(e, r))
             .collect()
     };
-    let mut drawn = vec![false; nu_static.len()];
-    who.iter().for_each(|&n| drawn[n] = true);
+    let mut seen = vec![false; nu_static.len()];
+    who.iter().for_each(|&n| seen[n] = true);
     Some(FilterAgreement {
         pairs: who.len(),
-        gaussians: drawn.iter().filter(|&&d| d).count(),
+        gaussians: seen.iter().filter(|&&d| d).count(),
         moving_pairs: moving_ratios[0].len(),
-        moving_gaussians: moving
-            .iter()
-            .zip(&drawn)
-            .filter(|(m, d)| **m && **d)
-            .count(),
+        moving_gaussians: moving.iter().zip(&seen).filter(|(m, d)| **m && **d).count(),
         ratios: summaries(ratios),
         moving_ratios: summaries(moving_ratios),
     })
+}
+
+/// The drawn (Gaussian, time bin) pairs of a run.
+struct DrawnPairs {
+    /// The Gaussian of each pair.
+    who: Vec<usize>,
+    /// Per estimator, the ratio `nu(t) / nu_static` of each pair.
+    ratios: Vec<Vec<f64>>,
+    /// Per Gaussian: its drawn centres span [`MOVING`] x the camera extent.
+    moving: Vec<bool>,
+}
+
+/// Deforms the model (no render) at every time bin of `curves` and keeps the pairs
+/// whose opacity reaches [`DRAWN`], with each curve's ratio to `nu_static`, and
+/// marks the Gaussians whose drawn centres move.
+fn drawn_pairs(trainer: &Trainer, curves: &[MotionCurves], nu_static: &[f32]) -> DrawnPairs {
+    let n = nu_static.len();
+    let mut who = Vec::new();
+    let mut ratios = vec![Vec::new(); curves.len()];
+    let (mut lo, mut hi) = (vec![[f32::INFINITY; 3]; n], vec![[f32::NEG_INFINITY; 3]; n]);
+    for s in 0..curves[0].grid_t() {
+        let [means, _, _, opacity, _] = trainer.frame_at(f64::from(curves[0].bin_time(s)));
+        let centres = means.data().chunks_exact(3);
+        for (k, (&o, p)) in opacity.data().iter().zip(centres).enumerate() {
+            if o < DRAWN {
+                continue;
+            }
+            who.push(k);
+            for (r, c) in ratios.iter_mut().zip(curves) {
+                r.push(f64::from(c.nu(k, s)) / f64::from(nu_static[k]));
+            }
+            for d in 0..3 {
+                lo[k][d] = lo[k][d].min(p[d]);
+                hi[k][d] = hi[k][d].max(p[d]);
+            }
+        }
+    }
+    let min_span = MOVING * camera_extent(trainer.cameras());
+    let moving = lo
+        .iter()
+        .zip(&hi)
+        .map(|(a, b)| {
+            let d2: f64 = (0..3).map(|d| f64::from(b[d] - a[d]).powi(2)).sum();
+            d2.is_finite() && d2.sqrt() >= min_span
+        })
+        .collect();
+    DrawnPairs {
+        who,
+        ratios,
+        moving,
+    }
 }
 
 /// Percentiles and shares of one estimator's ratios.
