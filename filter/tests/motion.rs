@@ -249,9 +249,15 @@ fn static_gaussian_at_constant_f_over_d_gives_constant_nu() {
     assert!(curves.curve(0).iter().all(|&v| v == 40.0));
 }
 
-#[test]
-fn gaussian_moving_toward_the_camera_gets_increasing_nu() {
-    let cfg = FilterConfig::default();
+/// Depth of [`approaching_gaussian`] at time t: from 10 down to 2 (x = f/z from 10
+/// to 50 with f = 100).
+fn depth(t: f32) -> f32 {
+    10.0 - 8.0 * t
+}
+
+/// One Gaussian on the axis of one camera (focal 100) at 150 times, approaching it
+/// from depth 10 to 2 (D-NeRF layout).
+fn approaching_gaussian() -> ObservationTable {
     let cameras = [cam(0.0, 100.0, 0.0)];
     let frames: Vec<CameraTime> = (0..150)
         .map(|i| CameraTime {
@@ -259,12 +265,19 @@ fn gaussian_moving_toward_the_camera_gets_increasing_nu() {
             time: i as f32 / 149.0,
         })
         .collect();
-    // Depth from 10 down to 2 (x = f/z from 10 to 50).
-    let depth = |t: f32| 10.0 - 8.0 * t;
     let mut table = ObservationTable::for_frames(&frames, 1);
     table
-        .observe_all(&frames, &cameras, &cfg, |t| vec![[0.0, 0.0, depth(t)]])
+        .observe_all(&frames, &cameras, &FilterConfig::default(), |t| {
+            vec![[0.0, 0.0, depth(t)]]
+        })
         .expect("observe");
+    table
+}
+
+#[test]
+fn gaussian_moving_toward_the_camera_gets_increasing_nu() {
+    let cfg = FilterConfig::default();
+    let table = approaching_gaussian();
     let curves = MotionCurves::refresh(&table, &cfg).expect("refresh");
     let curve = curves.curve(0);
     for w in curve.windows(2) {
@@ -574,18 +587,7 @@ fn window_max_follows_a_gaussian_moving_toward_the_camera() {
         estimator: MotionEstimator::WindowMax,
         ..FilterConfig::default()
     };
-    let cameras = [cam(0.0, 100.0, 0.0)];
-    let frames: Vec<CameraTime> = (0..150)
-        .map(|i| CameraTime {
-            camera: 0,
-            time: i as f32 / 149.0,
-        })
-        .collect();
-    let depth = |t: f32| 10.0 - 8.0 * t;
-    let mut table = ObservationTable::for_frames(&frames, 1);
-    table
-        .observe_all(&frames, &cameras, &ours, |t| vec![[0.0, 0.0, depth(t)]])
-        .expect("observe");
+    let table = approaching_gaussian();
     let window = MotionCurves::refresh(&table, &ours)
         .expect("refresh")
         .curve(0);

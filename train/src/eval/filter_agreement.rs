@@ -13,7 +13,7 @@
 //! centres span a bounding box with a diagonal of at least [`MOVING`] times the
 //! camera extent (most Gaussians of a dynamic scene are static background).
 
-use maaf_filter::{FilterKind, MotionCurves, MotionEstimator, static_nu};
+use maaf_filter::{FilterKind, MotionCurves, MotionEstimator};
 use serde::{Deserialize, Serialize};
 
 use crate::trainer::{Trainer, camera_extent};
@@ -69,11 +69,7 @@ pub fn filter_agreement(trainer: &Trainer) -> Option<FilterAgreement> {
     if cfg.kind != FilterKind::Motion {
         return None;
     }
-    let canonical: Vec<[f32; 3]> = (trainer.model.canonical().means.data())
-        .chunks_exact(3)
-        .map(|c| [c[0], c[1], c[2]])
-        .collect();
-    let nu_static = static_nu(&canonical, trainer.cameras(), cfg).ok()?;
+    let nu_static = trainer.static_nu().ok()?;
     let estimators = [MotionEstimator::Kde, MotionEstimator::WindowMax];
     let curves: Vec<MotionCurves> = estimators
         .iter()

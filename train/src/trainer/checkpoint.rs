@@ -17,6 +17,7 @@ use serde::{Deserialize, Serialize};
 use super::{DensifyStats, Timings, TrainConfig, Trainer};
 use crate::Error;
 use crate::data::Dataset;
+use crate::models::Representation;
 use crate::params::Rows;
 
 /// Non-tensor state of a run.
@@ -288,21 +289,28 @@ impl Trainer {
         self.iteration = state.iteration;
         // The stage (e.g. SaRO-GS's static warm-up) follows the iteration; without this a
         // loaded run would render its canonical, undeformed Gaussians.
-        self.model.set_iteration(state.iteration);
-        // Buffers after the stage: `set_iteration` may recompute them from the
-        // parameters, which have moved since the run computed the saved ones.
+        // Buffers before the stage, so a stage switch that would build one (GroupFlow's
+        // fit past `group_flow.at`) finds it saved instead of fitting it again, and
+        // after it: `set_iteration` may recompute a buffer (SaRO's adaptive scale) from
+        // the parameters, which have moved since the run computed the saved one.
         let mut buffers: Vec<&str> = st
             .names()
             .into_iter()
             .filter_map(|k| k.strip_prefix(BUFFER))
             .collect();
         buffers.sort_unstable();
-        for name in buffers {
-            let value = tensor(&st, &format!("{BUFFER}{name}"), &blob_path)?;
-            self.model
-                .load_buffer(name, value)
-                .map_err(|e| Error::Input(format!("{}: {e}", blob_path.display())))?;
-        }
+        let load_buffers = |model: &mut dyn Representation<f32>| -> Result<(), Error> {
+            for name in &buffers {
+                let value = tensor(&st, &format!("{BUFFER}{name}"), &blob_path)?;
+                model
+                    .load_buffer(name, value)
+                    .map_err(|e| Error::Input(format!("{}: {e}", blob_path.display())))?;
+            }
+            Ok(())
+        };
+        load_buffers(self.model.as_mut())?;
+        self.model.set_iteration(state.iteration);
+        load_buffers(self.model.as_mut())?;
         self.skipped_steps = state.skipped_steps;
         self.last_reset = state.last_reset;
         self.timings = state.timings;

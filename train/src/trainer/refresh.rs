@@ -2,7 +2,7 @@
 //! (`mip3d`), nu(t) from the recorded observations (`motion`; paper Alg. 1).
 
 use maaf_autodiff::Tensor;
-use maaf_filter::{FilterKind, FilterState, MotionCurves, static_nu};
+use maaf_filter::{FilterError, FilterKind, FilterState, MotionCurves, static_nu};
 
 use super::{Trainer, log_line};
 
@@ -47,6 +47,13 @@ impl Trainer {
         self.refresh_filter();
     }
 
+    /// Mip-Splatting's static nu (paper Eq. 2) of the canonical centres from the
+    /// training cameras: what the `mip3d` filter uses.
+    pub(crate) fn static_nu(&self) -> Result<Vec<f32>, FilterError> {
+        let canon = centres(&self.model.canonical().means);
+        static_nu(&canon, &self.cameras, &self.config.filter)
+    }
+
     /// Recomputes the 3D filter: static nu from the canonical centres for `mip3d`,
     /// nu(t) from the recorded observations for `motion`. On a failure (logged) the
     /// previous filter stays.
@@ -55,16 +62,13 @@ impl Trainer {
         let cfg = &self.config.filter;
         self.filter = match cfg.kind {
             FilterKind::None => FilterState::None { rows: n },
-            FilterKind::Mip3d => {
-                let canon = centres(&self.model.canonical().means);
-                match static_nu(&canon, &self.cameras, cfg) {
-                    Ok(nu) => FilterState::Mip3d { s3d: cfg.s3d, nu },
-                    Err(e) => {
-                        log_line(&format!("filter refresh skipped: {e}"));
-                        return;
-                    }
+            FilterKind::Mip3d => match self.static_nu() {
+                Ok(nu) => FilterState::Mip3d { s3d: cfg.s3d, nu },
+                Err(e) => {
+                    log_line(&format!("filter refresh skipped: {e}"));
+                    return;
                 }
-            }
+            },
             FilterKind::Motion => match MotionCurves::refresh(&self.observations, cfg) {
                 Ok(curves) => FilterState::Motion {
                     s3d: cfg.s3d,

@@ -308,8 +308,8 @@ impl<T: Float> Representation<T> for DeformModel<T> {
     /// are fitted at iteration `group_flow.at` (SpeeDe3DGS `train.py`:
     /// `if iteration == opt.gflow_iteration: do_group_flow`), or at the first
     /// iteration after it that finds them unfitted: a branch from a checkpoint past
-    /// `at` of a run without GroupFlow. A restored GroupFlow checkpoint past `at` is
-    /// fitted here too and then replaced by its saved groups ([`Self::load_buffer`]).
+    /// `at` of a run without GroupFlow (a restored GroupFlow checkpoint has loaded its
+    /// saved groups before this is called, so it is not fitted again).
     fn set_iteration(&mut self, iteration: usize) {
         self.dynamic = iteration >= self.config.warm_up;
         let g = &self.config.group_flow;
