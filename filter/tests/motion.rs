@@ -57,6 +57,20 @@ fn frame_times(kind: usize, rng: &mut Pcg64) -> Vec<f32> {
     }
 }
 
+/// One random table of 18 Gaussians per frame layout of [`frame_times`], with the
+/// times mapped from [0, 1] to [-1, 3] when `wide_range` (exercises `time_range`).
+fn layout_tables(wide_range: bool, rng: &mut Pcg64) -> Vec<ObservationTable> {
+    (0..3)
+        .map(|kind| {
+            let mut times = frame_times(kind, rng);
+            if wide_range {
+                times.iter_mut().for_each(|t| *t = *t * 4.0 - 1.0);
+            }
+            random_table(times, 18, rng)
+        })
+        .collect()
+}
+
 /// Algorithm 1 (oracle) inputs for Gaussian `n`: normalised times with empty slots
 /// flagged by t < 0 (Alg. 1 line 2) and x.
 fn oracle_inputs(table: &ObservationTable, n: usize, cfg: &FilterConfig) -> (Vec<f64>, Vec<f64>) {
@@ -104,13 +118,7 @@ fn fast_refresh_equals_brute_force_algorithm1() {
     for (ci, cfg) in configs.iter().enumerate() {
         cfg.validate().expect("valid config");
         let kern = Kernels::new(cfg);
-        for kind in 0..3 {
-            let mut times = frame_times(kind, &mut rng);
-            if ci == 3 {
-                // Exercise the time-range mapping.
-                times.iter_mut().for_each(|t| *t = *t * 4.0 - 1.0);
-            }
-            let table = random_table(times, 18, &mut rng);
+        for (kind, table) in layout_tables(ci == 3, &mut rng).into_iter().enumerate() {
             let curves = MotionCurves::refresh(&table, cfg).expect("refresh");
             for n in 0..table.rows() {
                 let (ts, xs) = oracle_inputs(&table, n, cfg);
@@ -534,12 +542,7 @@ fn fast_window_max_equals_brute_force() {
     let mut rng = Pcg64::seed_from_u64(13);
     let (mut bins, mut fallbacks, mut exact) = (0usize, 0usize, 0usize);
     for (ci, cfg) in configs.iter().enumerate() {
-        for kind in 0..3 {
-            let mut times = frame_times(kind, &mut rng);
-            if ci == 2 {
-                times.iter_mut().for_each(|t| *t = *t * 4.0 - 1.0);
-            }
-            let table = random_table(times, 18, &mut rng);
+        for (kind, table) in layout_tables(ci == 2, &mut rng).into_iter().enumerate() {
             let curves = MotionCurves::refresh(&table, cfg).expect("refresh");
             for n in 0..table.rows() {
                 let (ts, xs) = oracle_inputs(&table, n, cfg);
