@@ -213,7 +213,8 @@ fn run(
                         .collect();
                 let nu_static = static_nu(&scene.canonical, &cams, &cfg).expect("visible");
                 let ex =
-                    AnalysisExport::collect(&full, &b, &chosen, Some(&nu_static)).expect("export");
+                    AnalysisExport::collect(&full, &b, cfg.estimator, &chosen, Some(&nu_static))
+                        .expect("export");
                 ex.write_json(&dir.join("dnerf_fd.json"))
                     .expect("write json");
                 ex.write_csv(&dir.join("dnerf_fd.csv")).expect("write csv");

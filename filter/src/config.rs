@@ -63,6 +63,16 @@ pub enum MotionEstimator {
     WindowMax,
 }
 
+impl MotionEstimator {
+    /// The config name (`"kde"`, `"window_max"`), as `filter.estimator` spells it.
+    pub fn name(self) -> &'static str {
+        match self {
+            MotionEstimator::Kde => "kde",
+            MotionEstimator::WindowMax => "window_max",
+        }
+    }
+}
+
 /// When the filter is recomputed, outside the tape. It is always computed once
 /// before the first iteration (the trainer's first step does it, as Mip-Splatting
 /// does); this schedule says when it is recomputed.

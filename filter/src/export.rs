@@ -5,9 +5,10 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
+use maaf_autodiff::PerGaussian;
 use serde::{Deserialize, Serialize};
 
-use crate::config::FilterError;
+use crate::config::{FilterError, MotionEstimator};
 use crate::motion::MotionCurves;
 use crate::observations::ObservationTable;
 
@@ -24,27 +25,53 @@ pub struct GaussianTrace {
     pub static_nu: Option<f32>,
     /// Observations `[t, f/d]`, sorted by time.
     pub observations: Vec<[f32; 2]>,
-    /// Motion-aware curve `[bin time, nu]`, T points.
+    /// Motion-aware curve `[bin time, nu]`, T points: the one the run's filter uses.
+    pub nu: Vec<[f32; 2]>,
+    /// Other estimators' curves recomputed from the same observations, for comparison
+    /// (see [`AnalysisExport::compare`]).
+    #[serde(default)]
+    pub compared: Vec<EstimatorCurve>,
+    /// How far the caller saw the Gaussian move while drawn (its drawn centres'
+    /// bounding-box diagonal over the camera extent), if it measured that.
+    #[serde(default)]
+    pub drawn_motion: Option<f32>,
+}
+
+/// One estimator's nu(t) curve of a Gaussian.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct EstimatorCurve {
+    /// The estimator's config name (`"kde"`, `"window_max"`).
+    pub estimator: String,
+    /// `[bin time, nu]`, T points.
     pub nu: Vec<[f32; 2]>,
 }
 
 /// A set of traces, serialisable as JSON (`{"gaussians": [...]}`) or long-format CSV.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct AnalysisExport {
+    /// The config name of the estimator behind each trace's `nu` (`"kde"` in exports
+    /// that predate the choice).
+    #[serde(default = "paper_estimator")]
+    pub estimator: String,
     /// The chosen Gaussians.
     pub gaussians: Vec<GaussianTrace>,
 }
 
+fn paper_estimator() -> String {
+    "kde".into()
+}
+
 impl AnalysisExport {
     /// Collects the traces of `chosen` (index, label) from the observations and the
-    /// curves of the same refresh; `static_nu` optionally adds the Mip value.
+    /// curves of the same refresh, made by `estimator`; `static_nu` optionally adds
+    /// the Mip value.
     pub fn collect(
         table: &ObservationTable,
         curves: &MotionCurves,
+        estimator: MotionEstimator,
         chosen: &[(usize, String)],
         static_nu: Option<&[f32]>,
     ) -> Result<Self, FilterError> {
-        use maaf_autodiff::PerGaussian;
         let rows = curves.rows();
         if table.rows() != rows {
             return Err(FilterError::Shape(format!(
@@ -66,9 +93,7 @@ impl AnalysisExport {
                 .map(|(t, x)| [t, x])
                 .collect();
             observations.sort_by(|a, b| a[0].total_cmp(&b[0]));
-            let nu = (0..curves.grid_t())
-                .map(|s| [curves.bin_time(s), curves.nu(n, s)])
-                .collect();
+            let nu = curve_points(curves, n);
             gaussians.push(GaussianTrace {
                 index: n,
                 label: label.clone(),
@@ -76,9 +101,37 @@ impl AnalysisExport {
                 static_nu: static_nu.and_then(|v| v.get(n).copied()),
                 observations,
                 nu,
+                compared: Vec::new(),
+                drawn_motion: None,
             });
         }
-        Ok(AnalysisExport { gaussians })
+        Ok(AnalysisExport {
+            estimator: estimator.name().into(),
+            gaussians,
+        })
+    }
+
+    /// Adds `other`'s curve of every traced Gaussian (curves of `estimator`, refreshed
+    /// from the same observation table) as a compared curve.
+    pub fn compare(
+        &mut self,
+        estimator: MotionEstimator,
+        other: &MotionCurves,
+    ) -> Result<(), FilterError> {
+        for g in &mut self.gaussians {
+            if g.index >= other.rows() {
+                return Err(FilterError::Shape(format!(
+                    "export: Gaussian {} out of range for {} compared curves",
+                    g.index,
+                    other.rows()
+                )));
+            }
+            g.compared.push(EstimatorCurve {
+                estimator: estimator.name().into(),
+                nu: curve_points(other, g.index),
+            });
+        }
+        Ok(())
     }
 
     /// Pretty JSON text.
@@ -88,8 +141,8 @@ impl AnalysisExport {
     }
 
     /// Long-format CSV: `gaussian,label,series,t,value` with series
-    /// `observation` (value f/d), `nu` (motion-aware nu at the bin time) and
-    /// `static_nu` (one row, t empty).
+    /// `observation` (value f/d), `nu` (the run's motion-aware nu at the bin time),
+    /// `nu_<estimator>` (a compared curve) and `static_nu` (one row, t empty).
     pub fn to_csv(&self) -> String {
         let mut out = String::from("gaussian,label,series,t,value\n");
         for g in &self.gaussians {
@@ -99,6 +152,11 @@ impl AnalysisExport {
             }
             for [t, nu] in &g.nu {
                 let _ = writeln!(out, "{},{label},nu,{t},{nu}", g.index);
+            }
+            for c in &g.compared {
+                for [t, nu] in &c.nu {
+                    let _ = writeln!(out, "{},{label},nu_{},{t},{nu}", g.index, c.estimator);
+                }
             }
             if let Some(v) = g.static_nu {
                 let _ = writeln!(out, "{},{label},static_nu,,{v}", g.index);
@@ -116,6 +174,13 @@ impl AnalysisExport {
     pub fn write_csv(&self, path: &Path) -> Result<(), FilterError> {
         write_atomic(path, self.to_csv().as_bytes())
     }
+}
+
+/// Gaussian `n`'s curve as `[bin time, nu]` points.
+fn curve_points(curves: &MotionCurves, n: usize) -> Vec<[f32; 2]> {
+    (0..curves.grid_t())
+        .map(|s| [curves.bin_time(s), curves.nu(n, s)])
+        .collect()
 }
 
 /// Writes `bytes` to `path` through a temporary sibling file and a rename, so a

@@ -64,7 +64,7 @@ mod state;
 mod window_max;
 
 pub use config::{FilterConfig, FilterError, FilterKind, MotionEstimator, RefreshSchedule};
-pub use export::{AnalysisExport, GaussianTrace};
+pub use export::{AnalysisExport, EstimatorCurve, GaussianTrace};
 pub use kernels::Kernels;
 pub use mip::{Viewer, static_nu, variance_from_nu};
 pub use motion::{FALLBACK, MotionCurves};

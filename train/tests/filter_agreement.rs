@@ -1,32 +1,50 @@
 //! `eval::filter_agreement` on a fresh SaRO model of the mutant scene (100x100
 //! training images): its observations are the canonical centres' projections, so
 //! neither estimator may exceed Mip-Splatting's static nu, and the pairs it counts
-//! are exactly the drawn (Gaussian, time bin) pairs.
+//! are exactly the drawn (Gaussian, time bin) pairs. The nu(t) chart's export picks
+//! its Gaussians by drawn-centre motion, checked against an independent loop.
 
 use std::path::PathBuf;
 
 use maaf_filter::{FilterKind, MotionCurves};
 use maaf_train::data::{Dataset, DatasetOptions};
-use maaf_train::eval::filter_agreement::filter_agreement;
-use maaf_train::trainer::{TrainConfig, Trainer};
+use maaf_train::eval::filter_agreement::{FilterStudy, MOVING, filter_agreement};
+use maaf_train::models::{ModelConfig, SaroConfig};
+use maaf_train::trainer::{TrainConfig, Trainer, camera_extent};
 
-#[test]
-fn agreement_counts_drawn_pairs_and_never_exceeds_the_static_nu_of_a_static_model() {
+/// A SaRO motion run on mutant at 100x100 (400 Gaussians) after `steps` iterations,
+/// dynamic from the first one when `static_iterations` is 0; `None` without the data.
+fn mutant_run(static_iterations: usize, steps: usize) -> Option<Trainer> {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/dnerf/mutant");
     if !root.exists() {
         eprintln!("skipping: {} is absent", root.display());
-        return;
+        return None;
     }
     let data = Dataset::open(&root, DatasetOptions::default()).expect("mutant");
     let mut config = TrainConfig {
         train_scale: 0.125,
         init_points: 400,
         seed: 2,
+        model: ModelConfig::Saro(SaroConfig {
+            static_iterations,
+            ..SaroConfig::default()
+        }),
         ..TrainConfig::default()
     };
     config.filter.kind = FilterKind::Motion;
     let mut trainer = Trainer::new(&data, config).expect("trainer");
     trainer.ensure_filter();
+    for _ in 0..steps {
+        trainer.step();
+    }
+    Some(trainer)
+}
+
+#[test]
+fn agreement_counts_drawn_pairs_and_never_exceeds_the_static_nu_of_a_static_model() {
+    let Some(trainer) = mutant_run(SaroConfig::default().static_iterations, 0) else {
+        return;
+    };
     let agreement = filter_agreement(&trainer).expect("a motion run");
 
     // Independent count of the drawn pairs at the curves' bin times.
@@ -69,4 +87,86 @@ fn agreement_counts_drawn_pairs_and_never_exceeds_the_static_nu_of_a_static_mode
     // the windowed maximum is below the static nu for most drawn pairs.
     let window = &agreement.ratios[1];
     assert!(window.p50 < 1.0, "{window:?}");
+}
+
+#[test]
+fn the_nu_t_chart_shows_the_least_and_the_most_moving_drawn_gaussian() {
+    // A few dynamic iterations give the residual MLP something to move.
+    let Some(trainer) = mutant_run(0, 20) else {
+        return;
+    };
+    let curves =
+        MotionCurves::refresh(&trainer.observations, &trainer.config.filter).expect("curves");
+    // The chart's Gaussians: the least and the most moving of those drawn at a
+    // quarter of the bins and observed in a quarter of the frames, by an independent
+    // per-Gaussian loop over the same bins.
+    let n = trainer.num_gaussians();
+    let mut boxes = vec![(0usize, [f64::INFINITY; 3], [f64::NEG_INFINITY; 3]); n];
+    for s in 0..curves.grid_t() {
+        let [means, _, _, opacity, _] = trainer.frame_at(f64::from(curves.bin_time(s)));
+        for (k, b) in boxes.iter_mut().enumerate() {
+            if opacity.data()[k] >= 1.0 / 255.0 {
+                b.0 += 1;
+                for d in 0..3 {
+                    let x = f64::from(means.data()[3 * k + d]);
+                    b.1[d] = b.1[d].min(x);
+                    b.2[d] = b.2[d].max(x);
+                }
+            }
+        }
+    }
+    let extent = camera_extent(trainer.cameras());
+    let min_obs = (trainer.observations.num_frames() / 4).max(2);
+    let eligible: Vec<(usize, f64)> = boxes
+        .iter()
+        .enumerate()
+        .filter(|(k, b)| {
+            b.0 >= curves.grid_t() / 4
+                && curves.x_max()[*k] > 0.0
+                && trainer.observations.observations(*k).len() >= min_obs
+        })
+        .map(|(k, b)| {
+            let diag = (0..3).map(|d| (b.2[d] - b.1[d]).powi(2)).sum::<f64>();
+            (k, if b.0 < 2 { 0.0 } else { diag.sqrt() / extent })
+        })
+        .collect();
+    assert!(eligible.len() > 10, "{} eligible", eligible.len());
+    let (lo, hi) = eligible
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(lo, hi), e| {
+            (lo.min(e.1), hi.max(e.1))
+        });
+    let study = FilterStudy::of(&trainer).expect("a motion run");
+    let export = study.analysis().expect("an export");
+    assert_eq!(export.estimator, "kde");
+    let [still, mobile] = &export.gaussians[..] else {
+        panic!("two traces expected");
+    };
+    let motion = |k: usize| eligible.iter().find(|e| e.0 == k).expect("eligible").1;
+    assert_eq!(still.label, "static");
+    assert!(
+        (motion(still.index) - lo).abs() < 1e-9,
+        "{} vs {lo}",
+        motion(still.index)
+    );
+    assert!(
+        (motion(mobile.index) - hi).abs() < 1e-9,
+        "{} vs {hi}",
+        motion(mobile.index)
+    );
+    assert!(hi > lo, "20 dynamic steps move some Gaussian: {hi}");
+    let label = if hi >= MOVING {
+        "moving"
+    } else {
+        "most mobile"
+    };
+    assert_eq!(mobile.label, label);
+    for g in [still, mobile] {
+        let m = f64::from(g.drawn_motion.expect("drawn motion"));
+        assert!((m - motion(g.index)).abs() < 1e-6, "{m}");
+        assert_eq!(g.compared.len(), 1);
+        assert_eq!(g.compared[0].estimator, "window_max");
+        assert_eq!(g.compared[0].nu.len(), curves.grid_t());
+        assert!(g.static_nu.is_some_and(|v| v > 0.0));
+    }
 }

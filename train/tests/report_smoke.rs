@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use maaf_filter::{AnalysisExport, GaussianTrace};
+use maaf_filter::{AnalysisExport, EstimatorCurve, GaussianTrace};
 use maaf_train::eval::{EvalReport, ScaleResult};
 use maaf_train::report::write_report;
 use maaf_train::write_atomic;
@@ -44,7 +44,7 @@ fn fake_run(dir: &Path, filter: &str, psnr_at: impl Fn(f64) -> f64, seconds: f64
             index: 7,
             label: label.into(),
             x_max: 300.0,
-            static_nu: None,
+            static_nu: Some(215.0),
             observations: (0..40)
                 .map(|i| {
                     let t = i as f32 / 39.0;
@@ -57,8 +57,19 @@ fn fake_run(dir: &Path, filter: &str, psnr_at: impl Fn(f64) -> f64, seconds: f64
                     [t, 210.0 + amp * (6.0 * t).sin()]
                 })
                 .collect(),
+            compared: vec![EstimatorCurve {
+                estimator: "window_max".into(),
+                nu: (0..20)
+                    .map(|i| {
+                        let t = i as f32 / 19.0;
+                        [t, 205.0 + amp * (6.0 * t).sin()]
+                    })
+                    .collect(),
+            }],
+            drawn_motion: Some(amp / 1000.0),
         };
         let export = AnalysisExport {
+            estimator: "kde".into(),
             gaussians: vec![trace("static", 2.0), trace("moving", 80.0)],
         };
         export

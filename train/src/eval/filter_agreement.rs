@@ -12,8 +12,13 @@
 //! distribution is also given for the *moving* Gaussians alone: those whose drawn
 //! centres span a bounding box with a diagonal of at least [`MOVING`] times the
 //! camera extent (most Gaussians of a dynamic scene are static background).
+//!
+//! The same measurement picks the Gaussians of the report's nu(t) chart
+//! ([`FilterStudy::analysis`]): the one whose drawn centre moves most and one that
+//! does not move, with both estimators' curves and the static nu.
 
-use maaf_filter::{FilterKind, MotionCurves, MotionEstimator};
+use maaf_autodiff::PerGaussian;
+use maaf_filter::{AnalysisExport, FilterKind, FilterState, MotionCurves, MotionEstimator};
 use serde::{Deserialize, Serialize};
 
 use crate::trainer::{Trainer, camera_extent};
@@ -65,111 +70,199 @@ pub struct FilterAgreement {
 /// Measures the agreement of a motion-filter run (`None` for other filters, or when
 /// no Gaussian is drawn or observed).
 pub fn filter_agreement(trainer: &Trainer) -> Option<FilterAgreement> {
-    let cfg = &trainer.config.filter;
-    if cfg.kind != FilterKind::Motion {
-        return None;
-    }
-    let nu_static = trainer.static_nu().ok()?;
-    let estimators = [MotionEstimator::Kde, MotionEstimator::WindowMax];
-    let curves: Vec<MotionCurves> = estimators
-        .iter()
-        .map(|&estimator| {
-            let c = maaf_filter::FilterConfig {
-                estimator,
-                ..cfg.clone()
-            };
-            MotionCurves::refresh(&trainer.observations, &c).ok()
-        })
-        .collect::<Option<_>>()?;
-    let drawn = drawn_pairs(trainer, &curves, &nu_static);
-    if drawn.who.is_empty() {
-        return None;
-    }
-    let DrawnPairs {
-        who,
-        ratios,
-        moving,
-    } = drawn;
-    let moving_ratios: Vec<Vec<f64>> = ratios
-        .iter()
-        .map(|r| {
-            r.iter()
-                .zip(&who)
-                .filter(|(_, n)| moving[**n])
-                .map(|(v, _)| *v)
-                .collect()
-        })
-        .collect();
-    let summaries = |rs: Vec<Vec<f64>>| -> Vec<RatioSummary> {
-        if rs[0].is_empty() {
-            return Vec::new();
+    FilterStudy::of(trainer)?.agreement()
+}
+
+/// What `maaf eval` measures of a motion run's filter, computed once: the static nu,
+/// both estimators' curves recomputed from the run's observations, and where the
+/// model draws each Gaussian at every time bin.
+pub struct FilterStudy<'a> {
+    trainer: &'a Trainer,
+    /// Mip-Splatting's static nu on the canonical centres.
+    nu_static: Vec<f32>,
+    /// The curves of [`ESTIMATORS`], in that order.
+    curves: Vec<MotionCurves>,
+    drawn: DrawnPairs,
+}
+
+/// The estimators both outputs compare: the paper's and ours.
+const ESTIMATORS: [MotionEstimator; 2] = [MotionEstimator::Kde, MotionEstimator::WindowMax];
+
+impl<'a> FilterStudy<'a> {
+    /// The study of `trainer`'s run, or `None` when it is not a motion run or its
+    /// curves or static nu cannot be computed (nothing observed).
+    pub fn of(trainer: &'a Trainer) -> Option<Self> {
+        let cfg = &trainer.config.filter;
+        if cfg.kind != FilterKind::Motion {
+            return None;
         }
-        estimators
+        let nu_static = trainer.static_nu().ok()?;
+        let curves: Vec<MotionCurves> = ESTIMATORS
             .iter()
-            .zip(rs)
-            .map(|(&e, r)| summarise(e, r))
-            .collect()
-    };
-    let mut seen = vec![false; nu_static.len()];
-    who.iter().for_each(|&n| seen[n] = true);
-    Some(FilterAgreement {
-        pairs: who.len(),
-        gaussians: seen.iter().filter(|&&d| d).count(),
-        moving_pairs: moving_ratios[0].len(),
-        moving_gaussians: moving.iter().zip(&seen).filter(|(m, d)| **m && **d).count(),
-        ratios: summaries(ratios),
-        moving_ratios: summaries(moving_ratios),
-    })
-}
+            .map(|&estimator| {
+                let c = maaf_filter::FilterConfig {
+                    estimator,
+                    ..cfg.clone()
+                };
+                MotionCurves::refresh(&trainer.observations, &c).ok()
+            })
+            .collect::<Option<_>>()?;
+        let drawn = DrawnPairs::of(trainer, &curves[0]);
+        Some(FilterStudy {
+            trainer,
+            nu_static,
+            curves,
+            drawn,
+        })
+    }
 
-/// The drawn (Gaussian, time bin) pairs of a run.
-struct DrawnPairs {
-    /// The Gaussian of each pair.
-    who: Vec<usize>,
-    /// Per estimator, the ratio `nu(t) / nu_static` of each pair.
-    ratios: Vec<Vec<f64>>,
-    /// Per Gaussian: its drawn centres span [`MOVING`] x the camera extent.
-    moving: Vec<bool>,
-}
+    /// The distribution of `nu(t) / nu_static` over the drawn pairs, all and moving
+    /// (`None` when no Gaussian is drawn).
+    pub fn agreement(&self) -> Option<FilterAgreement> {
+        let who = &self.drawn.pairs;
+        if who.is_empty() {
+            return None;
+        }
+        let moving = |n: usize| self.drawn.motion[n] >= MOVING;
+        let ratios = |only_moving: bool| -> Vec<Vec<f64>> {
+            self.curves
+                .iter()
+                .map(|c| {
+                    who.iter()
+                        .filter(|&&(n, _)| !only_moving || moving(n))
+                        .map(|&(n, s)| f64::from(c.nu(n, s)) / f64::from(self.nu_static[n]))
+                        .collect()
+                })
+                .collect()
+        };
+        let summaries = |rs: Vec<Vec<f64>>| -> Vec<RatioSummary> {
+            if rs[0].is_empty() {
+                return Vec::new();
+            }
+            ESTIMATORS
+                .iter()
+                .zip(rs)
+                .map(|(&e, r)| summarise(e, r))
+                .collect()
+        };
+        let seen = |n: usize| self.drawn.bins[n] > 0;
+        let rows = self.nu_static.len();
+        let moving_ratios = ratios(true);
+        Some(FilterAgreement {
+            pairs: who.len(),
+            gaussians: (0..rows).filter(|&n| seen(n)).count(),
+            moving_pairs: moving_ratios[0].len(),
+            moving_gaussians: (0..rows).filter(|&n| seen(n) && moving(n)).count(),
+            ratios: summaries(ratios(false)),
+            moving_ratios: summaries(moving_ratios),
+        })
+    }
 
-/// Deforms the model (no render) at every time bin of `curves` and keeps the pairs
-/// whose opacity reaches [`DRAWN`], with each curve's ratio to `nu_static`, and
-/// marks the Gaussians whose drawn centres move.
-fn drawn_pairs(trainer: &Trainer, curves: &[MotionCurves], nu_static: &[f32]) -> DrawnPairs {
-    let n = nu_static.len();
-    let mut who = Vec::new();
-    let mut ratios = vec![Vec::new(); curves.len()];
-    let (mut lo, mut hi) = (vec![[f32::INFINITY; 3]; n], vec![[f32::NEG_INFINITY; 3]; n]);
-    for s in 0..curves[0].grid_t() {
-        let [means, _, _, opacity, _] = trainer.frame_at(f64::from(curves[0].bin_time(s)));
-        let centres = means.data().chunks_exact(3);
-        for (k, (&o, p)) in opacity.data().iter().zip(centres).enumerate() {
-            if o < DRAWN {
-                continue;
-            }
-            who.push(k);
-            for (r, c) in ratios.iter_mut().zip(curves) {
-                r.push(f64::from(c.nu(k, s)) / f64::from(nu_static[k]));
-            }
-            for d in 0..3 {
-                lo[k][d] = lo[k][d].min(p[d]);
-                hi[k][d] = hi[k][d].max(p[d]);
+    /// The report's nu(t) chart data: the Gaussian whose drawn centre moves most
+    /// (labelled "moving" when it reaches [`MOVING`], else "most mobile") and the one
+    /// that moves least ("static"), among those drawn at a quarter of the time bins
+    /// and observed in a quarter of the training frames. Each trace holds the curve
+    /// the run's filter uses, the other estimator's curve, the static nu and the drawn
+    /// motion. `None` when no Gaussian qualifies.
+    pub fn analysis(&self) -> Option<AnalysisExport> {
+        let FilterState::Motion { curves, .. } = &self.trainer.filter else {
+            return None;
+        };
+        let table = &self.trainer.observations;
+        let min_obs = (table.num_frames() / 4).max(2);
+        let min_bins = (self.curves[0].grid_t() / 4).max(1);
+        let rows = curves.rows().min(table.rows()).min(self.nu_static.len());
+        let candidates: Vec<usize> = (0..rows)
+            .filter(|&n| {
+                self.drawn.bins[n] >= min_bins
+                    && curves.x_max()[n] > 0.0
+                    && table.observations(n).len() >= min_obs
+            })
+            .collect();
+        let by_motion = |a: &&usize, b: &&usize| {
+            let (a, b) = (**a, **b);
+            self.drawn.motion[a]
+                .total_cmp(&self.drawn.motion[b])
+                .then(self.drawn.bins[b].cmp(&self.drawn.bins[a]))
+        };
+        let still = *candidates.iter().min_by(by_motion)?;
+        let mobile = *candidates
+            .iter()
+            .max_by(|a, b| self.drawn.motion[**a].total_cmp(&self.drawn.motion[**b]))?;
+        let label = if self.drawn.motion[mobile] >= MOVING {
+            "moving"
+        } else {
+            "most mobile"
+        };
+        let chosen = [(still, "static".to_string()), (mobile, label.to_string())];
+        let used = self.trainer.config.filter.estimator;
+        let mut export =
+            AnalysisExport::collect(table, curves, used, &chosen, Some(&self.nu_static)).ok()?;
+        for (&e, c) in ESTIMATORS.iter().zip(&self.curves) {
+            if e != used {
+                export.compare(e, c).ok()?;
             }
         }
+        for g in &mut export.gaussians {
+            g.drawn_motion = Some(self.drawn.motion[g.index] as f32);
+        }
+        Some(export)
     }
-    let min_span = MOVING * camera_extent(trainer.cameras());
-    let moving = lo
-        .iter()
-        .zip(&hi)
-        .map(|(a, b)| {
-            let d2: f64 = (0..3).map(|d| f64::from(b[d] - a[d]).powi(2)).sum();
-            d2.is_finite() && d2.sqrt() >= min_span
-        })
-        .collect();
-    DrawnPairs {
-        who,
-        ratios,
-        moving,
+}
+
+/// Where the model draws its Gaussians over a curve grid's time bins.
+struct DrawnPairs {
+    /// The drawn (Gaussian, time bin) pairs.
+    pairs: Vec<(usize, usize)>,
+    /// Per Gaussian: the diagonal of its drawn centres' bounding box over the camera
+    /// extent (0 when drawn at fewer than two bins).
+    motion: Vec<f64>,
+    /// Per Gaussian: how many bins it is drawn at.
+    bins: Vec<usize>,
+}
+
+impl DrawnPairs {
+    /// Deforms the model (no render) at every time bin of `grid` and keeps the pairs
+    /// whose opacity reaches [`DRAWN`], with each Gaussian's drawn-centre motion.
+    fn of(trainer: &Trainer, grid: &MotionCurves) -> Self {
+        let n = grid.rows();
+        let mut pairs = Vec::new();
+        let mut bins = vec![0; n];
+        let (mut lo, mut hi) = (vec![[f32::INFINITY; 3]; n], vec![[f32::NEG_INFINITY; 3]; n]);
+        for s in 0..grid.grid_t() {
+            let [means, _, _, opacity, _] = trainer.frame_at(f64::from(grid.bin_time(s)));
+            let centres = means.data().chunks_exact(3);
+            for (k, (&o, p)) in opacity.data().iter().zip(centres).enumerate().take(n) {
+                if o < DRAWN {
+                    continue;
+                }
+                pairs.push((k, s));
+                bins[k] += 1;
+                for d in 0..3 {
+                    lo[k][d] = lo[k][d].min(p[d]);
+                    hi[k][d] = hi[k][d].max(p[d]);
+                }
+            }
+        }
+        // One camera centre has no extent: then any drawn motion counts as moving.
+        let extent = camera_extent(trainer.cameras()).max(f64::MIN_POSITIVE);
+        let motion = lo
+            .iter()
+            .zip(&hi)
+            .zip(&bins)
+            .map(|((a, b), &count)| {
+                if count < 2 {
+                    return 0.0;
+                }
+                let d2: f64 = (0..3).map(|d| f64::from(b[d] - a[d]).powi(2)).sum();
+                d2.sqrt() / extent
+            })
+            .collect();
+        DrawnPairs {
+            pairs,
+            motion,
+            bins,
+        }
     }
 }
 
@@ -180,11 +273,7 @@ fn summarise(estimator: MotionEstimator, mut r: Vec<f64>) -> RatioSummary {
     let share =
         |f: &dyn Fn(f64) -> bool| r.iter().filter(|&&v| f(v)).count() as f64 / r.len() as f64;
     RatioSummary {
-        estimator: match estimator {
-            MotionEstimator::Kde => "kde",
-            MotionEstimator::WindowMax => "window_max",
-        }
-        .into(),
+        estimator: estimator.name().into(),
         p05: q(0.05),
         p50: q(0.5),
         p95: q(0.95),

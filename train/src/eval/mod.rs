@@ -27,8 +27,8 @@ pub mod temporal;
 use std::path::Path;
 use std::time::Instant;
 
-use maaf_autodiff::{PerGaussian, Tensor};
-use maaf_filter::{AnalysisExport, FilterState};
+use maaf_autodiff::Tensor;
+use maaf_filter::FilterState;
 use maaf_lpips::Lpips;
 use rayon::prelude::*;
 
@@ -256,57 +256,9 @@ fn measure_view(
     })
 }
 
-/// Picks the Gaussians to show in the nu(t) chart: among Gaussians observed in at
-/// least a quarter of the training frames, the one whose motion-aware nu varies least over time ("static") and
-/// the one whose nu varies most ("moving"), by the range of its curve relative to
-/// its mean.
-pub fn pick_static_and_moving(trainer: &Trainer) -> Option<Vec<(usize, String)>> {
-    let FilterState::Motion { curves, .. } = &trainer.filter else {
-        return None;
-    };
-    let n = curves.rows().min(trainer.observations.rows());
-    // Well-observed Gaussians only: seen in at least a quarter of the training frames.
-    let min_obs = (trainer.observations.num_frames() / 4).max(2);
-    let mut best: Option<(f32, usize)> = None;
-    let mut worst: Option<(f32, usize)> = None;
-    for k in 0..n {
-        if curves.x_max()[k] <= 0.0 || trainer.observations.observations(k).len() < min_obs {
-            continue;
-        }
-        let c = curves.curve(k);
-        let (lo, hi, sum) = c.iter().fold(
-            (f32::INFINITY, f32::NEG_INFINITY, 0.0f32),
-            |(lo, hi, s), &v| (lo.min(v), hi.max(v), s + v),
-        );
-        let m = sum / c.len().max(1) as f32;
-        if !(m.is_finite() && m > 0.0 && hi.is_finite()) {
-            continue;
-        }
-        let spread = (hi - lo) / m;
-        if best.is_none_or(|(b, _)| spread < b) {
-            best = Some((spread, k));
-        }
-        if worst.is_none_or(|(w, _)| spread > w) {
-            worst = Some((spread, k));
-        }
-    }
-    let (_, s) = best?;
-    let (_, m) = worst?;
-    Some(vec![(s, "static".into()), (m, "moving".into())])
-}
-
-/// Where [`evaluate_run`] writes the nu(t) traces of a motion-filter run.
+/// Where [`evaluate_run`] writes the nu(t) traces of a motion-filter run
+/// ([`filter_agreement::FilterStudy::analysis`]).
 pub const FILTER_ANALYSIS_FILE: &str = "filter_analysis.json";
-
-/// The observations and nu(t) curves of a static and a moving Gaussian of a motion
-/// run, or `None` for other filters.
-pub fn filter_analysis(trainer: &Trainer) -> Option<AnalysisExport> {
-    let FilterState::Motion { curves, .. } = &trainer.filter else {
-        return None;
-    };
-    let chosen = pick_static_and_moving(trainer)?;
-    AnalysisExport::collect(&trainer.observations, curves, &chosen, None).ok()
-}
 
 /// Builds the contract fields that describe the run (everything but `scales`).
 pub fn run_report(trainer: &Trainer, data: &Dataset) -> EvalReport {
@@ -338,8 +290,8 @@ fn filter_name(f: &FilterState) -> String {
 /// Evaluates the run in `run` on `data` (the data set it was trained on) at every
 /// scale of `options` and writes `RUN/eval.json` plus `RUN/eval/<scale>x/` (renders,
 /// error maps, per-view `metrics.csv`) and, for a motion-filter run,
-/// `RUN/eval/filter_analysis.json` (nu(t) of a static and a moving Gaussian, for the
-/// report's chart). Prints one progress line per scale to stderr.
+/// `RUN/eval/filter_analysis.json` (nu(t) of a static and the most moving Gaussian,
+/// for the report's chart) and `RUN/eval/filter_agreement.json`. Prints one progress line per scale to stderr.
 ///
 /// Errors (one line, nothing written): no trained model in `run`, a data set that
 /// does not match the run, an impossible scale.
@@ -465,13 +417,14 @@ pub fn evaluate_trainer(
             }
             report.scales.push(result);
         }
-        if let Some(export) = filter_analysis(trainer) {
+        let study = filter_agreement::FilterStudy::of(trainer);
+        if let Some(export) = study.as_ref().and_then(|s| s.analysis()) {
             write_atomic(
                 &tmp_dir.join(FILTER_ANALYSIS_FILE),
                 export.to_json().as_bytes(),
             )?;
         }
-        if let Some(agreement) = filter_agreement::filter_agreement(trainer) {
+        if let Some(agreement) = study.as_ref().and_then(|s| s.agreement()) {
             eprintln!("maaf: filter agreement: {}", agreement.summary());
             let json = serde_json::to_string_pretty(&agreement)
                 .map_err(|e| Error::Input(format!("filter agreement: {e}")))?;

@@ -7,6 +7,7 @@ use std::sync::OnceLock;
 
 use plotters::coord::Shift;
 use plotters::coord::types::RangedCoordf64;
+use plotters::element::DashedPathElement;
 use plotters::prelude::*;
 use plotters::style::{FontStyle, register_font};
 
@@ -352,9 +353,11 @@ pub fn quality_vs_size(runs: &[ReportRun], path: &Path) -> Result<(), Error> {
     })
 }
 
-/// The paper's f/d-over-time figure: for each exported Gaussian (a static and a
-/// moving one), its observed sampling rates f/d over time (dots) and the
-/// motion-aware nu(t) the filter uses (line), one panel each.
+/// The paper's f/d-over-time figure (its Fig. 3): for each exported Gaussian (one
+/// that does not move and the one whose drawn centre moves most), its observed
+/// sampling rates f/d over time (dots), the nu(t) the run's filter uses (solid), the
+/// other estimator's nu(t) from the same observations (dashed) and Mip-Splatting's
+/// static nu (dotted), one panel each.
 pub fn nu_over_time(run: &ReportRun, path: &Path) -> Result<(), Error> {
     let Some(export) = &run.analysis else {
         return Err(Error::Input(format!(
@@ -369,34 +372,41 @@ pub fn nu_over_time(run: &ReportRun, path: &Path) -> Result<(), Error> {
             run.dir.display()
         )));
     }
+    let points = |v: &[[f32; 2]]| -> Vec<(f64, f64)> {
+        v.iter()
+            .map(|o| (f64::from(o[0]), f64::from(o[1])))
+            .collect()
+    };
     let n = traces.len() as u32;
     save_chart(path, (650 * n, 560), |root| {
         let panels = root.split_evenly((1, traces.len()));
         for (g, area) in traces.iter().zip(panels.iter()) {
-            let obs: Vec<(f64, f64)> = g
-                .observations
+            let obs = points(&g.observations);
+            let nu = points(&g.nu);
+            let compared: Vec<(&str, Vec<(f64, f64)>)> = g
+                .compared
                 .iter()
-                .map(|o| (f64::from(o[0]), f64::from(o[1])))
+                .map(|c| (c.estimator.as_str(), points(&c.nu)))
                 .collect();
-            let nu: Vec<(f64, f64)> =
-                g.nu.iter()
-                    .map(|o| (f64::from(o[0]), f64::from(o[1])))
-                    .collect();
             let (x0, x1) = padded_range(obs.iter().chain(&nu).map(|p| p.0), 0.03);
-            let (y0, y1) = widen(
-                padded_range(obs.iter().chain(&nu).map(|p| p.1), 0.05),
-                0.0,
-                0.3,
-            );
+            let ys = obs
+                .iter()
+                .chain(&nu)
+                .chain(compared.iter().flat_map(|c| &c.1))
+                .map(|p| p.1)
+                .chain(g.static_nu.map(f64::from));
+            let (y0, y1) = widen(padded_range(ys, 0.05), 0.0, 0.3);
             let y0 = y0.max(0.0);
-            let mut chart = new_chart(
-                area,
-                &format!("{} Gaussian (#{})", capitalise(&g.label), g.index),
-                22,
-                80,
-                (x0, x1),
-                (y0, y1),
-            )?;
+            let title = match g.drawn_motion {
+                Some(m) => format!(
+                    "{} Gaussian (#{}): drawn centre moves {:.1} % of the camera extent",
+                    capitalise(&g.label),
+                    g.index,
+                    100.0 * m
+                ),
+                None => format!("{} Gaussian (#{})", capitalise(&g.label), g.index),
+            };
+            let mut chart = new_chart(area, &title, 18, 80, (x0, x1), (y0, y1))?;
             chart
                 .configure_mesh()
                 .x_desc("time t")
@@ -418,11 +428,55 @@ pub fn nu_over_time(run: &ReportRun, path: &Path) -> Result<(), Error> {
                 .map_err(e2s)?
                 .label("observed f/d (training views)")
                 .legend(move |(x, y)| Circle::new((x + 12, y), 4, grey.filled()));
+            if let Some(v) = g.static_nu {
+                let black = RGBColor(30, 30, 30);
+                let v = f64::from(v);
+                chart
+                    .draw_series(DashedLineSeries::new(
+                        [(x0, v), (x1, v)],
+                        3,
+                        6,
+                        black.stroke_width(2),
+                    ))
+                    .map_err(e2s)?
+                    .label("static nu (Mip-Splatting, mip3d)")
+                    .legend(move |(x, y)| {
+                        DashedPathElement::new(
+                            vec![(x, y), (x + 24, y)],
+                            3,
+                            6,
+                            black.stroke_width(2),
+                        )
+                    });
+            }
+            for (estimator, curve) in &compared {
+                let orange = PALETTE[1];
+                chart
+                    .draw_series(DashedLineSeries::new(
+                        curve.clone(),
+                        10,
+                        6,
+                        orange.stroke_width(3),
+                    ))
+                    .map_err(e2s)?
+                    .label(format!("nu(t), {}", estimator_label(estimator)))
+                    .legend(move |(x, y)| {
+                        DashedPathElement::new(
+                            vec![(x, y), (x + 24, y)],
+                            10,
+                            6,
+                            orange.stroke_width(3),
+                        )
+                    });
+            }
             let red = PALETTE[2];
             chart
                 .draw_series(LineSeries::new(nu.clone(), red.stroke_width(3)))
                 .map_err(e2s)?
-                .label("motion-aware nu(t)")
+                .label(format!(
+                    "nu(t), {}: the run's filter",
+                    estimator_label(&export.estimator)
+                ))
                 .legend(move |(x, y)| {
                     PathElement::new(vec![(x, y), (x + 24, y)], red.stroke_width(3))
                 });
@@ -430,6 +484,15 @@ pub fn nu_over_time(run: &ReportRun, path: &Path) -> Result<(), Error> {
         }
         Ok(())
     })
+}
+
+/// A motion estimator's config name as the charts spell it.
+fn estimator_label(name: &str) -> String {
+    match name {
+        "kde" => "KDE (paper)".into(),
+        "window_max" => "window max (ours)".into(),
+        other => other.into(),
+    }
 }
 
 fn capitalise(s: &str) -> String {
