@@ -83,6 +83,11 @@ fn agreement_counts_drawn_pairs_and_never_exceeds_the_static_nu_of_a_static_mode
     // Nothing moves before training: no moving Gaussian, no moving summary.
     assert_eq!((agreement.moving_gaussians, agreement.moving_pairs), (0, 0));
     assert!(agreement.moving_ratios.is_empty());
+    assert!(
+        agreement.summary().ends_with("; no moving Gaussian"),
+        "{}",
+        agreement.summary()
+    );
     // One camera per time (D-NeRF): a +-h_t window holds 15 of the 150 views, so
     // the windowed maximum is below the static nu for most drawn pairs.
     let window = &agreement.ratios[1];

@@ -301,11 +301,17 @@ impl FilterAgreement {
                 .collect::<Vec<_>>()
                 .join("; ")
         };
-        format!(
-            "nu(t)/nu_static over {} drawn pairs of {} Gaussians: {}; over the {} pairs of {} moving Gaussians: {}",
+        let all = format!(
+            "nu(t)/nu_static over {} drawn pairs of {} Gaussians: {}",
             self.pairs,
             self.gaussians,
-            line(&self.ratios),
+            line(&self.ratios)
+        );
+        if self.moving_ratios.is_empty() {
+            return format!("{all}; no moving Gaussian");
+        }
+        format!(
+            "{all}; over the {} pairs of {} moving Gaussians: {}",
             self.moving_pairs,
             self.moving_gaussians,
             line(&self.moving_ratios)
