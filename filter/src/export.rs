@@ -58,7 +58,7 @@ pub struct AnalysisExport {
 }
 
 fn paper_estimator() -> String {
-    "kde".into()
+    MotionEstimator::Kde.name().into()
 }
 
 impl AnalysisExport {

@@ -61,7 +61,9 @@ pub(crate) fn codes(table: &ObservationTable, cfg: &FilterConfig) -> (Vec<u8>, V
             |group_max, (n, (codes, xm))| {
                 let row = table.row(n);
                 for (g, m) in group_max.iter_mut().enumerate() {
-                    *m = (groups.group(g).iter())
+                    *m = groups
+                        .group(g)
+                        .iter()
                         .map(|&f| row[f as usize])
                         .fold(0.0f32, f32::max);
                 }

@@ -179,16 +179,13 @@ impl<'a> FilterStudy<'a> {
                     && table.observations(n).len() >= min_obs
             })
             .collect();
-        let by_motion = |a: &&usize, b: &&usize| {
-            let (a, b) = (**a, **b);
-            self.drawn.motion[a]
-                .total_cmp(&self.drawn.motion[b])
-                .then(self.drawn.bins[b].cmp(&self.drawn.bins[a]))
-        };
-        let still = *candidates.iter().min_by(by_motion)?;
-        let mobile = *candidates
+        let motion = |a: &usize, b: &usize| self.drawn.motion[*a].total_cmp(&self.drawn.motion[*b]);
+        // Among equally still Gaussians, the one drawn at the most bins.
+        let still = candidates
             .iter()
-            .max_by(|a, b| self.drawn.motion[**a].total_cmp(&self.drawn.motion[**b]))?;
+            .copied()
+            .min_by(|a, b| motion(a, b).then(self.drawn.bins[*b].cmp(&self.drawn.bins[*a])))?;
+        let mobile = candidates.iter().copied().max_by(motion)?;
         let label = if self.drawn.motion[mobile] >= MOVING {
             "moving"
         } else {

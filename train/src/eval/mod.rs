@@ -291,7 +291,8 @@ fn filter_name(f: &FilterState) -> String {
 /// scale of `options` and writes `RUN/eval.json` plus `RUN/eval/<scale>x/` (renders,
 /// error maps, per-view `metrics.csv`) and, for a motion-filter run,
 /// `RUN/eval/filter_analysis.json` (nu(t) of a static and the most moving Gaussian,
-/// for the report's chart) and `RUN/eval/filter_agreement.json`. Prints one progress line per scale to stderr.
+/// for the report's chart) and `RUN/eval/filter_agreement.json`. Prints one progress
+/// line per scale to stderr.
 ///
 /// Errors (one line, nothing written): no trained model in `run`, a data set that
 /// does not match the run, an impossible scale.

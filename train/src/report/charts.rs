@@ -429,49 +429,27 @@ pub fn nu_over_time(run: &ReportRun, path: &Path) -> Result<(), Error> {
                 .label("observed f/d (training views)")
                 .legend(move |(x, y)| Circle::new((x + 12, y), 4, grey.filled()));
             if let Some(v) = g.static_nu {
-                let black = RGBColor(30, 30, 30);
                 let v = f64::from(v);
-                chart
-                    .draw_series(DashedLineSeries::new(
-                        [(x0, v), (x1, v)],
-                        3,
-                        6,
-                        black.stroke_width(2),
-                    ))
-                    .map_err(e2s)?
-                    .label("static nu (Mip-Splatting, mip3d)")
-                    .legend(move |(x, y)| {
-                        DashedPathElement::new(
-                            vec![(x, y), (x + 24, y)],
-                            3,
-                            6,
-                            black.stroke_width(2),
-                        )
-                    });
+                draw_dashed(
+                    &mut chart,
+                    vec![(x0, v), (x1, v)],
+                    3,
+                    RGBColor(30, 30, 30).stroke_width(2),
+                    "static nu (Mip-Splatting, mip3d)".into(),
+                )?;
             }
-            for (estimator, curve) in &compared {
-                let orange = PALETTE[1];
-                chart
-                    .draw_series(DashedLineSeries::new(
-                        curve.clone(),
-                        10,
-                        6,
-                        orange.stroke_width(3),
-                    ))
-                    .map_err(e2s)?
-                    .label(format!("nu(t), {}", estimator_label(estimator)))
-                    .legend(move |(x, y)| {
-                        DashedPathElement::new(
-                            vec![(x, y), (x + 24, y)],
-                            10,
-                            6,
-                            orange.stroke_width(3),
-                        )
-                    });
+            for (estimator, curve) in compared {
+                draw_dashed(
+                    &mut chart,
+                    curve,
+                    10,
+                    PALETTE[1].stroke_width(3),
+                    format!("nu(t), {}", estimator_label(estimator)),
+                )?;
             }
             let red = PALETTE[2];
             chart
-                .draw_series(LineSeries::new(nu.clone(), red.stroke_width(3)))
+                .draw_series(LineSeries::new(nu, red.stroke_width(3)))
                 .map_err(e2s)?
                 .label(format!(
                     "nu(t), {}: the run's filter",
@@ -484,6 +462,23 @@ pub fn nu_over_time(run: &ReportRun, path: &Path) -> Result<(), Error> {
         }
         Ok(())
     })
+}
+
+/// Draws `points` as a dashed line (`dash` px on, 6 px off) with a legend entry
+/// drawn the same way.
+fn draw_dashed(
+    chart: &mut Chart<'_, '_>,
+    points: Vec<(f64, f64)>,
+    dash: u32,
+    style: ShapeStyle,
+    label: String,
+) -> Result<(), String> {
+    chart
+        .draw_series(DashedLineSeries::new(points, dash, 6, style))
+        .map_err(e2s)?
+        .label(label)
+        .legend(move |(x, y)| DashedPathElement::new(vec![(x, y), (x + 24, y)], dash, 6, style));
+    Ok(())
 }
 
 /// A motion estimator's config name as the charts spell it.
