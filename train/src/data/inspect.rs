@@ -9,7 +9,7 @@ use std::path::Path;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use super::dataset::{Dataset, DatasetOptions, scale_factor};
+use super::dataset::{Dataset, DatasetOptions, MaskSource, scale_factor};
 use super::dnerf::Split;
 use super::error::DataError;
 use super::image::decode_rgba;
@@ -25,8 +25,14 @@ pub struct SplitSummary {
     pub width: u32,
     /// Source image height, pixels.
     pub height: u32,
-    /// Focal length at the source resolution, pixels.
+    /// Focal length at the source resolution, pixels (of the first view).
     pub focal_px: f64,
+    /// Smallest and largest `fx` over the views (multi-view rigs mix lenses).
+    pub focal_range_px: [f64; 2],
+    /// Distinct cameras (intrinsics and pose) among the views.
+    pub cameras: usize,
+    /// Views with a foreground mask (Dynamic 3D Gaussians `seg/`).
+    pub masks: usize,
     /// Horizontal field of view, degrees.
     pub fov_x_deg: f64,
     /// Smallest and largest time stamp.
@@ -61,6 +67,9 @@ pub struct Summary {
     pub init_points: Option<usize>,
     /// Whether those points carry times (`t`).
     pub init_points_timed: bool,
+    /// Where the moving-pixel masks of the test views come from: `none`, `files` or
+    /// `temporal median`.
+    pub test_masks: String,
 }
 
 /// Opens `root` and summarises it; decodes every image when `decode` is true.
@@ -80,6 +89,13 @@ pub fn inspect(root: &Path, decode: bool) -> Result<Summary, DataError> {
             .iter()
             .map(|f| (f.camera.center() - centre).length())
             .collect();
+        let fx: Vec<f64> = meta.frames.iter().map(|f| f.camera.fx).collect();
+        let mut cameras: Vec<&maaf_splat::Camera> = Vec::new();
+        for f in &meta.frames {
+            if !cameras.contains(&&f.camera) {
+                cameras.push(&f.camera);
+            }
+        }
         let range = |v: &[f64]| {
             [
                 v.iter().copied().fold(f64::INFINITY, f64::min),
@@ -99,6 +115,13 @@ pub fn inspect(root: &Path, decode: bool) -> Result<Summary, DataError> {
             width: meta.width,
             height: meta.height,
             focal_px: meta.focal,
+            focal_range_px: range(&fx),
+            cameras: cameras.len(),
+            masks: meta
+                .frames
+                .iter()
+                .filter(|f| data.train_mask(&f.file).is_some())
+                .count(),
             fov_x_deg: meta.camera_angle_x.to_degrees(),
             time_range: range(&times),
             distinct_times: distinct.len(),
@@ -128,6 +151,12 @@ pub fn inspect(root: &Path, decode: bool) -> Result<Summary, DataError> {
         images_decoded,
         init_points: cloud.as_ref().map(|c| c.len()),
         init_points_timed: cloud.as_ref().is_some_and(|c| c.times.is_some()),
+        test_masks: match data.mask_source() {
+            MaskSource::None => "none",
+            MaskSource::Files(_) => "files",
+            MaskSource::TemporalMedian { .. } => "temporal median",
+        }
+        .into(),
     })
 }
 
@@ -143,13 +172,20 @@ impl Summary {
         let mut s = format!("data set {}\n", self.root);
         for sp in &self.splits {
             s += &format!(
-                "  {:<5} {:>4} views  {}x{}  f = {:.1} px (fov {:.1} deg)  t in [{:.4}, {:.4}] ({} distinct)  camera distance {:.3}..{:.3}{}\n",
+                "  {:<5} {:>4} views  {} cameras  {}x{}  f = {}  t in [{:.4}, {:.4}] ({} distinct)  camera distance {:.3}..{:.3}{}{}\n",
                 sp.split,
                 sp.views,
+                sp.cameras,
                 sp.width,
                 sp.height,
-                sp.focal_px,
-                sp.fov_x_deg,
+                if sp.focal_range_px[1] - sp.focal_range_px[0] > 0.05 {
+                    format!(
+                        "{:.1}..{:.1} px",
+                        sp.focal_range_px[0], sp.focal_range_px[1]
+                    )
+                } else {
+                    format!("{:.1} px (fov {:.1} deg)", sp.focal_px, sp.fov_x_deg)
+                },
                 sp.time_range[0],
                 sp.time_range[1],
                 sp.distinct_times,
@@ -157,6 +193,11 @@ impl Summary {
                 sp.camera_distance_range[1],
                 if sp.flow_frames > 0 {
                     format!("  flow for {} frames", sp.flow_frames)
+                } else {
+                    String::new()
+                },
+                if sp.masks > 0 {
+                    format!("  {} foreground masks", sp.masks)
                 } else {
                     String::new()
                 }
@@ -187,8 +228,10 @@ impl Summary {
                     ""
                 }
             ),
+            None if self.splits.iter().any(|sp| sp.split == "train" && sp.masks > 0) => "  initial points: none shipped; training carves them from the foreground masks (visual hull) plus random static points\n".into(),
             None => "  initial points: none shipped (training starts from random points in the scene bounds)\n".into(),
         };
+        s += &format!("  moving pixels of the test views: {}\n", self.test_masks);
         if self.images_decoded > 0 {
             s += &format!("  all {} images decode\n", self.images_decoded);
         }

@@ -3,6 +3,10 @@
 //!
 //! - [`dnerf`]: `transforms_{train,val,test}.json` parsing, OpenGL to OpenCV cameras.
 //! - [`n3dv`]: Plenoptic Video `poses_bounds.npy` and `camXX/images/`, LLFF to OpenCV.
+//! - [`dynamic3dgs`]: the Dynamic 3D Gaussians layout (CMU Panoptic): `train_meta.json`,
+//!   `test_meta.json`, per-frame intrinsics and world-to-camera matrices.
+//! - [`visual_hull`]: initial points carved from foreground masks when none ship.
+//! - [`median_mask`]: moving pixels by background subtraction against a temporal median.
 //! - [`downsample`]: integer box downsampling of premultiplied RGBA, then compositing.
 //! - [`dataset`]: [`Dataset`], views at any integer-ratio scale, cached per scale.
 //! - [`synthetic`]: the procedural alias-prone scene behind `maaf generate`.
@@ -13,16 +17,19 @@ pub mod bounds;
 pub mod dataset;
 pub mod dnerf;
 pub mod downsample;
+pub mod dynamic3dgs;
 pub mod error;
 pub mod flow;
 pub mod image;
 pub mod inspect;
+pub mod median_mask;
 pub mod n3dv;
 pub mod points;
 pub mod synthetic;
+pub mod visual_hull;
 
 pub use bounds::Aabb;
-pub use dataset::{BLACK, Dataset, DatasetOptions, Format, View, WHITE};
+pub use dataset::{BLACK, Dataset, DatasetOptions, Format, InitialCloud, MaskSource, View, WHITE};
 pub use dnerf::{Frame, Split, SplitMeta};
 pub use error::DataError;
 pub use image::Image;

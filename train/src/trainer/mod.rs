@@ -115,7 +115,8 @@ fn training_views(data: &Dataset, config: &TrainConfig) -> Result<Vec<View>, Err
 
 /// What a representation of a run on `data` is initialised from: the data set's own
 /// point cloud (`points3d.ply`, [`crate::data::points`]) subsampled to at most
-/// `init_points`, as 3DGS-family loaders use it when present; otherwise
+/// `init_points`, as 3DGS-family loaders use it when present, or the visual hull of
+/// its foreground masks ([`Dataset::initial_cloud`]); otherwise
 /// `init_points` random points in the data set's scene bounds with random colours
 /// (as SaRO-GS and Deformable-3DGS initialise synthetic D-NeRF scenes). Plus the
 /// camera extent, the seed and the number of distinct training times. The same for
@@ -124,10 +125,13 @@ fn training_views(data: &Dataset, config: &TrainConfig) -> Result<Vec<View>, Err
 pub fn model_init(data: &Dataset, config: &TrainConfig) -> Result<ModelInit, Error> {
     let views = training_views(data, config)?;
     let cloud = match data
-        .point_cloud()
+        .initial_cloud(config.init_points, config.seed)
         .map_err(|e| Error::Input(e.to_string()))?
     {
-        Some(cloud) => cloud.subsample(config.init_points, config.seed),
+        Some(init) => {
+            eprintln!("maaf: initial points: {}", init.description);
+            init.cloud
+        }
         None => random_cloud(data, config),
     };
     let cameras: Vec<Camera> = views.iter().map(|v| v.camera.clone()).collect();

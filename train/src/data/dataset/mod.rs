@@ -2,10 +2,11 @@
 //! time) of each split at any integer-ratio scale of the source images, decoded once and
 //! cached per scale; the scene bounds for initialisation; the time range.
 //!
-//! Two formats open the same way ([`Dataset::open`] tells them apart): D-NeRF
-//! (`transforms_train.json`, [`super::dnerf`]) and Plenoptic Video (`poses_bounds.npy`
-//! and `camXX/images/`, [`super::n3dv`]), whose train and test cameras become the same
-//! [`SplitMeta`]s.
+//! Three formats open the same way ([`Dataset::open`] tells them apart): D-NeRF
+//! (`transforms_train.json`, [`super::dnerf`]), Plenoptic Video (`poses_bounds.npy`
+//! and `camXX/images/`, [`super::n3dv`]) and the Dynamic 3D Gaussians layout
+//! (`train_meta.json`, [`super::dynamic3dgs`]), whose train and test cameras become the
+//! same [`SplitMeta`]s.
 //!
 //! A *scale* is relative to the source image size: `0.25` of 800x800 is 200x200. It must
 //! be `1 / k` for an integer `k` that divides both the width and height; the image is
@@ -16,6 +17,7 @@
 //! ground truth and are refused.
 
 mod cache;
+mod masks;
 
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
@@ -25,13 +27,19 @@ use maaf_splat::Camera;
 
 use super::bounds::{Aabb, bounds_from_cameras};
 use super::dnerf::{Split, SplitMeta, read_split};
-use super::downsample::box_downsample;
+use super::dynamic3dgs::{TRAIN_META, read_dynamic3dgs};
 use super::error::DataError;
 use super::flow::{downsample_flow, read_flow};
-use super::image::{Image, decode_rgba};
+use super::image::Image;
+use super::median_mask::Rgb8;
 use super::n3dv::{POSES_BOUNDS, read_plenoptic};
 use super::points::{POINTS_FILE, read_points};
+use super::visual_hull::{HullOptions, HullStep, HullView, hull_cloud};
 use crate::models::PointCloud;
+
+/// Time steps carved for the initial points of a data set with foreground masks
+/// ([`Dataset::initial_cloud`]): 30, every fifth frame of a 150-frame Panoptic sequence.
+pub const HULL_STEPS: usize = 30;
 
 /// White background, `[1, 1, 1]` (the default, as D-NeRF's `white_bkgd = True`).
 pub const WHITE: [f32; 3] = [1.0, 1.0, 1.0];
@@ -76,6 +84,36 @@ pub enum Format {
     DNerf,
     /// Plenoptic Video / N3DV: `poses_bounds.npy` and `camXX/images/` ([`super::n3dv`]).
     Plenoptic,
+    /// Dynamic 3D Gaussians (CMU Panoptic): `train_meta.json`, `test_meta.json`, `ims/`,
+    /// `seg/` ([`super::dynamic3dgs`]).
+    Dynamic3dgs,
+}
+
+/// The points a run starts from ([`Dataset::initial_cloud`]).
+#[derive(Clone, Debug)]
+pub struct InitialCloud {
+    /// The points.
+    pub cloud: PointCloud,
+    /// How many of them (the first ones) lie on visual hulls; 0 for a shipped cloud.
+    pub hull_points: usize,
+    /// One line saying where the points come from.
+    pub description: String,
+}
+
+/// Where the moving-pixel masks of the `test` views come from.
+#[derive(Clone, Debug, Default)]
+pub enum MaskSource {
+    /// The data set has none.
+    #[default]
+    None,
+    /// One coverage file per test view (8-bit grey, `None` where a view has none).
+    Files(Vec<Option<PathBuf>>),
+    /// Background subtraction against each test camera's temporal median
+    /// ([`super::median_mask`]); `camera[i]` is the camera group of test view `i`.
+    TemporalMedian {
+        /// Camera group of every test view.
+        camera: Vec<usize>,
+    },
 }
 
 /// A data set (D-NeRF or Plenoptic Video): parsed metadata of its splits plus a
@@ -87,8 +125,12 @@ pub struct Dataset {
     background: [f32; 3],
     splits: BTreeMap<Split, SplitMeta>,
     bounds: Aabb,
-    masks: Vec<Option<PathBuf>>,
+    masks: MaskSource,
+    /// Foreground mask of each training image that has one (image path -> mask path).
+    train_masks: HashMap<PathBuf, PathBuf>,
     cache: Mutex<HashMap<CacheKey, Arc<Image>>>,
+    /// Temporal median of each test camera group (for [`MaskSource::TemporalMedian`]).
+    medians: Mutex<HashMap<usize, Arc<Rgb8>>>,
 }
 
 /// The integer downsampling factor `k = 1 / scale` for a `width x height` source, or a
@@ -124,7 +166,9 @@ impl Dataset {
     /// `transforms_train.json` and `transforms_test.json` (required),
     /// `transforms_val.json` and `transforms_video.json` (optional; skipped when absent,
     /// checked when present). Otherwise a folder with `poses_bounds.npy` is Plenoptic
-    /// Video ([`read_plenoptic`]). Every image header is read; no image is decoded.
+    /// Video ([`read_plenoptic`]), and one with `train_meta.json` the Dynamic 3D
+    /// Gaussians layout ([`read_dynamic3dgs`]). Every image header is read; no image is
+    /// decoded.
     pub fn open(root: &Path, options: DatasetOptions) -> Result<Self, DataError> {
         Self::open_capped(root, options, None)
     }
@@ -144,9 +188,31 @@ impl Dataset {
             return Err(DataError::request(root, "data folder does not exist"));
         }
         let dnerf = root.join(Split::Train.json_name());
+        let mut train_masks = HashMap::new();
         let (format, mut splits, masks) = if !dnerf.exists() && root.join(POSES_BOUNDS).exists() {
             let p = read_plenoptic(root)?;
-            (Format::Plenoptic, p.splits, p.masks)
+            (Format::Plenoptic, p.splits, MaskSource::Files(p.masks))
+        } else if !dnerf.exists() && root.join(TRAIN_META).exists() {
+            let d = read_dynamic3dgs(root)?;
+            for v in &d.train.views {
+                if let Some(m) = &v.mask {
+                    train_masks.insert(v.image.clone(), m.clone());
+                }
+            }
+            let masks = if d.test.views.iter().all(|v| v.mask.is_some()) {
+                MaskSource::Files(d.test.views.iter().map(|v| v.mask.clone()).collect())
+            } else {
+                let ids = d.test.cameras();
+                MaskSource::TemporalMedian {
+                    camera: d
+                        .test
+                        .views
+                        .iter()
+                        .map(|v| ids.iter().position(|&c| c == v.cam_id).unwrap_or(0))
+                        .collect(),
+                }
+            };
+            (Format::Dynamic3dgs, d.splits(), masks)
         } else if dnerf.exists() || root.join(Split::Test.json_name()).exists() {
             let mut splits = BTreeMap::new();
             for split in Split::ALL {
@@ -156,11 +222,11 @@ impl Dataset {
                 }
                 splits.insert(split, read_split(root, split)?);
             }
-            (Format::DNerf, splits, Vec::new())
+            (Format::DNerf, splits, MaskSource::None)
         } else {
             return Err(DataError::request(
                 root,
-                "neither transforms_train.json (D-NeRF) nor poses_bounds.npy (Plenoptic Video) found",
+                "neither transforms_train.json (D-NeRF), poses_bounds.npy (Plenoptic Video) nor train_meta.json (Dynamic 3D Gaussians) found",
             ));
         };
         if let (Some(m), Some(train)) = (max_train_times, splits.get_mut(&Split::Train)) {
@@ -182,7 +248,9 @@ impl Dataset {
             splits,
             bounds,
             masks,
+            train_masks,
             cache: Mutex::new(HashMap::new()),
+            medians: Mutex::new(HashMap::new()),
         })
     }
 
@@ -195,6 +263,73 @@ impl Dataset {
         } else {
             Ok(None)
         }
+    }
+
+    /// The points a run starts from when the folder ships a point cloud or can carve
+    /// one, with a line saying which: `points3d.ply` subsampled to `budget`; else, when
+    /// the training images have foreground masks (the Dynamic 3D Gaussians layout),
+    /// [`hull_cloud`] over at most [`HULL_STEPS`] evenly spread training times;
+    /// `None` otherwise (the trainer then draws random points).
+    pub fn initial_cloud(
+        &self,
+        budget: usize,
+        seed: u64,
+    ) -> Result<Option<InitialCloud>, DataError> {
+        if let Some(cloud) = self.point_cloud()? {
+            let n = cloud.len();
+            let cloud = cloud.subsample(budget, seed);
+            let description = format!("{} of the {n} points of {POINTS_FILE}", cloud.len());
+            return Ok(Some(InitialCloud {
+                cloud,
+                hull_points: 0,
+                description,
+            }));
+        }
+        if self.train_masks.is_empty() {
+            return Ok(None);
+        }
+        let start = std::time::Instant::now();
+        let train = self.split(Split::Train)?;
+        let mut times: Vec<f64> = train.frames.iter().map(|f| f.time).collect();
+        times.sort_by(f64::total_cmp);
+        times.dedup();
+        let picked = spread(&times, HULL_STEPS);
+        let steps: Vec<HullStep> = picked
+            .iter()
+            .map(|&time| HullStep {
+                time,
+                views: train
+                    .frames
+                    .iter()
+                    .filter(|f| f.time == time)
+                    .filter_map(|f| {
+                        self.train_mask(&f.file).map(|m| HullView {
+                            camera: f.camera.clone(),
+                            image: f.file.clone(),
+                            mask: m.to_path_buf(),
+                        })
+                    })
+                    .collect(),
+            })
+            .collect();
+        let mut centres: Vec<glam::DVec3> =
+            train.frames.iter().map(|f| f.camera.center()).collect();
+        centres.dedup();
+        let options = HullOptions::default();
+        let (cloud, dynamic) = hull_cloud(&steps, &centres, budget, &options, seed)?;
+        let description = format!(
+            "{} points: {dynamic} on the visual hulls of the foreground masks at {} times (at most {:.0} % of the budget), {} static at random in the box of the cameras and the hulls ({:.1} s)",
+            cloud.len(),
+            steps.len(),
+            100.0 * options.dynamic_fraction,
+            cloud.len() - dynamic,
+            start.elapsed().as_secs_f64()
+        );
+        Ok(Some(InitialCloud {
+            cloud,
+            hull_points: dynamic,
+            description,
+        }))
     }
 
     /// The format the folder was read as.
@@ -362,37 +497,35 @@ impl Dataset {
 
     /// Moving-object coverage of `test` frame `index` at `scale` (`[H, W, 1]`, the
     /// fraction of each pixel that sees a moving object, box-averaged over the `k x k`
-    /// source pixels), or `None` when the data set has no masks (only generated
-    /// Plenoptic Video scenes have them, `cam00/masks/`).
+    /// source pixels), or `None` when the data set has no masks. Generated scenes ship
+    /// exact masks (`cam00/masks/`, or `seg/` of every camera in the Dynamic 3D
+    /// Gaussians layout); real Dynamic 3D Gaussians test cameras get theirs by
+    /// background subtraction ([`MaskSource::TemporalMedian`]).
     pub fn moving_mask(&self, index: usize, scale: f64) -> Result<Option<Image>, DataError> {
         let k = self.factor(Split::Test, scale)?;
         let frame = self.frame(Split::Test, index)?;
-        let Some(Some(path)) = self.masks.get(index) else {
-            return Ok(None);
+        let full = match &self.masks {
+            MaskSource::None => return Ok(None),
+            MaskSource::Files(files) => match files.get(index) {
+                Some(Some(path)) => masks::read_coverage(path, &frame.camera)?,
+                _ => return Ok(None),
+            },
+            MaskSource::TemporalMedian { camera } => {
+                let group = camera.get(index).copied().unwrap_or(0);
+                masks::median_coverage(self, group, camera, &frame.file)?
+            }
         };
-        let full = decode_rgba(path)?;
-        if (full.width, full.height) != (frame.camera.width, frame.camera.height) {
-            return Err(DataError::Image {
-                path: path.display().to_string(),
-                message: format!(
-                    "mask is {}x{} but the test frames are {}x{}",
-                    full.width, full.height, frame.camera.width, frame.camera.height
-                ),
-            });
-        }
-        let grey: Vec<f32> = full.data.chunks_exact(4).map(|p| p[0]).collect();
-        let (w, h) = (full.width as usize, full.height as usize);
-        let data = box_downsample(&grey, w, h, 1, k as usize).ok_or_else(|| DataError::Scale {
-            path: path.display().to_string(),
-            scale,
-            message: format!("factor {k} does not divide {w}x{h}"),
-        })?;
-        Ok(Some(Image {
-            width: full.width / k,
-            height: full.height / k,
-            channels: 1,
-            data,
-        }))
+        masks::downsample_coverage(full, k, scale, &frame.file)
+    }
+
+    /// Where the test views' moving masks come from.
+    pub fn mask_source(&self) -> &MaskSource {
+        &self.masks
+    }
+
+    /// The foreground mask file of a training image, when the data set has one.
+    pub fn train_mask(&self, image: &Path) -> Option<&Path> {
+        self.train_masks.get(image).map(PathBuf::as_path)
     }
 
     fn frame(&self, split: Split, index: usize) -> Result<&super::dnerf::Frame, DataError> {
@@ -406,21 +539,30 @@ impl Dataset {
     }
 }
 
+/// At most `m` of the sorted `values`, evenly spread: indices `round(j (n - 1) / (m -
+/// 1))`, `j = 0..m` (the first when `m <= 1`; all when `m >= n`).
+fn spread(values: &[f64], m: usize) -> Vec<f64> {
+    let n = values.len();
+    if m >= n {
+        return values.to_vec();
+    }
+    match m {
+        0 | 1 => values.first().copied().into_iter().collect(),
+        _ => (0..m)
+            .map(|j| values[(j as f64 * (n - 1) as f64 / (m - 1) as f64).round() as usize])
+            .collect(),
+    }
+}
+
 /// Keeps the views of `meta` at no more than `m` of its distinct times, evenly spread
 /// (see [`Dataset::open_capped`]).
 fn keep_times(meta: &mut SplitMeta, m: usize) {
     let mut times: Vec<f64> = meta.frames.iter().map(|f| f.time).collect();
     times.sort_by(f64::total_cmp);
     times.dedup();
-    let n = times.len();
-    if m >= n {
+    if m >= times.len() {
         return;
     }
-    let kept: Vec<f64> = match m {
-        0 | 1 => vec![times[0]],
-        _ => (0..m)
-            .map(|j| times[(j as f64 * (n - 1) as f64 / (m - 1) as f64).round() as usize])
-            .collect(),
-    };
+    let kept = spread(&times, m);
     meta.frames.retain(|f| kept.contains(&f.time));
 }
