@@ -1,5 +1,6 @@
 //! `maaf generate`: write a built-in synthetic dynamic scene, in D-NeRF format
-//! (monocular or ring rig) or in the Plenoptic Video layout (multiview rig).
+//! (monocular or ring rig) or, for the multiview rig, in the Plenoptic Video or the
+//! Dynamic 3D Gaussians layout.
 
 use std::io::Write;
 use std::path::PathBuf;
@@ -16,6 +17,17 @@ pub enum RigArg {
     /// 15-20 fixed cameras on an arc, cam00 held out, with flow and moving masks for
     /// cam00 (Plenoptic Video format: poses_bounds.npy + camXX/images/NNNN.png).
     Multiview,
+}
+
+/// File layout of the multiview rig.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum LayoutArg {
+    /// Plenoptic Video: poses_bounds.npy + camXX/images/NNNN.png.
+    Plenoptic,
+    /// Dynamic 3D Gaussians (CMU Panoptic): train_meta.json, test_meta.json,
+    /// ims/<cam>/<frame>.png, seg/<cam>/<frame>.png; per-camera focal lengths and
+    /// off-centre principal points.
+    Dynamic3dgs,
 }
 
 /// Arguments of `maaf generate`.
@@ -42,6 +54,9 @@ pub struct GenerateArgs {
     /// Camera rig of the training split.
     #[arg(long, value_enum, default_value_t = RigArg::Monocular)]
     pub rig: RigArg,
+    /// File layout of the multiview rig.
+    #[arg(long, value_enum, default_value_t = LayoutArg::Plenoptic)]
+    pub layout: LayoutArg,
     /// Seed of the camera positions, test times and sample jitter.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -81,6 +96,9 @@ pub fn run(args: &GenerateArgs) -> anyhow::Result<()> {
     };
     if args.height.is_some() {
         anyhow::bail!("--height: only the multiview rig has non-square images");
+    }
+    if args.layout != LayoutArg::Plenoptic {
+        anyhow::bail!("--layout: only the multiview rig has other layouts");
     }
     let defaults = GenerateOptions::default();
     let opts = GenerateOptions {
@@ -124,11 +142,22 @@ fn run_multiview(
         seed: args.seed,
         force: args.force,
     };
-    let summary = synthetic::generate_multiview(&args.out, &opts, progress)?;
+    let (summary, layout, test_note) = match args.layout {
+        LayoutArg::Plenoptic => (
+            synthetic::generate_multiview(&args.out, &opts, progress)?,
+            "Plenoptic Video layout",
+            "cam00, with flow and moving masks",
+        ),
+        LayoutArg::Dynamic3dgs => (
+            synthetic::generate_dynamic3dgs(&args.out, &opts, progress)?,
+            "Dynamic 3D Gaussians layout",
+            "camera 0; every camera has foreground masks",
+        ),
+    };
     eprintln!();
     let [train, _, test, _] = summary.counts;
     println!(
-        "wrote {} (multiview rig, {} cameras x {} frames, {}x{}): {train} train views, {test} test views (cam00, with flow and moving masks), in {:.1} s",
+        "wrote {} (multiview rig, {layout}, {} cameras x {} frames, {}x{}): {train} train views, {test} test views ({test_note}), in {:.1} s",
         summary.out.display(),
         opts.cameras,
         opts.frames,

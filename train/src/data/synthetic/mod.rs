@@ -20,6 +20,7 @@
 //! 60 degrees of the front (-y), elevation 12 to 50 degrees, field of view 50 degrees.
 
 pub mod approach;
+pub mod dynamic3dgs;
 pub mod multiview;
 pub mod plunge;
 pub mod points;
@@ -34,6 +35,7 @@ use self::scene::{Motion, Object, Path, Scene, Shape, Texture};
 use super::bounds::Aabb;
 use super::error::DataError;
 
+pub use dynamic3dgs::generate_dynamic3dgs;
 pub use multiview::{MultiviewOptions, generate_multiview};
 pub use write::{GenerateOptions, GenerateSummary, Rig, generate};
 

@@ -80,6 +80,24 @@ pub fn generate_multiview(
 ) -> Result<GenerateSummary, DataError> {
     let start = Instant::now();
     let scene = build_scene(&opts.scene)?;
+    check_options(out, opts)?;
+    let cams = arc_positions(opts.cameras)
+        .into_iter()
+        .map(|p| camera_wh(p, opts.width, opts.height))
+        .collect::<Result<Vec<_>, _>>()?;
+    write_folder(out, |tmp| write_all(tmp, &scene, &cams, opts, progress))?;
+    let f = opts.frames;
+    Ok(GenerateSummary {
+        out: out.to_path_buf(),
+        counts: [(opts.cameras - 1) * f, 0, f, f],
+        seconds: start.elapsed().as_secs_f64(),
+    })
+}
+
+/// Checks the options and the output folder of a multi-view generation (either
+/// layout): sizes multiples of 16, 1..=16 samples, 2..=100 cameras, 2..=10000 frames,
+/// `out` absent (unless `force`) with an existing parent.
+pub(crate) fn check_options(out: &Path, opts: &MultiviewOptions) -> Result<(), DataError> {
     let bad = |m: String| DataError::request(out, m);
     for (name, v) in [("width", opts.width), ("height", opts.height)] {
         if v < 16 || !v.is_multiple_of(16) {
@@ -112,17 +130,7 @@ pub fn generate_multiview(
             "parent folder of --out does not exist",
         ));
     }
-    let cams = arc_positions(opts.cameras)
-        .into_iter()
-        .map(|p| camera_wh(p, opts.width, opts.height))
-        .collect::<Result<Vec<_>, _>>()?;
-    write_folder(out, |tmp| write_all(tmp, &scene, &cams, opts, progress))?;
-    let f = opts.frames;
-    Ok(GenerateSummary {
-        out: out.to_path_buf(),
-        counts: [(opts.cameras - 1) * f, 0, f, f],
-        seconds: start.elapsed().as_secs_f64(),
-    })
+    Ok(())
 }
 
 fn write_all(
