@@ -25,9 +25,13 @@ pub struct EvalArgs {
     /// Split to evaluate.
     #[arg(long, value_enum, default_value = "test")]
     pub split: SplitArg,
-    /// Evaluate only the first N views (quick checks).
+    /// Evaluate only the first N views (quick checks), after --frame-stride.
     #[arg(long)]
     pub max_views: Option<usize>,
+    /// Evaluate the views at every N-th distinct time only (all cameras at those
+    /// times): a fixed stride of frames of a multi-view video's test cameras.
+    #[arg(long, default_value_t = 1)]
+    pub frame_stride: usize,
     /// Do not save renders and error maps (metrics only).
     #[arg(long)]
     pub no_images: bool,
@@ -93,6 +97,7 @@ pub fn run(args: &EvalArgs) -> anyhow::Result<()> {
         scales: args.scales.clone(),
         split: args.split.into(),
         max_views: args.max_views,
+        frame_stride: args.frame_stride,
         save_images: !args.no_images,
         temporal: args.temporal,
     };

@@ -258,3 +258,64 @@ fn visual_hull_points_lie_on_the_movers() {
     assert!(hull > 0.8, "{hull:.3} of the hull points lie on movers");
     assert!(random < 0.2, "random static points: {random:.3}");
 }
+
+#[test]
+fn a_tiny_run_trains_from_the_hull_and_evaluates_a_frame_stride_by_region() {
+    use maaf_filter::FilterKind;
+    use maaf_train::eval::{EvalOptions, evaluate_run};
+    use maaf_train::trainer::{TrainConfig, train_run};
+
+    let t = TempDir::new("d3dgs-run");
+    let root = t.0.join("scene");
+    generated(&root, 6, 6);
+    // Without the test camera's masks the regions come from the temporal median.
+    std::fs::remove_dir_all(root.join(MASKS_DIR).join("0")).expect("removes");
+    let data = Dataset::open(&root, DatasetOptions::default()).expect("opens");
+    let mut config = TrainConfig {
+        iterations: 20,
+        train_scale: 0.5,
+        init_points: 400,
+        val_every: 0,
+        ..TrainConfig::default()
+    };
+    config.filter.kind = FilterKind::Motion;
+    config.filter.refresh.start = 5;
+    config.filter.refresh.every = 5;
+    config.densify.opacity_reset_every = 0;
+    let run = t.0.join("run");
+    train_run(&data, config, &run, false).expect("trains");
+    let options = EvalOptions {
+        scales: vec![0.5, 1.0, 2.0],
+        frame_stride: 2,
+        save_images: false,
+        ..EvalOptions::default()
+    };
+    let report = evaluate_run(&run, &data, &options).expect("evaluates");
+    assert_eq!(report.frame_stride, 2);
+    assert_eq!(report.scales.len(), 3);
+    assert_eq!((report.scales[2].width, report.scales[2].height), (W, H));
+    for s in &report.scales {
+        assert!(s.psnr.is_finite(), "{s:?}");
+        assert!(
+            s.regions.is_some(),
+            "regions by the median masks at {}",
+            s.scale
+        );
+    }
+    // Frames 0, 2 and 4 of the one test camera: views 0, 2, 4.
+    let csv = std::fs::read_to_string(run.join("eval/1x/metrics.csv")).expect("csv");
+    let views: Vec<&str> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').next().unwrap_or(""))
+        .collect();
+    assert_eq!(views, ["0", "2", "4"]);
+    let bad = EvalOptions {
+        frame_stride: 0,
+        ..EvalOptions::default()
+    };
+    let err = evaluate_run(&run, &data, &bad)
+        .expect_err("stride 0")
+        .to_string();
+    assert!(err.contains("--frame-stride"), "{err}");
+}

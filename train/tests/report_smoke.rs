@@ -32,6 +32,7 @@ fn fake_run(dir: &Path, filter: &str, psnr_at: impl Fn(f64) -> f64, seconds: f64
         filter_bytes: if filter == "motion" { 20_000 * 72 } else { 0 },
         background: [1.0; 3],
         quantized_8bit: false,
+        frame_stride: 1,
         scales,
     };
     write_atomic(

@@ -55,7 +55,13 @@ pub struct EvalOptions {
     /// Split whose views are rendered (the protocol uses `test`).
     pub split: Split,
     /// Evaluate only the first `n` views of the split (quick runs); `None` = all.
+    /// Applied after `frame_stride`.
     pub max_views: Option<usize>,
+    /// Evaluate only the views at every `n`-th distinct time of the split (the 1st,
+    /// `n+1`-th, ... in time order), every camera at those times; 1 = all. A multi-view
+    /// video's test split has cameras x frames views, so the protocol can evaluate a
+    /// fixed stride of frames of every test camera.
+    pub frame_stride: usize,
     /// Save 8-bit renders and error maps as PNG (metrics are computed either way).
     pub save_images: bool,
     /// Also measure temporal stability of a fixed-camera video at every scale
@@ -69,6 +75,7 @@ impl Default for EvalOptions {
             scales: DEFAULT_SCALES.to_vec(),
             split: Split::Test,
             max_views: None,
+            frame_stride: 1,
             save_images: true,
             temporal: false,
         }
@@ -140,6 +147,26 @@ fn resolve_scales(
     Ok(out)
 }
 
+/// The views of `split` at every `stride`-th distinct time (ranked in time order),
+/// in split order, then at most `max` of them.
+fn strided_views(data: &Dataset, split: Split, stride: usize, max: Option<usize>) -> Vec<usize> {
+    let times = data.times(split);
+    let mut distinct = times.clone();
+    distinct.sort_by(f64::total_cmp);
+    distinct.dedup();
+    let mut out: Vec<usize> = (0..times.len())
+        .filter(|&i| {
+            distinct
+                .binary_search_by(|t| t.total_cmp(&times[i]))
+                .is_ok_and(|rank| rank % stride == 0)
+        })
+        .collect();
+    if let Some(n) = max {
+        out.truncate(n);
+    }
+    out
+}
+
 /// Per-view metrics of one scale (written as `RUN/eval/<scale>x/metrics.csv`).
 #[derive(Clone, Debug)]
 struct ViewResult {
@@ -154,22 +181,23 @@ struct ViewResult {
     regions: Option<RegionPsnr>,
 }
 
-/// Renders, measures and (optionally) saves every view at one scale into `dir`.
+/// Renders, measures and (optionally) saves the views `indices` at one scale into `dir`.
+#[allow(clippy::too_many_arguments)]
 fn evaluate_scale(
     trainer: &Trainer,
     data: &Dataset,
     split: Split,
+    indices: &[usize],
     scale: &ResolvedScale,
     options: &EvalOptions,
     lpips: &Result<Lpips, String>,
     dir: &Path,
 ) -> Result<Vec<ViewResult>, Error> {
-    let mut views = data
-        .views(split, scale.source)
+    let views = indices
+        .iter()
+        .map(|&i| data.view(split, i, scale.source))
+        .collect::<Result<Vec<_>, _>>()
         .map_err(|e| Error::Input(e.to_string()))?;
-    if let Some(n) = options.max_views {
-        views.truncate(n);
-    }
     let settings = trainer.render_settings(trainer.iteration);
     // The model is not `Sync`: views are rendered one after the other (the renderer
     // is parallel inside), then metrics and PNG encoding run in parallel over a
@@ -274,6 +302,7 @@ pub fn run_report(trainer: &Trainer, data: &Dataset) -> EvalReport {
         filter_bytes: (trainer.filter.bytes_per_gaussian() * n) as u64,
         background: data.background(),
         quantized_8bit: false,
+        frame_stride: 1,
         scales: Vec::new(),
     }
 }
@@ -323,8 +352,13 @@ pub fn evaluate_trainer(
     if options.max_views == Some(0) {
         return Err(Error::Input("--max-views must be at least 1".into()));
     }
+    if options.frame_stride == 0 {
+        return Err(Error::Input("--frame-stride must be at least 1".into()));
+    }
+    let indices = strided_views(data, split, options.frame_stride, options.max_views);
     let scales = resolve_scales(data, split, trainer.config.train_scale, &options.scales)?;
     let mut report = run_report(trainer, data);
+    report.frame_stride = options.frame_stride;
     // LPIPS is optional: without weights every scale gets `lpips: null` and the reason.
     let lpips = Lpips::load_default().map_err(|e| e.to_string());
 
@@ -335,13 +369,13 @@ pub fn evaluate_trainer(
     }
     let result = (|| {
         let sources: Vec<f64> = scales.iter().map(|s| s.source).collect();
-        data.preload(split, &sources)
+        data.preload_views(split, &indices, &sources)
             .map_err(|e| Error::Input(e.to_string()))?;
         for s in &scales {
             let start = Instant::now();
             let dir = tmp_dir.join(scale_label(s.relative));
             std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
-            let views = evaluate_scale(trainer, data, split, s, options, &lpips, &dir)?;
+            let views = evaluate_scale(trainer, data, split, &indices, s, options, &lpips, &dir)?;
             let per: Vec<ImageMetrics> = views.iter().map(|v| v.metrics).collect();
             let m =
                 mean_metrics(&per).ok_or_else(|| Error::Input("no views were evaluated".into()))?;

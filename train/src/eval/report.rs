@@ -224,8 +224,20 @@ pub struct EvalReport {
     pub background: [f32; 3],
     /// Whether renders were quantised to 8 bits before the metrics (always `false`).
     pub quantized_8bit: bool,
+    /// Every this many distinct times of the split were evaluated (1 = all views; then
+    /// the field is left out of `eval.json`, whose contract is unchanged).
+    #[serde(default = "one", skip_serializing_if = "is_one")]
+    pub frame_stride: usize,
     /// One entry per evaluation scale, in the order asked.
     pub scales: Vec<ScaleResult>,
+}
+
+fn one() -> usize {
+    1
+}
+
+fn is_one(v: &usize) -> bool {
+    *v == 1
 }
 
 impl EvalReport {
@@ -303,6 +315,7 @@ mod tests {
             filter_bytes: 4,
             background: [1.0; 3],
             quantized_8bit: false,
+            frame_stride: 1,
             scales: vec![ScaleResult::new(4.0, (8, 8), 30.0, 0.9)],
         };
         let v: serde_json::Value =

@@ -62,6 +62,7 @@ impl ReportRun {
                 filter_bytes: 1,
                 background: [1.0; 3],
                 quantized_8bit: false,
+                frame_stride: 1,
                 scales,
             },
             analysis: None,

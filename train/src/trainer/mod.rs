@@ -74,7 +74,9 @@ pub struct Trainer {
     /// Whether the filter has been computed (at the first step, unless a checkpoint
     /// restored it).
     filter_ready: bool,
-    views: Vec<View>,
+    /// Time of each training view (the images live only in `gts`: a multi-view
+    /// video's thousands of views are not held twice).
+    view_times: Vec<f64>,
     held_out: Vec<validation::HeldOut>,
     gts: Vec<Tensor<f32>>,
     cameras: Vec<Camera>,
@@ -199,6 +201,9 @@ impl Trainer {
             })
             .collect();
         let gts = views.iter().map(|v| v.image.to_tensor()).collect();
+        // The tensors are the trainer's copy: the data set's cached one would double
+        // the images' memory for the whole run.
+        data.evict(crate::data::Split::Train);
         let objective = Objective::for_model(config.lambda_dssim, model.as_ref());
         let held_out = validation::held_out_views(data, config.val_views, config.train_scale)?;
         Ok(Trainer {
@@ -218,7 +223,7 @@ impl Trainer {
             background: data.background(),
             config,
             model,
-            views,
+            view_times: views.iter().map(|v| v.time).collect(),
             held_out,
             gts,
             cameras,

@@ -78,9 +78,9 @@ impl Trainer {
     pub fn sensitivity_scores(&self, iteration: usize) -> Result<Vec<f64>, String> {
         let settings = self.render_settings(iteration);
         let mut scores = vec![0.0; self.model.num_gaussians()];
-        for (view, camera) in self.views.iter().zip(&self.cameras) {
-            let deformed = deformed_at(self.model.as_ref(), view.time);
-            let s = removal_sensitivity(deformed, &self.filter, view.time, camera, &settings)?;
+        for (&time, camera) in self.view_times.iter().zip(&self.cameras) {
+            let deformed = deformed_at(self.model.as_ref(), time);
+            let s = removal_sensitivity(deformed, &self.filter, time, camera, &settings)?;
             for (acc, v) in scores.iter_mut().zip(s) {
                 *acc += v * v;
             }

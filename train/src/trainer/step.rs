@@ -40,7 +40,7 @@ impl Trainer {
     /// seeded random order that is reshuffled every epoch; the order depends only on
     /// the seed and `k`, so a resumed run sees the same sequence.
     fn view_at(&self, k: usize) -> usize {
-        let n = self.views.len();
+        let n = self.view_times.len();
         let epoch = (k - 1) / n;
         let mut order: Vec<usize> = (0..n).collect();
         let mut rng = Pcg64::seed_from_u64(
@@ -88,7 +88,7 @@ impl Trainer {
         let fwds: Vec<_> = views
             .iter()
             .map(|&vi| {
-                let (camera, time) = (&self.cameras[vi], self.views[vi].time);
+                let (camera, time) = (&self.cameras[vi], self.view_times[vi]);
                 forward_bound(bound.as_ref(), &self.filter, camera, time, &settings)
             })
             .collect();

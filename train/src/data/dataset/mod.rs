@@ -468,6 +468,28 @@ impl Dataset {
         self.load(split, &all, &ks)
     }
 
+    /// [`Dataset::preload`] for the views `indices` of `split` only.
+    pub fn preload_views(
+        &self,
+        split: Split,
+        indices: &[usize],
+        scales: &[f64],
+    ) -> Result<(), DataError> {
+        let ks = scales
+            .iter()
+            .map(|&s| self.factor(split, s))
+            .collect::<Result<Vec<u32>, _>>()?;
+        self.load(split, indices, &ks)
+    }
+
+    /// Drops every cached image of `split` (the trainer keeps its own copy of the
+    /// training images; a later request decodes them again).
+    pub fn evict(&self, split: Split) {
+        if let Ok(mut cache) = self.cache.lock() {
+            cache.retain(|(s, _, _), _| *s != split);
+        }
+    }
+
     /// Number of (view, scale) images currently cached.
     pub fn cached_images(&self) -> usize {
         self.cache.lock().map_or(0, |c| c.len())
