@@ -6,6 +6,7 @@ mod bad_input;
 mod compare;
 mod e2e_gradcheck;
 mod export_eval;
+mod panoptic;
 mod resume_faults;
 mod support;
 mod sweep;
