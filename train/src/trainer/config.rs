@@ -111,6 +111,11 @@ pub struct TrainConfig {
     pub seed: u64,
     /// Initial random points inside the scene bounds.
     pub init_points: usize,
+    /// Share of `init_points` placed on the visual hulls of the foreground masks when
+    /// the data set has masks and no point cloud (the Panoptic layout), in [0, 1]; the
+    /// rest are random static points ([`crate::data::visual_hull`]). 0 starts the
+    /// movers from random points too.
+    pub hull_fraction: f64,
     /// D-SSIM weight lambda in `(1 - lambda) L1 + lambda D-SSIM`.
     pub lambda_dssim: f64,
     /// Raise the evaluated SH degree by one every this many iterations (3DGS: 1000).
@@ -151,6 +156,7 @@ impl Default for TrainConfig {
             train_scale: 0.25,
             seed: 0,
             init_points: 10_000,
+            hull_fraction: 0.5,
             lambda_dssim: 0.2,
             sh_degree_every: 1000,
             checkpoint_every: 5000,
@@ -218,6 +224,7 @@ impl TrainConfig {
             ));
         }
         count("init_points", self.init_points, 1, MAX_GAUSSIANS_CAP)?;
+        in_range("hull_fraction", self.hull_fraction, 0.0, 1.0)?;
         in_range("lambda_dssim", self.lambda_dssim, 0.0, 1.0)?;
         count("sh_degree_every", self.sh_degree_every, 1, usize::MAX)?;
         count("checkpoint_every", self.checkpoint_every, 1, usize::MAX)?;
@@ -315,6 +322,7 @@ mod tests {
             ("train_scale", Box::new(|c| c.train_scale = -1.0)),
             ("train_scale", Box::new(|c| c.train_scale = f64::NAN)),
             ("init_points", Box::new(|c| c.init_points = 0)),
+            ("hull_fraction", Box::new(|c| c.hull_fraction = 1.5)),
             ("lambda_dssim", Box::new(|c| c.lambda_dssim = 2.0)),
             ("checkpoint_every", Box::new(|c| c.checkpoint_every = 0)),
             ("log_every", Box::new(|c| c.log_every = 0)),

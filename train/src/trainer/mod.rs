@@ -127,7 +127,7 @@ fn training_views(data: &Dataset, config: &TrainConfig) -> Result<Vec<View>, Err
 pub fn model_init(data: &Dataset, config: &TrainConfig) -> Result<ModelInit, Error> {
     let views = training_views(data, config)?;
     let cloud = match data
-        .initial_cloud(config.init_points, config.seed)
+        .initial_cloud(config.init_points, config.hull_fraction, config.seed)
         .map_err(|e| Error::Input(e.to_string()))?
     {
         Some(init) => {

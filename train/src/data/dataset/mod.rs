@@ -268,11 +268,13 @@ impl Dataset {
     /// The points a run starts from when the folder ships a point cloud or can carve
     /// one, with a line saying which: `points3d.ply` subsampled to `budget`; else, when
     /// the training images have foreground masks (the Dynamic 3D Gaussians layout),
-    /// [`hull_cloud`] over at most [`HULL_STEPS`] evenly spread training times;
-    /// `None` otherwise (the trainer then draws random points).
+    /// [`hull_cloud`] over at most [`HULL_STEPS`] evenly spread training times with
+    /// `hull_fraction` of the budget on the hulls; `None` otherwise (the trainer then
+    /// draws random points).
     pub fn initial_cloud(
         &self,
         budget: usize,
+        hull_fraction: f64,
         seed: u64,
     ) -> Result<Option<InitialCloud>, DataError> {
         if let Some(cloud) = self.point_cloud()? {
@@ -315,7 +317,10 @@ impl Dataset {
         let mut centres: Vec<glam::DVec3> =
             train.frames.iter().map(|f| f.camera.center()).collect();
         centres.dedup();
-        let options = HullOptions::default();
+        let options = HullOptions {
+            dynamic_fraction: hull_fraction,
+            ..HullOptions::default()
+        };
         let (cloud, dynamic) = hull_cloud(&steps, &centres, budget, &options, seed)?;
         let description = format!(
             "{} points: {dynamic} on the visual hulls of the foreground masks at {} times (at most {:.0} % of the budget), {} static at random in the box of the cameras and the hulls ({:.1} s)",
