@@ -154,7 +154,6 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         }
         let t = Instant::now();
         let summary = train_run(&data, config, &run_dir, resume)?;
-        maaf_train::eval::render::record_data(&run_dir, &data)?;
         println!(
             "demo: {label}: {} iterations, {} Gaussians, trained in {:.0} s",
             summary.iterations,
