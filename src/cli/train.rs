@@ -289,6 +289,7 @@ pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
             )
         }
     };
+    let data = Dataset::open(&root, DatasetOptions { background })?;
     // One trainer per run folder, for the whole command (test PSNR included).
     let doing = format!("trained (maaf train, pid {})", std::process::id());
     let _lock = maaf_io::RunLock::exclusive(&out, &doing)?;
@@ -303,7 +304,6 @@ pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
             out.display()
         );
     }
-    let data = Dataset::open(&root, DatasetOptions { background })?;
     let mut summary = match &args.from {
         Some(from) => branch_run(&data, config, &out, from)?,
         None => train_run(&data, config, &out, args.resume.is_some())?,

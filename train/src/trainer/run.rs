@@ -244,6 +244,7 @@ fn log_header(trainer: &Trainer) -> String {
 }
 
 fn run_trainer(mut trainer: Trainer, out: &Path, resume: bool) -> Result<RunSummary, Error> {
+    trainer.check_memory(trainer.num_gaussians())?;
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let model_dir = out.join("model");
     let config_json =
