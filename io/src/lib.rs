@@ -28,8 +28,8 @@ pub mod lock;
 pub mod memory;
 
 pub use dir::{readable_dir, recover_dir, recover_parked_in, replace_dir};
-pub use lock::{LockError, RunLock};
 use fault::Step;
+pub use lock::{LockError, RunLock};
 
 /// Marker every temporary name contains (`.NAME.maaf-tmp-PID`).
 pub const TEMP_MARK: &str = ".maaf-tmp-";

@@ -7,5 +7,6 @@ mod compare;
 mod e2e_gradcheck;
 mod export_eval;
 mod resume_faults;
+mod run_integrity;
 mod support;
 mod sweep;

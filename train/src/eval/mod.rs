@@ -307,8 +307,8 @@ pub fn evaluate_run(
     // and so may sweep what a killed evaluation left behind.
     let _lock = if run.is_dir() {
         let doing = format!("evaluated (pid {})", std::process::id());
-        let lock = maaf_io::RunLock::exclusive(run, &doing)
-            .map_err(|e| Error::Input(e.to_string()))?;
+        let lock =
+            maaf_io::RunLock::exclusive(run, &doing).map_err(|e| Error::Input(e.to_string()))?;
         crate::trainer::repair_run_dir(run)?;
         Some(lock)
     } else {

@@ -102,7 +102,12 @@ impl DataFingerprint {
             {
                 Some(format!(
                     "it has {} training views of {}x{}, the run's has {} of {}x{}",
-                    now.train_views, now.width, now.height, self.train_views, self.width, self.height
+                    now.train_views,
+                    now.width,
+                    now.height,
+                    self.train_views,
+                    self.width,
+                    self.height
                 ))
             }
             _ => None,

@@ -419,9 +419,12 @@ fn check_splits(splits: &BTreeMap<Split, SplitMeta>) -> Result<(), DataError> {
         .ok_or_else(|| DataError::request(Path::new(&Split::Train.json_name()), "missing"))?;
     for meta in splits.values() {
         for (i, frame) in meta.frames.iter().enumerate() {
-            frame.camera.validate(&frame.file.display().to_string()).map_err(|e| {
-                DataError::field(&meta.json, format!("frames[{i}] camera"), e.to_string())
-            })?;
+            frame
+                .camera
+                .validate(&frame.file.display().to_string())
+                .map_err(|e| {
+                    DataError::field(&meta.json, format!("frames[{i}] camera"), e.to_string())
+                })?;
         }
         if (meta.width, meta.height) != (train.width, train.height) {
             return Err(DataError::field(
