@@ -101,21 +101,6 @@ pub fn read_lock(run: &Path) -> anyhow::Result<Option<maaf_io::RunLock>> {
     Ok(maaf_io::RunLock::shared(run)?)
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use maaf_train::eval::DEFAULT_SCALES;
-
-    #[test]
-    fn the_scales_default_as_typed_is_the_library_default() {
-        let parsed: Vec<f64> = DEFAULT_SCALES_ARG
-            .split(',')
-            .map(|v| v.parse().expect("number"))
-            .collect();
-        assert_eq!(parsed, DEFAULT_SCALES);
-    }
-}
-
 /// Runs `maaf eval`.
 pub fn run(args: &EvalArgs) -> anyhow::Result<()> {
     let data = open_run_data(&args.run, args.data.as_deref(), args.background)?;
@@ -164,4 +149,19 @@ pub fn run(args: &EvalArgs) -> anyhow::Result<()> {
     }
     println!("wrote {}", args.run.join("eval.json").display());
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use maaf_train::eval::DEFAULT_SCALES;
+
+    #[test]
+    fn the_scales_default_as_typed_is_the_library_default() {
+        let parsed: Vec<f64> = DEFAULT_SCALES_ARG
+            .split(',')
+            .map(|v| v.parse().expect("number"))
+            .collect();
+        assert_eq!(parsed, DEFAULT_SCALES);
+    }
 }

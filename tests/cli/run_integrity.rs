@@ -315,6 +315,8 @@ fn case_3_a_size_the_machine_cannot_hold_is_refused_before_allocating() {
 }
 
 #[test]
+// 3.14159265 is the value: just under pi, so a focal length of 1e-8 px.
+#[allow(clippy::approx_constant)]
 fn case_4_degenerate_cameras_and_non_finite_output_fail() {
     let fx = fixture("camera");
     let fov = fx.edited_copy("fov", "train", |v| {
