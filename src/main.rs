@@ -94,10 +94,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Sweep(args) => cli::sweep::run(&args)?,
         Command::Info => {
             println!("maaf {}", env!("CARGO_PKG_VERSION"));
-            println!(
-                "threads: {}",
-                std::thread::available_parallelism().map_or(1, |n| n.get())
-            );
+            // The pool the commands run on (RAYON_NUM_THREADS, default one per core).
+            println!("threads: {}", rayon::current_num_threads());
         }
     }
     Ok(())

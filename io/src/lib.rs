@@ -15,6 +15,8 @@
 //! [`readable_dir`] finds it and [`recover_dir`] restores it. Leftover temporaries of
 //! a killed process start with `.` and contain [`TEMP_MARK`]; [`remove_stale_temps`]
 //! sweeps them on the next start. [`fault`] injects kills and full disks for tests.
+//! [`lock`] keeps one writer per run folder; [`memory`] checks a user-sized
+//! allocation against the memory available before it is made.
 
 use std::fs::{self, File};
 use std::io::{self, Write};
@@ -22,9 +24,12 @@ use std::path::{Path, PathBuf};
 
 mod dir;
 pub mod fault;
+pub mod lock;
+pub mod memory;
 
 pub use dir::{readable_dir, recover_dir, recover_parked_in, replace_dir};
 use fault::Step;
+pub use lock::{LockError, RunLock};
 
 /// Marker every temporary name contains (`.NAME.maaf-tmp-PID`).
 pub const TEMP_MARK: &str = ".maaf-tmp-";

@@ -64,6 +64,16 @@ pub const MAX_SIDE: u32 = 16_384;
 /// Largest image a camera file may ask for, pixels (64 megapixels: about 770 MB of
 /// f32 RGB plus the renderer's per-pixel buffers).
 pub const MAX_PIXELS: u64 = 64_000_000;
+/// Widest field of view a pinhole camera may have, degrees, along either image axis
+/// (`2 atan(W / 2 fx)`): at 180 the focal length is zero and every projection
+/// degenerates; past 179 it is a tenth of a percent of the image width, which no
+/// pinhole data set uses (wider lenses are fisheyes, another model).
+pub const MAX_FOV_DEGREES: f64 = 179.0;
+/// Largest camera translation (|t| of world-to-camera, the camera centre's distance
+/// from the world origin), world units: scenes are normalised to units of about one
+/// (D-NeRF's cameras sit 4 units out, N3DV's within a few), so 10^6 only refuses
+/// poses that are broken (1e30), where f32 centres would lose every digit.
+pub const MAX_TRANSLATION: f64 = 1e6;
 
 impl Camera {
     /// Builds a camera from a world-to-camera matrix and intrinsics, validating it.
@@ -137,7 +147,12 @@ impl Camera {
         serde_json::to_string_pretty(self).unwrap_or_default()
     }
 
-    fn validate(&self, origin: &str) -> Result<(), CameraError> {
+    /// Checks the camera (`origin` names it in errors): a non-empty size within
+    /// [`MAX_SIDE`] and [`MAX_PIXELS`], finite positive focal lengths giving a field
+    /// of view below [`MAX_FOV_DEGREES`], a finite principal point, and a finite,
+    /// invertible pose with a translation within [`MAX_TRANSLATION`]. Every
+    /// constructor runs it; data loaders that build a camera field by field call it.
+    pub fn validate(&self, origin: &str) -> Result<(), CameraError> {
         let bad = |field: &'static str, message: String| CameraError::Invalid {
             path: origin.into(),
             field,
@@ -166,6 +181,17 @@ impl Camera {
                 return Err(bad(field, format!("{v} must be finite and positive")));
             }
         }
+        for (field, v, side) in [("fx", self.fx, self.width), ("fy", self.fy, self.height)] {
+            let fov = 2.0 * (0.5 * f64::from(side) / v).atan().to_degrees();
+            if fov >= MAX_FOV_DEGREES {
+                return Err(bad(
+                    field,
+                    format!(
+                        "{v} px gives a field of view of {fov:.3} degrees over {side} px; a pinhole camera needs less than {MAX_FOV_DEGREES}"
+                    ),
+                ));
+            }
+        }
         for (field, v) in [("cx", self.cx), ("cy", self.cy)] {
             if !v.is_finite() {
                 return Err(bad(field, format!("{v} is not finite")));
@@ -174,6 +200,15 @@ impl Camera {
         let m = self.world_to_camera_mat();
         if !m.is_finite() {
             return Err(bad("world_to_camera", "contains a non-finite value".into()));
+        }
+        let t = m.w_axis.truncate().length();
+        if t > MAX_TRANSLATION {
+            return Err(bad(
+                "world_to_camera",
+                format!(
+                    "translation of length {t:.3e} is beyond {MAX_TRANSLATION:e} world units: a broken pose"
+                ),
+            ));
         }
         if m.determinant().abs() < 1e-12 {
             return Err(bad("world_to_camera", "matrix is singular".into()));

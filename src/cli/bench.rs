@@ -41,6 +41,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         args.batch.is_none_or(|b| (1..=MAX_BATCH).contains(&b)),
         "--batch must be in 1..={MAX_BATCH}"
     );
+    let _lock = super::eval::read_lock(&args.run)?;
     let data = super::eval::open_run_data(&args.run, args.data.as_deref(), None)?;
     let opts = StepBenchOptions {
         iterations: args.iters,

@@ -121,6 +121,15 @@ impl Plan {
 pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     let start = Instant::now();
     let plan = Plan::new(args.quick, args.data.is_some());
+    let iterations = args.iters.unwrap_or(if args.data.is_some() && !args.quick {
+        20_000
+    } else {
+        plan.iterations
+    });
+    // The settings are checked before the scene is generated (minutes of work).
+    plan.config(iterations, FilterKind::Motion, args.seed)
+        .validate()
+        .context("the demo's settings")?;
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("{}: cannot create", args.out.display()))?;
     let data_dir = match &args.data {
@@ -128,11 +137,6 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         None => generate_scene(&args.out.join("data"), &plan)?,
     };
     let data = Dataset::open(&data_dir, DatasetOptions::default())?;
-    let iterations = args.iters.unwrap_or(if args.data.is_some() && !args.quick {
-        20_000
-    } else {
-        plan.iterations
-    });
     let (w, h) = data.size(Split::Train, 1.0)?;
     println!(
         "demo: data {} ({w}x{h}), training at 1/4 scale for {iterations} iterations per filter",
@@ -154,7 +158,6 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         }
         let t = Instant::now();
         let summary = train_run(&data, config, &run_dir, resume)?;
-        maaf_train::eval::render::record_data(&run_dir, &data)?;
         println!(
             "demo: {label}: {} iterations, {} Gaussians, trained in {:.0} s",
             summary.iterations,

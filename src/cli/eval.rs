@@ -8,7 +8,11 @@ use maaf_train::data::{Dataset, DatasetOptions, Split, WHITE};
 use maaf_train::eval::render::recorded_data;
 
 use super::BackgroundArg;
-use maaf_train::eval::{DEFAULT_SCALES, EvalOptions, evaluate_run, scale_label};
+use maaf_train::eval::{EvalOptions, evaluate_run, scale_label};
+
+/// [`maaf_train::eval::DEFAULT_SCALES`] as `--scales` takes them (comma-separated), so `--help` shows
+/// a default that can be typed back.
+pub const DEFAULT_SCALES_ARG: &str = "0.25,0.5,1,2,4";
 
 /// Arguments of `maaf eval`.
 #[derive(clap::Args, Debug)]
@@ -20,7 +24,7 @@ pub struct EvalArgs {
     #[arg(long)]
     pub data: Option<PathBuf>,
     /// Scales relative to the training scale (2, 4 = zoom-in; 0.5, 0.25 = zoom-out).
-    #[arg(long, value_delimiter = ',', default_values_t = DEFAULT_SCALES.to_vec())]
+    #[arg(long, value_delimiter = ',', default_value = DEFAULT_SCALES_ARG)]
     pub scales: Vec<f64>,
     /// Split to evaluate.
     #[arg(long, value_enum, default_value = "test")]
@@ -90,6 +94,17 @@ pub fn open_run_data(
     Ok(Dataset::open(&root, DatasetOptions { background })?)
 }
 
+/// The shared lock of `run` for a command that reads it and writes elsewhere (render,
+/// export, bench): refused while a trainer or an evaluation holds it, so the model
+/// read is never one being replaced; `None` for a run folder that cannot hold a lock
+/// file (read-only) or does not exist (the load reports that).
+pub fn read_lock(run: &Path) -> anyhow::Result<Option<maaf_io::RunLock>> {
+    if !run.is_dir() {
+        return Ok(None);
+    }
+    Ok(maaf_io::RunLock::shared(run)?)
+}
+
 /// Runs `maaf eval`.
 pub fn run(args: &EvalArgs) -> anyhow::Result<()> {
     let data = open_run_data(&args.run, args.data.as_deref(), args.background)?;
@@ -139,4 +154,19 @@ pub fn run(args: &EvalArgs) -> anyhow::Result<()> {
     }
     println!("wrote {}", args.run.join("eval.json").display());
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use maaf_train::eval::DEFAULT_SCALES;
+
+    #[test]
+    fn the_scales_default_as_typed_is_the_library_default() {
+        let parsed: Vec<f64> = DEFAULT_SCALES_ARG
+            .split(',')
+            .map(|v| v.parse().expect("number"))
+            .collect();
+        assert_eq!(parsed, DEFAULT_SCALES);
+    }
 }

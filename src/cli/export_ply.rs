@@ -12,7 +12,7 @@ use maaf_train::eval::export::{
 use maaf_train::eval::load_run;
 
 use super::BackgroundArg;
-use super::eval::open_run_data;
+use super::eval::{open_run_data, read_lock};
 
 /// Arguments of `maaf export-ply`.
 #[derive(clap::Args, Debug)]
@@ -43,6 +43,7 @@ pub fn run(args: &ExportPlyArgs) -> anyhow::Result<()> {
     if args.frames.is_some() {
         check_sequence_target(&args.out)?;
     }
+    let _lock = read_lock(&args.run)?;
     let data = open_run_data(&args.run, args.data.as_deref(), args.background)?;
     let trainer = load_run(&args.run, &data)?;
     match (args.time, args.frames) {
@@ -54,6 +55,12 @@ pub fn run(args: &ExportPlyArgs) -> anyhow::Result<()> {
                 bail!(
                     "{}: --time writes one PLY file; use --frames N for a .zip sequence",
                     args.out.display()
+                );
+            }
+            let (t0, t1) = data.time_range();
+            if !(t0..=t1).contains(&t) {
+                eprintln!(
+                    "maaf: warning: --time {t} is outside the data's time range [{t0}, {t1}]: the model extrapolates"
                 );
             }
             export_frame(&trainer, t, &args.out)?;

@@ -12,7 +12,7 @@ use maaf_train::eval::{load_run, render_image, run_camera};
 use maaf_train::trainer::Trainer;
 
 use super::BackgroundArg;
-use super::eval::open_run_data;
+use super::eval::{open_run_data, read_lock};
 
 /// Where the camera comes from (shared by `render` and `render-video`).
 #[derive(clap::Args, Debug)]
@@ -120,6 +120,7 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
             args.out.display()
         );
     }
+    let _lock = read_lock(&args.camera.run)?;
     let (data, trainer, camera, view_time) = setup(&args.camera)?;
     let time = args.time.or(view_time).unwrap_or(0.0);
     let (t0, t1) = data.time_range();
@@ -145,6 +146,7 @@ pub fn run_video(args: &RenderVideoArgs) -> anyhow::Result<()> {
     if args.frames == 0 {
         bail!("--frames must be at least 1");
     }
+    let _lock = read_lock(&args.camera.run)?;
     let (data, trainer, camera, _) = setup(&args.camera)?;
     let range = data.time_range();
     let paths = render_video(&trainer, &camera, range, args.frames, &args.out)?;

@@ -35,8 +35,9 @@ pub struct SweepArgs {
 /// Writes the sweep and prints how to run it.
 pub fn run(args: &SweepArgs) -> anyhow::Result<()> {
     let settings = &args.settings;
-    if !settings.data.is_dir() {
-        bail!("{}: not a data folder", settings.data.display());
+    let data_arg = settings.data_or_bail()?;
+    if !data_arg.is_dir() {
+        bail!("{}: not a data folder", data_arg.display());
     }
     if args.out.exists() {
         bail!(
@@ -57,14 +58,14 @@ pub fn run(args: &SweepArgs) -> anyhow::Result<()> {
     };
     let pts = points(&base, &axes, layout)?;
     let exe = std::env::current_exe().context("cannot locate the maaf executable")?;
-    let data = std::path::absolute(&settings.data)
-        .with_context(|| format!("{}: cannot resolve", settings.data.display()))?;
+    let data = std::path::absolute(data_arg)
+        .with_context(|| format!("{}: cannot resolve", data_arg.display()))?;
     std::fs::create_dir_all(args.out.join("configs"))
         .with_context(|| format!("{}: cannot create", args.out.display()))?;
     let out = std::path::absolute(&args.out)
         .with_context(|| format!("{}: cannot resolve", args.out.display()))?;
     let q = |p: &std::path::Path| shell_quote(&p.display().to_string());
-    let background = format!("{:?}", settings.background).to_lowercase();
+    let background = format!("{:?}", settings.background_or_default()).to_lowercase();
     let mut jobs = String::new();
     let mut runs = Vec::with_capacity(pts.len());
     for p in &pts {

@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, bail};
 use maaf_filter::FilterKind;
 use maaf_train::data::{Dataset, DatasetOptions, Split};
+use maaf_train::eval::render::recorded_data;
 use maaf_train::eval::render_image;
 use maaf_train::metrics::psnr;
 use maaf_train::models::ModelConfig;
@@ -37,9 +38,10 @@ pub struct TrainArgs {
 /// The data and training settings of a run (shared by `maaf train` and `maaf sweep`).
 #[derive(clap::Args, Debug)]
 pub struct SettingsArgs {
-    /// Data folder holding transforms_{train,val,test}.json.
+    /// Data folder holding transforms_{train,val,test}.json (with --resume: the run's,
+    /// recorded in RUN/data.json, unless given).
     #[arg(long)]
-    pub data: PathBuf,
+    pub data: Option<PathBuf>,
     /// 4D representation: `saro` (SaRO-GS) or `deform` (Deformable-3DGS); its settings:
     /// the `model` section of --config.
     #[arg(long, value_parser = ModelConfig::KINDS)]
@@ -62,9 +64,24 @@ pub struct SettingsArgs {
     /// JSON file with a full or partial TrainConfig (flags override it).
     #[arg(long)]
     pub config: Option<PathBuf>,
-    /// Background the RGBA images are composited on.
-    #[arg(long, value_enum, default_value = "white")]
-    pub background: BackgroundArg,
+    /// Background the RGBA images are composited on [default: white; with --resume,
+    /// the run's].
+    #[arg(long, value_enum)]
+    pub background: Option<BackgroundArg>,
+}
+
+impl SettingsArgs {
+    /// `--data`, which a new run (or a sweep) needs.
+    pub fn data_or_bail(&self) -> anyhow::Result<&Path> {
+        self.data
+            .as_deref()
+            .ok_or_else(|| anyhow::anyhow!("--data DIR is required (the training data folder)"))
+    }
+
+    /// `--background`, white when not given.
+    pub fn background_or_default(&self) -> BackgroundArg {
+        self.background.unwrap_or(BackgroundArg::White)
+    }
 }
 
 /// `--filter` values.
@@ -94,7 +111,16 @@ pub fn config_from(args: &SettingsArgs) -> anyhow::Result<TrainConfig> {
         Some(path) => {
             let text = std::fs::read_to_string(path)
                 .with_context(|| format!("{}: cannot read", path.display()))?;
-            serde_json::from_str(&text)
+            let value: serde_json::Value = serde_json::from_str(&text)
+                .with_context(|| format!("{}: invalid training config", path.display()))?;
+            if !value.is_object() {
+                bail!(
+                    "{}: invalid training config: expected a JSON object {{\"iterations\": ..}}, got {}",
+                    path.display(),
+                    json_kind(&value)
+                );
+            }
+            serde_json::from_value(value)
                 .with_context(|| format!("{}: invalid training config", path.display()))?
         }
         None => TrainConfig::default(),
@@ -121,6 +147,18 @@ pub fn config_from(args: &SettingsArgs) -> anyhow::Result<TrainConfig> {
     }
     config.validate()?;
     Ok(config)
+}
+
+/// What a JSON value is, for messages.
+fn json_kind(v: &serde_json::Value) -> &'static str {
+    match v {
+        serde_json::Value::Null => "null",
+        serde_json::Value::Bool(_) => "a boolean",
+        serde_json::Value::Number(_) => "a number",
+        serde_json::Value::String(_) => "a string",
+        serde_json::Value::Array(_) => "an array",
+        serde_json::Value::Object(_) => "an object",
+    }
 }
 
 /// The configuration of the run being resumed: its `config.json`, with the budget of
@@ -188,13 +226,42 @@ fn resumed_config(args: &SettingsArgs, run: &Path) -> anyhow::Result<TrainConfig
     Ok(config)
 }
 
+/// The data folder and background of the run being resumed: `RUN/data.json`'s,
+/// `--data` when given (train_run refuses it unless its frames and cameras are the
+/// recorded ones), and a `--background` that differs from the recorded one refused.
+fn resumed_data(settings: &SettingsArgs, run: &Path) -> anyhow::Result<(PathBuf, [f32; 3])> {
+    let recorded = recorded_data(run)?;
+    let root = match (&settings.data, &recorded) {
+        (Some(d), _) => d.clone(),
+        (None, Some(r)) => r.root.clone(),
+        (None, None) => bail!(
+            "{}: records no data set (no data.json, a run of an older version); pass --data DIR",
+            run.display()
+        ),
+    };
+    let background = match (settings.background, &recorded) {
+        (Some(b), Some(r)) if b.rgb() != r.background => bail!(
+            "--background {}: the run {} was trained on background {:?}; a resumed run keeps it",
+            format!("{b:?}").to_lowercase(),
+            run.display(),
+            r.background
+        ),
+        (Some(b), _) => b.rgb(),
+        (None, Some(r)) => r.background,
+        (None, None) => BackgroundArg::White.rgb(),
+    };
+    Ok((root, background))
+}
+
 /// Runs `maaf train`.
 pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
     let settings = &args.settings;
-    if settings.data.to_str().is_none() {
+    if let Some(data) = &settings.data
+        && data.to_str().is_none()
+    {
         bail!(
             "--data {}: the folder name is not valid UTF-8, which RUN/data.json cannot record; rename it",
-            settings.data.display()
+            data.display()
         );
     }
     let out = match (&args.out, &args.resume) {
@@ -207,33 +274,40 @@ pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
         (Some(o), None) => o.clone(),
         (None, None) => bail!("--out RUN is required (or --resume RUN)"),
     };
-    let config = match &args.resume {
-        Some(run) => resumed_config(settings, run)?,
+    let (config, root, background) = match &args.resume {
+        Some(run) => {
+            let config = resumed_config(settings, run)?;
+            let (root, background) = resumed_data(settings, run)?;
+            (config, root, background)
+        }
         None => {
-            if ["config.json", "log.csv", "checkpoints", "model"]
-                .iter()
-                .any(|f| out.join(f).exists())
-            {
-                bail!(
-                    "{}: already holds a run; continue it with --resume {} or choose another --out",
-                    out.display(),
-                    out.display()
-                );
-            }
-            config_from(settings)?
+            let root = settings.data_or_bail()?.to_path_buf();
+            (
+                config_from(settings)?,
+                root,
+                settings.background_or_default().rgb(),
+            )
         }
     };
-    let data = Dataset::open(
-        &settings.data,
-        DatasetOptions {
-            background: settings.background.rgb(),
-        },
-    )?;
-    let summary = match &args.from {
+    let data = Dataset::open(&root, DatasetOptions { background })?;
+    // One trainer per run folder, for the whole command (test PSNR included).
+    let doing = format!("trained (maaf train, pid {})", std::process::id());
+    let _lock = maaf_io::RunLock::exclusive(&out, &doing)?;
+    if args.resume.is_none()
+        && ["config.json", "log.csv", "checkpoints", "model"]
+            .iter()
+            .any(|f| out.join(f).exists())
+    {
+        bail!(
+            "{}: already holds a run; continue it with --resume {} or choose another --out",
+            out.display(),
+            out.display()
+        );
+    }
+    let mut summary = match &args.from {
         Some(from) => branch_run(&data, config, &out, from)?,
         None => train_run(&data, config, &out, args.resume.is_some())?,
     };
-    maaf_train::eval::render::record_data(&out, &data)?;
     println!(
         "trained {} iterations in {:.1} s: {} Gaussians, {} skipped steps",
         summary.iterations, summary.train_seconds, summary.num_gaussians, summary.skipped_steps
@@ -249,10 +323,22 @@ pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
         total += psnr(&image, &v.image.to_tensor())?;
     }
     if !views.is_empty() {
+        let mean = total / views.len() as f64;
+        summary.test_psnr = Some(mean);
+        // +inf is a perfect render; NaN (or -inf) a model that renders non-finite values.
+        if mean.is_nan() || mean == f64::NEG_INFINITY {
+            let failure = format!(
+                "the test PSNR is {mean} dB: the model renders non-finite values, the run failed"
+            );
+            summary.failure = Some(failure.clone());
+            summary.write(&out)?;
+            bail!("{}: {failure}", out.display());
+        }
+        summary.write(&out)?;
         println!(
             "test PSNR at the training scale ({} views): {:.2} dB",
             views.len(),
-            total / views.len() as f64
+            mean
         );
     }
     println!("run written to {}", out.display());

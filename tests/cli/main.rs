@@ -8,5 +8,6 @@ mod e2e_gradcheck;
 mod export_eval;
 mod panoptic;
 mod resume_faults;
+mod run_integrity;
 mod support;
 mod sweep;

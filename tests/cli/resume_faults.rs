@@ -221,8 +221,9 @@ fn a_full_disk_mid_checkpoint_keeps_the_previous_one_and_no_temporary() {
     let reference = sc.root.join("reference");
     ok(maaf(&train_args(&sc, &reference), &[]), "reference run");
     let run = sc.root.join("full");
-    // Data writes: 1 config.json, 2 log header, 3-4 iter_2, 5 = iter_4's tensors.
-    let env = [("MAAF_FAULT_ENOSPC_AT_WRITE", "5".to_string())];
+    // Data writes: 1 data.json, 2 config.json, 3 log header, 4-5 iter_2, 6 = iter_4's
+    // tensors.
+    let env = [("MAAF_FAULT_ENOSPC_AT_WRITE", "6".to_string())];
     let out = maaf(&train_args(&sc, &run), &env);
     assert_eq!(out.status.code(), Some(1));
     let stderr = String::from_utf8_lossy(&out.stderr);

@@ -211,6 +211,8 @@ pub fn bench_step(
     if trainer.num_gaussians() == 0 {
         return Err(Error::Input("the run's model has no Gaussians".into()));
     }
+    trainer.config.batch = opts.batch.unwrap_or(trainer.config.batch);
+    trainer.check_memory(gaussians)?;
     resize_for_bench(&mut trainer, gaussians, opts);
     trainer.refresh_filter();
     for _ in 0..opts.warmup {

@@ -219,7 +219,7 @@ fn eval_writes_the_contract_and_refuses_bad_input() {
     fewer_training_views(&root, 20, &other_root);
     let other = Dataset::open(&other_root, DatasetOptions::default()).expect("subset");
     let e = evaluate_run(&run, &other, &options).expect_err("mismatch");
-    assert!(one_line(&e).contains("does not match"), "{e}");
+    assert!(one_line(&e).contains("is not the data set"), "{e}");
     assert_eq!(
         std::fs::read(run.join("eval.json")).expect("eval.json"),
         before

@@ -131,11 +131,15 @@ pub fn parse_split(
         .as_object()
         .ok_or_else(|| DataError::field(json, "<root>", "expected a JSON object"))?;
     let camera_angle_x = number(json, "camera_angle_x", top.get("camera_angle_x"))?;
-    if !(camera_angle_x > 0.0 && camera_angle_x < std::f64::consts::PI) {
+    let max_fov = maaf_splat::camera::MAX_FOV_DEGREES.to_radians();
+    if !(camera_angle_x > 0.0 && camera_angle_x < max_fov) {
         return Err(DataError::field(
             json,
             "camera_angle_x",
-            format!("{camera_angle_x} is not a field of view in (0, pi) radians"),
+            format!(
+                "{camera_angle_x} is not a field of view in (0, {max_fov:.6}) radians (0 to {} degrees, the widest pinhole camera maaf accepts)",
+                maaf_splat::camera::MAX_FOV_DEGREES
+            ),
         ));
     }
     let scene_bounds = match top.get("scene_bounds") {

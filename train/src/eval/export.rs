@@ -56,9 +56,36 @@ pub fn frame_gaussians(trainer: &Trainer, time: f64) -> Gaussians {
     }
 }
 
-/// Writes the frame at `time` to `out` as a binary 3DGS PLY (atomically).
+/// [`frame_gaussians`], refused when a value is NaN or a centre, rotation or colour
+/// is infinite (a log-scale or opacity logit of minus or plus infinity is a scale of
+/// zero or an opacity of one, which a PLY can hold): a degenerate model exports
+/// nothing rather than a file viewers cannot draw.
+pub fn finite_frame_gaussians(trainer: &Trainer, time: f64) -> Result<Gaussians, Error> {
+    let g = frame_gaussians(trainer, time);
+    let fields = [
+        ("centre", &g.means, true),
+        ("rotation", &g.quats, true),
+        ("colour", &g.sh, true),
+        ("log-scale", &g.log_scales, false),
+        ("opacity", &g.raw_opacity, false),
+    ];
+    for (name, values, finite) in fields {
+        let bad = |v: &f32| if finite { !v.is_finite() } else { v.is_nan() };
+        if let Some(i) = values.data().iter().position(bad) {
+            let row = i / (values.len() / g.len().max(1)).max(1);
+            return Err(Error::Input(format!(
+                "t = {time}: Gaussian {row} has a non-finite {name} ({}): the model is degenerate at this time, nothing written",
+                values.data()[i]
+            )));
+        }
+    }
+    Ok(g)
+}
+
+/// Writes the frame at `time` to `out` as a binary 3DGS PLY (atomically); refuses
+/// non-finite Gaussians ([`finite_frame_gaussians`]).
 pub fn export_frame(trainer: &Trainer, time: f64, out: &Path) -> Result<(), Error> {
-    maaf_splat::write_ply(out, &frame_gaussians(trainer, time))
+    maaf_splat::write_ply(out, &finite_frame_gaussians(trainer, time)?)
         .map_err(|e| Error::Input(e.to_string()))
 }
 
@@ -198,7 +225,10 @@ pub fn export_sequence_zip(
             zip.write_all(bytes)
         };
         for (i, &t) in times.iter().enumerate() {
-            put(&frame_name(i), &ply_bytes(&frame_gaussians(trainer, t)))?;
+            // A refused frame fails the write, which removes the partial archive.
+            let g = finite_frame_gaussians(trainer, t)
+                .map_err(|e| std::io::Error::other(e.to_string()))?;
+            put(&frame_name(i), &ply_bytes(&g))?;
         }
         put("frames.json", &index)?;
         zip.finish()?.flush()

@@ -16,11 +16,22 @@ pub const ERROR_MAP_MAX: f32 = 0.25;
 
 /// Converts a float `[H, W, 3]` image on [0, 1] to 8-bit RGB with the renderer's
 /// quantisation ([`maaf_splat::output::to_rgb8`]: `round(255 clamp(v, 0, 1))`).
+/// Refuses an image with a non-finite value, which would otherwise quantise to a
+/// plausible-looking black or white pixel.
 pub fn to_rgb8(image: &Tensor<f32>) -> Result<RgbImage, Error> {
     let shape = image.shape();
     if shape.len() != 3 || shape[2] != 3 {
         return Err(Error::Input(format!(
             "expected an [H, W, 3] image, got shape {shape:?}"
+        )));
+    }
+    if let Some(i) = image.data().iter().position(|v| !v.is_finite()) {
+        let pixel = i / 3;
+        return Err(Error::Input(format!(
+            "the render has a non-finite value ({}) at pixel ({}, {}): the model or the camera is degenerate, nothing written",
+            image.data()[i],
+            pixel % shape[1],
+            pixel / shape[1]
         )));
     }
     let (h, w) = (shape[0] as u32, shape[1] as u32);

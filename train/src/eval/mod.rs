@@ -323,13 +323,26 @@ fn filter_name(f: &FilterState) -> String {
 /// for the report's chart) and `RUN/eval/filter_agreement.json`. Prints one progress
 /// line per scale to stderr.
 ///
-/// Errors (one line, nothing written): no trained model in `run`, a data set that
-/// does not match the run, an impossible scale.
+/// Errors (one line, nothing written): the run being trained or evaluated by another
+/// process, no trained model in `run`, a data set that does not match the run, an
+/// impossible scale.
 pub fn evaluate_run(
     run: &Path,
     data: &Dataset,
     options: &EvalOptions,
 ) -> Result<EvalReport, Error> {
+    // The evaluation writes into the run: it holds the run's lock exclusively (no
+    // trainer replaces the model it reads, no other evaluation shares its outputs)
+    // and so may sweep what a killed evaluation left behind.
+    let _lock = if run.is_dir() {
+        let doing = format!("evaluated (pid {})", std::process::id());
+        let lock =
+            maaf_io::RunLock::exclusive(run, &doing).map_err(|e| Error::Input(e.to_string()))?;
+        crate::trainer::repair_run_dir(run)?;
+        Some(lock)
+    } else {
+        None
+    };
     let trainer = load_run(run, data)?;
     evaluate_trainer(&trainer, run, data, options)
 }

@@ -9,17 +9,17 @@ use serde::{Deserialize, Serialize};
 
 use super::images;
 use super::sequence::{check_own_folder, frame_times};
-use crate::data::{Dataset, Split};
+use crate::data::{Dataset, Split, SplitMeta};
 use crate::forward::forward;
 use crate::trainer::{Trainer, load_checkpoint};
 use crate::{Error, write_atomic};
 
-/// What a run was trained on, written as `RUN/data.json` by [`record_data`]; when it
-/// is present, [`load_run`] refuses a data set that differs from it.
+/// What a run was trained on, written as `RUN/data.json` by [`record_data`] when the
+/// run starts; [`load_run`] and a resumed training refuse a data set that differs.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct DataFingerprint {
-    /// Data folder, absolute (the default data of `eval`/`render`; a moved folder
-    /// still matches when given explicitly).
+    /// Data folder, absolute (the default data of `train --resume`, `eval`, `render`;
+    /// a moved folder still matches when given explicitly).
     pub root: PathBuf,
     /// Number of training views.
     pub train_views: usize,
@@ -31,6 +31,42 @@ pub struct DataFingerprint {
     pub height: u32,
     /// Background colour the images were composited on.
     pub background: [f32; 3],
+    /// [`frames_fingerprint`] of the training split: 16 hex digits over every training
+    /// frame's file name, time, intrinsics, pose and image size. Absent in runs
+    /// written before it existed, which are checked by the fields above only.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub frames: Option<String>,
+}
+
+/// A fingerprint of a split's frames and cameras (FNV-1a 64 over, per frame, the
+/// image path relative to the data folder, the time and the camera's size,
+/// intrinsics and world-to-camera matrix, as bit patterns), as 16 hex digits.
+/// Computed from the [`SplitMeta`] every loader produces, so any data format is
+/// covered; two folders with the same frames and cameras have the same fingerprint.
+pub fn frames_fingerprint(meta: &SplitMeta, root: &Path) -> String {
+    let mut hash: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut feed = |bytes: &[u8]| {
+        for &b in bytes {
+            hash ^= u64::from(b);
+            hash = hash.wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    };
+    feed(&meta.width.to_le_bytes());
+    feed(&meta.height.to_le_bytes());
+    for frame in &meta.frames {
+        let name = frame.file.strip_prefix(root).unwrap_or(&frame.file);
+        let name = name.to_string_lossy();
+        feed(&(name.len() as u64).to_le_bytes());
+        feed(name.as_bytes());
+        let c = &frame.camera;
+        feed(&c.width.to_le_bytes());
+        feed(&c.height.to_le_bytes());
+        let pose = c.world_to_camera.iter().flatten();
+        for v in [frame.time, c.fx, c.fy, c.cx, c.cy].iter().chain(pose) {
+            feed(&v.to_bits().to_le_bytes());
+        }
+    }
+    format!("{hash:016x}")
 }
 
 impl DataFingerprint {
@@ -48,17 +84,78 @@ impl DataFingerprint {
             width: meta.width,
             height: meta.height,
             background: data.background(),
+            frames: Some(frames_fingerprint(meta, data.root())),
         })
+    }
+
+    /// Refuses `now` (the data set at hand) when it is not this recorded one: another
+    /// frames fingerprint (or, for a record without one, another view count or image
+    /// size), or another background. The message names both folders.
+    pub fn check(&self, now: &DataFingerprint, run: &Path) -> Result<(), Error> {
+        let differs = match (&self.frames, &now.frames) {
+            (Some(a), Some(b)) if a != b => Some(format!(
+                "its training frames and cameras differ (fingerprint {b}, the run's {a})"
+            )),
+            (Some(_), Some(_)) => None,
+            _ if (self.train_views, self.width, self.height)
+                != (now.train_views, now.width, now.height) =>
+            {
+                Some(format!(
+                    "it has {} training views of {}x{}, the run's has {} of {}x{}",
+                    now.train_views,
+                    now.width,
+                    now.height,
+                    self.train_views,
+                    self.width,
+                    self.height
+                ))
+            }
+            _ => None,
+        };
+        if let Some(why) = differs {
+            return Err(Error::Input(format!(
+                "{}: is not the data set the run {} was trained on ({}): {why}",
+                now.root.display(),
+                run.display(),
+                self.root.display()
+            )));
+        }
+        if self.background != now.background {
+            return Err(Error::Input(format!(
+                "{}: background {:?} differs from the {:?} the run {} was trained on",
+                now.root.display(),
+                now.background,
+                self.background,
+                run.display()
+            )));
+        }
+        Ok(())
     }
 }
 
-/// Writes `RUN/data.json` (the data set's [`DataFingerprint`]), so later evaluations
-/// can refuse a different data set. Training (or the demo) calls this once.
+/// Writes `RUN/data.json` (the data set's [`DataFingerprint`]), so a resumed training
+/// and later evaluations can refuse a different data set. A run records it when it
+/// starts ([`crate::trainer::train_run`]).
 pub fn record_data(run: &Path, data: &Dataset) -> Result<(), Error> {
     let fp = DataFingerprint::of(data)?;
     let json =
         serde_json::to_vec_pretty(&fp).map_err(|e| Error::Input(format!("data.json: {e}")))?;
     write_atomic(&run.join("data.json"), &json)
+}
+
+/// Checks `data` against the run's `RUN/data.json` ([`DataFingerprint::check`]) when
+/// there is one, then records it: a run resumed on another data set is refused before
+/// anything of it changes; a record without a fingerprint (an older run) gains one;
+/// a moved data folder with the same frames is recorded at its new place.
+pub fn check_and_record_data(run: &Path, data: &Dataset) -> Result<(), Error> {
+    let now = DataFingerprint::of(data)?;
+    if let Some(rec) = recorded_data(run)? {
+        rec.check(&now, run)?;
+        if rec == now {
+            return Ok(());
+        }
+    }
+    record_data(run, data)
 }
 
 /// Reads `RUN/data.json` if the run has one.
@@ -95,28 +192,7 @@ pub fn load_run(run: &Path, data: &Dataset) -> Result<Trainer, Error> {
         )));
     }
     if let Some(rec) = recorded_data(run)? {
-        let now = DataFingerprint::of(data)?;
-        if (rec.train_views, rec.width, rec.height) != (now.train_views, now.width, now.height) {
-            return Err(Error::Input(format!(
-                "{}: does not match the run's data ({} training views of {}x{} in {}; this one has {} of {}x{})",
-                data.root().display(),
-                rec.train_views,
-                rec.width,
-                rec.height,
-                rec.root.display(),
-                now.train_views,
-                now.width,
-                now.height
-            )));
-        }
-        if rec.background != now.background {
-            return Err(Error::Input(format!(
-                "{}: background {:?} differs from the {:?} the run was trained on",
-                data.root().display(),
-                now.background,
-                rec.background
-            )));
-        }
+        rec.check(&DataFingerprint::of(data)?, run)?;
     }
     load_checkpoint(data, &model).map_err(|e| {
         let msg = e.to_string();

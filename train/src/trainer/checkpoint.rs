@@ -1,7 +1,8 @@
 //! Checkpoints: a folder holding `tensors.safetensors` (the parameter store as
 //! `param/{name}`, Adam moments, the representation's buffers, densification
 //! statistics, f/d observations) and
-//! `state.json` (model name, iteration, counters, configuration, filter state).
+//! `state.json` (model name, iteration, counters, configuration, filter state, and
+//! the CRC-32 of the tensors file, checked on every load).
 //! Built under a temporary name and swapped in by [`maaf_io::replace_dir`], so a
 //! crash never leaves a half-written checkpoint.
 
@@ -33,6 +34,10 @@ struct State {
     filter: FilterState,
     timings: Timings,
     adam_steps: HashMap<String, u64>,
+    /// CRC-32 of `tensors.safetensors` as 8 hex digits; absent in checkpoints written
+    /// before it existed (loaded unchecked).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    tensors_crc32: Option<String>,
 }
 
 /// Prefix of the representation's buffers ([`crate::models::Representation::buffers`]).
@@ -104,6 +109,7 @@ pub fn save_checkpoint(trainer: &Trainer, dir: &Path) -> Result<(), Error> {
         filter: trainer.filter.clone(),
         timings: trainer.timings.clone(),
         adam_steps,
+        tensors_crc32: Some(format!("{:08x}", crc32fast::hash(&blob))),
     };
     let json =
         serde_json::to_vec(&state).map_err(|e| Error::Input(format!("checkpoint state: {e}")))?;
@@ -221,6 +227,15 @@ impl Trainer {
         }
         let blob_path = dir.join("tensors.safetensors");
         let blob = std::fs::read(&blob_path).map_err(|e| Error::io(&blob_path, e))?;
+        if let Some(stored) = &state.tensors_crc32 {
+            let computed = format!("{:08x}", crc32fast::hash(&blob));
+            if *stored != computed {
+                return Err(Error::Input(format!(
+                    "{}: damaged: its CRC-32 is {computed}, state.json recorded {stored}",
+                    blob_path.display()
+                )));
+            }
+        }
         let st = SafeTensors::deserialize(&blob)
             .map_err(|e| Error::Input(format!("{}: {e}", blob_path.display())))?;
         // A branch's shared parameters that the checkpoint lacks keep their values.

@@ -57,8 +57,9 @@ pub fn checkpoints_newest_first(out: &Path) -> Vec<(PathBuf, usize)> {
     read.into_iter().map(|(d, it, _)| (d, it)).collect()
 }
 
-/// Loads, with `load`, the newest checkpoint of `out` that loads, trying older ones
-/// when a newer one fails (each failure reported on one line). Returns what `load`
+/// Loads, with `load`, the newest checkpoint of `out` that loads, falling back to
+/// older ones when a newer one fails (a damaged file, a failed checksum; each
+/// reported on one warning line). Returns what `load`
 /// gave and the folder used, or `None` when the run has no checkpoint yet (it then
 /// starts over).
 pub fn load_newest<T>(
@@ -68,7 +69,9 @@ pub fn load_newest<T>(
     for (dir, _) in checkpoints_newest_first(out) {
         match load(&dir) {
             Ok(t) => return Some((t, dir)),
-            Err(e) => log_line(&format!("skipping a checkpoint that does not load: {e}")),
+            Err(e) => log_line(&format!(
+                "warning: skipping a checkpoint that does not load, falling back to an older one: {e}"
+            )),
         }
     }
     None

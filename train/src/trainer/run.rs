@@ -28,6 +28,21 @@ pub struct RunSummary {
     pub skipped_steps: usize,
     /// Time per phase.
     pub timings: Timings,
+    /// Mean test PSNR at the training scale, dB, when the caller measured it (`maaf
+    /// train` does, after training).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub test_psnr: Option<f64>,
+    /// Why the run failed after training (a NaN test PSNR), when it did.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub failure: Option<String>,
+}
+
+impl RunSummary {
+    /// Writes the summary as `RUN/summary.json` (atomically).
+    pub fn write(&self, run: &Path) -> Result<(), Error> {
+        let json = serde_json::to_vec_pretty(self).map_err(|e| Error::Input(e.to_string()))?;
+        write_atomic(&run.join("summary.json"), &json)
+    }
 }
 
 /// Trains on `data` into `out` (created if needed) with the representation
@@ -37,12 +52,24 @@ pub struct RunSummary {
 /// `config.iterations`), or starts over with `config` if it has none yet. A resumed
 /// run is bit-identical to an uninterrupted one with the same seed and thread count.
 /// Prints a progress bar on a terminal and a line every 10% otherwise.
+///
+/// The run folder is locked for the whole call ([`maaf_io::RunLock`]: a second
+/// trainer of `out` fails at once). `RUN/data.json` records `data` first; a resume
+/// refuses a data set that differs from the recorded one, a `config` (the run's
+/// `config.json`) that differs from the checkpoint's settings other than the budget,
+/// and a budget below the checkpoint's iteration, each before anything changes.
 pub fn train_run(
     data: &Dataset,
     config: TrainConfig,
     out: &Path,
     resume: bool,
 ) -> Result<RunSummary, Error> {
+    let _lock = lock_run(out)?;
+    if resume {
+        crate::eval::render::check_and_record_data(out, data)?;
+    } else {
+        crate::eval::render::record_data(out, data)?;
+    }
     repair_run_dir(out)?;
     let budget = config.iterations;
     let found = if resume {
@@ -52,6 +79,8 @@ pub fn train_run(
     };
     let trainer = match found {
         Some((mut t, dir)) => {
+            same_settings(&t.config, &config, &dir, out)?;
+            check_budget(t.iteration, budget, &dir)?;
             t.config.iterations = budget;
             say_resumed(&t, &dir);
             t
@@ -59,6 +88,78 @@ pub fn train_run(
         None => Trainer::new(data, config)?,
     };
     run_trainer(trainer, out, resume)
+}
+
+/// The exclusive lock of the run folder `out` for a training ([`maaf_io::RunLock`]).
+fn lock_run(out: &Path) -> Result<maaf_io::RunLock, Error> {
+    let doing = format!("trained (pid {})", std::process::id());
+    maaf_io::RunLock::exclusive(out, &doing).map_err(|e| Error::Input(e.to_string()))
+}
+
+/// Refuses to resume a checkpoint past the iteration budget: it would report more
+/// iterations than the budget and record a budget below what was trained.
+fn check_budget(iteration: usize, budget: usize, dir: &Path) -> Result<(), Error> {
+    if iteration > budget {
+        return Err(Error::Input(format!(
+            "{}: the run has trained {iteration} iterations, past the budget of {budget}; resume with a budget of at least {iteration} iterations",
+            dir.display()
+        )));
+    }
+    Ok(())
+}
+
+/// Refuses a resume whose settings (`wanted`, from `RUN/config.json`) differ from the
+/// checkpoint's (`saved`) anywhere but the iteration budget: a resumed run continues
+/// with the checkpoint's settings, so an edited `config.json` would otherwise be
+/// silently put back. Names the first differing field and both values.
+fn same_settings(
+    saved: &TrainConfig,
+    wanted: &TrainConfig,
+    dir: &Path,
+    out: &Path,
+) -> Result<(), Error> {
+    let value = |c: &TrainConfig| {
+        let mut c = c.clone();
+        c.iterations = 0;
+        serde_json::to_value(&c).map_err(|e| Error::Input(format!("config: {e}")))
+    };
+    if let Some((field, ours, theirs)) = first_difference(&value(wanted)?, &value(saved)?, "") {
+        return Err(Error::Input(format!(
+            "{}: `{field}` is {ours} but the checkpoint {} was trained with {theirs}; a resumed run keeps its settings (put it back, or start a new run from the checkpoint with --from)",
+            out.join("config.json").display(),
+            dir.display()
+        )));
+    }
+    Ok(())
+}
+
+/// The first path (`a.b.c`) where two JSON values differ, with both values.
+fn first_difference(
+    a: &serde_json::Value,
+    b: &serde_json::Value,
+    path: &str,
+) -> Option<(String, String, String)> {
+    use serde_json::Value;
+    if let (Value::Object(x), Value::Object(y)) = (a, b) {
+        let mut keys: Vec<&String> = x.keys().chain(y.keys()).collect();
+        keys.sort_unstable();
+        keys.dedup();
+        return keys.into_iter().find_map(|k| {
+            let sub = if path.is_empty() {
+                k.clone()
+            } else {
+                format!("{path}.{k}")
+            };
+            match (x.get(k), y.get(k)) {
+                (Some(u), Some(v)) => first_difference(u, v, &sub),
+                (u, v) => {
+                    let show = |w: Option<&Value>| w.map_or("absent".into(), Value::to_string);
+                    Some((sub, show(u), show(v)))
+                }
+            }
+        });
+    }
+    (a != b).then(|| (path.to_string(), a.to_string(), b.to_string()))
 }
 
 /// A new run in `out` that starts from another run's checkpoint folder `from`
@@ -74,8 +175,19 @@ pub fn branch_run(
     out: &Path,
     from: &Path,
 ) -> Result<RunSummary, Error> {
+    let _lock = lock_run(out)?;
     let mut trainer = Trainer::new(data, config)?;
     let fresh = trainer.branch_from(from)?;
+    if trainer.iteration >= trainer.config.iterations {
+        return Err(Error::Input(format!(
+            "{}: the checkpoint is at iteration {}, so a branch from it needs a budget above {} iterations (this one is {})",
+            from.display(),
+            trainer.iteration,
+            trainer.iteration,
+            trainer.config.iterations
+        )));
+    }
+    crate::eval::render::record_data(out, data)?;
     log_line(&format!(
         "branching from {} at iteration {} of {}{}",
         from.display(),
@@ -98,10 +210,12 @@ pub fn branch_run(
 /// session, so custom terms are re-supplied. Refuses a resume whose objective differs
 /// from the one `log.csv` was written with.
 pub fn train_run_with(mut trainer: Trainer, out: &Path, resume: bool) -> Result<RunSummary, Error> {
+    let _lock = lock_run(out)?;
     repair_run_dir(out)?;
     if resume {
         let budget = trainer.config.iterations;
         if let Some(((), dir)) = load_newest(out, |dir| trainer.restore(dir)) {
+            check_budget(trainer.iteration, budget, &dir)?;
             trainer.config.iterations = budget;
             say_resumed(&trainer, &dir);
         }
@@ -130,6 +244,7 @@ fn log_header(trainer: &Trainer) -> String {
 }
 
 fn run_trainer(mut trainer: Trainer, out: &Path, resume: bool) -> Result<RunSummary, Error> {
+    trainer.check_memory(trainer.num_gaussians())?;
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let model_dir = out.join("model");
     let config_json =
@@ -223,9 +338,10 @@ fn run_trainer(mut trainer: Trainer, out: &Path, resume: bool) -> Result<RunSumm
         num_gaussians: trainer.num_gaussians(),
         skipped_steps: trainer.skipped_steps,
         timings: trainer.timings.clone(),
+        test_psnr: None,
+        failure: None,
     };
-    let json = serde_json::to_vec_pretty(&summary).map_err(|e| Error::Input(e.to_string()))?;
-    write_atomic(&out.join("summary.json"), &json)?;
+    summary.write(out)?;
     Ok(summary)
 }
 

@@ -229,6 +229,7 @@ impl Dataset {
                 "neither transforms_train.json (D-NeRF), poses_bounds.npy (Plenoptic Video) nor train_meta.json (Dynamic 3D Gaussians) found",
             ));
         };
+        check_splits(&splits)?;
         if let (Some(m), Some(train)) = (max_train_times, splits.get_mut(&Split::Train)) {
             keep_times(train, m);
         }
@@ -579,6 +580,39 @@ fn spread(values: &[f64], m: usize) -> Vec<f64> {
             .map(|j| values[(j as f64 * (n - 1) as f64 / (m - 1) as f64).round() as usize])
             .collect(),
     }
+}
+
+/// What every loader's splits must satisfy, checked once for all formats: every
+/// frame's camera passes [`Camera::validate`] (positive finite focal lengths, a field
+/// of view below [`maaf_splat::camera::MAX_FOV_DEGREES`], a finite pose within
+/// [`maaf_splat::camera::MAX_TRANSLATION`]; a loader may build cameras field by
+/// field), and every split's images have the training images' size (evaluation
+/// scales, `1x` included, are relative to the training images).
+fn check_splits(splits: &BTreeMap<Split, SplitMeta>) -> Result<(), DataError> {
+    let train = splits
+        .get(&Split::Train)
+        .ok_or_else(|| DataError::request(Path::new(&Split::Train.json_name()), "missing"))?;
+    for meta in splits.values() {
+        for (i, frame) in meta.frames.iter().enumerate() {
+            frame
+                .camera
+                .validate(&frame.file.display().to_string())
+                .map_err(|e| {
+                    DataError::field(&meta.json, format!("frames[{i}] camera"), e.to_string())
+                })?;
+        }
+        if (meta.width, meta.height) != (train.width, train.height) {
+            return Err(DataError::field(
+                &meta.json,
+                "frames",
+                format!(
+                    "its images are {}x{} but the training images are {}x{}: every split must have the training images' size",
+                    meta.width, meta.height, train.width, train.height
+                ),
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// Keeps the views of `meta` at no more than `m` of its distinct times, evenly spread

@@ -9,7 +9,7 @@ use serde::{Deserialize, Serialize};
 /// `position_final * s` over `position_max_steps` (s = `spatial_lr_scale`); the network
 /// from `deform_init` to `deform_final` over `deform_max_steps`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct DeformLr {
     /// Centres at iteration 0, times `spatial_lr_scale` (1.6e-4).
     pub position_init: f64,
@@ -60,7 +60,7 @@ impl Default for DeformLr {
 /// and 6 for the time. The CPU defaults are smaller (see `DeformConfig::default`
 /// and README's measurement); [`DeformConfig::reference`] is the paper-size network.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct DeformConfig {
     /// Hidden layers of the deformation MLP (reference 8).
     pub depth: usize,

@@ -39,7 +39,7 @@ pub const PLANE_NAMES: [&str; 6] = ["xy", "xz", "xt", "yz", "yt", "zt"];
 
 /// Sizes of the field.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct KPlaneConfig {
     /// Texels along each spatial axis (a power of two, for the box pyramid).
     /// SaRO-GS D-NeRF: 64.

@@ -8,7 +8,7 @@ use crate::models::kplane::KPlaneConfig;
 /// Learning rates of SaRO-GS for D-NeRF (`arguments/__init__.py`, `configs/dnerf/*.json`,
 /// `SaROGaussian.training_setup` / `update_learning_rate`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct SaroLr {
     /// Centres at iteration 0, times the scene extent (1.6e-4).
     pub position_init: f64,
@@ -67,7 +67,7 @@ impl Default for SaroLr {
 /// 3 with the SH residual head as the reference. The MLPs dominate the cost (see
 /// `cost_report` in the tests), and halving the width cuts it about 3x.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+#[serde(default, deny_unknown_fields)]
 pub struct SaroConfig {
     /// Residual field sizes.
     pub field: KPlaneConfig,
