@@ -1,4 +1,4 @@
-//! The `maaf` command-line tool (DESIGN.md section 8).
+//! The `maaf` command-line tool (every command and option: docs/cli.md).
 
 use clap::{Parser, Subcommand};
 
