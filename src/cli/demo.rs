@@ -203,3 +203,24 @@ fn generate_scene(dir: &Path, plan: &Plan) -> anyhow::Result<PathBuf> {
     );
     Ok(dir.to_path_buf())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `configs/demo.json` is the configuration `maaf demo` trains its motion-aware run
+    /// with (the other two runs differ in `filter.kind` only).
+    #[test]
+    fn demo_preset_is_the_demo_config() {
+        let preset: TrainConfig = serde_json::from_str(include_str!("../../configs/demo.json"))
+            .expect("configs/demo.json is a training config");
+        let plan = Plan::new(false, false);
+        let demo = plan.config(plan.iterations, FilterKind::Motion, 0);
+        assert_eq!(
+            preset,
+            demo,
+            "configs/demo.json differs from the demo's config:\n{}",
+            serde_json::to_string_pretty(&demo).expect("serialise")
+        );
+    }
+}

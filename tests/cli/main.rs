@@ -4,8 +4,10 @@
 
 mod bad_input;
 mod compare;
+mod config_doc;
 mod e2e_gradcheck;
 mod export_eval;
+mod presets;
 mod resume_faults;
 mod support;
 mod sweep;
