@@ -23,10 +23,11 @@ pub struct DemoArgs {
     #[arg(long)]
     pub quick: bool,
     /// Run the protocol on this D-NeRF-format data set instead of the built-in scene
-    /// (training at 1/4 of its resolution, as in the paper).
+    /// (training at 1/4 of its resolution, as in the paper) [default: the built-in
+    /// scene, generated into OUT/data].
     #[arg(long)]
     pub data: Option<PathBuf>,
-    /// Override the number of training iterations per run.
+    /// Training iterations per run [default: 2500; 150 with --quick; 20000 with --data].
     #[arg(long)]
     pub iters: Option<usize>,
     /// Seed shared by all runs.

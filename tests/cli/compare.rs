@@ -47,7 +47,9 @@ fn tensor(name: &str) -> maaf::autodiff::Tensor<f32> {
 fn json_output_has_the_eval_psnr_ssim_and_the_reference_lpips() {
     let (a, b) = (fixture("blur_a.png"), fixture("blur_b.png"));
     let out = maaf(&[
+        "--render",
         a.to_str().expect("utf8"),
+        "--gt",
         b.to_str().expect("utf8"),
         "--json",
     ]);
@@ -81,7 +83,7 @@ fn json_output_has_the_eval_psnr_ssim_and_the_reference_lpips() {
 fn identical_images_and_missing_weights_are_reported_not_failed() {
     let a = fixture("near_a.png");
     let a = a.to_str().expect("utf8");
-    let out = maaf(&[a, a, "--json"]);
+    let out = maaf(&["--render", a, "--gt", a, "--json"]);
     assert!(out.status.success());
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
     assert_eq!(v["identical"], serde_json::json!(true));
@@ -90,7 +92,7 @@ fn identical_images_and_missing_weights_are_reported_not_failed() {
         "{v}"
     );
     let out = Command::new(env!("CARGO_BIN_EXE_maaf"))
-        .args(["compare", a, a, "--json"])
+        .args(["compare", "--render", a, "--gt", a, "--json"])
         .env("MAAF_LPIPS_WEIGHTS", "/nonexistent/alex.safetensors")
         .output()
         .expect("run");

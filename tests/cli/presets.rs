@@ -64,7 +64,10 @@ fn every_preset_validates_and_is_listed() {
         "stability.json",
         "compact.json",
     ] {
-        assert!(names.iter().any(|n| n == needed), "configs/{needed} missing");
+        assert!(
+            names.iter().any(|n| n == needed),
+            "configs/{needed} missing"
+        );
     }
     let readme = std::fs::read_to_string(configs_dir().join("README.md")).expect("README");
     for (path, name) in files.iter().zip(&names) {

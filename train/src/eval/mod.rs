@@ -14,6 +14,7 @@
 //! Nothing is overwritten on error: outputs go to a temporary folder that replaces
 //! `RUN/eval/` only when complete, then `eval.json` is written atomically.
 
+pub mod camera_path;
 pub mod export;
 pub mod filter_agreement;
 pub mod flow;
@@ -42,6 +43,7 @@ pub use render::{load_run, render_image, run_camera};
 pub use report::{
     EvalReport, PoppingResult, RegionSummary, ScaleResult, TemporalResult, scale_label, trim_float,
 };
+pub use sequence::frame_times;
 
 /// The paper's evaluation scales relative to the training scale: 1/4x, 1/2x (zoom-out),
 /// 1x, 2x and 4x (zoom-in).
