@@ -193,9 +193,10 @@ mod tests {
 
     #[test]
     fn a_ring_of_cameras_orbits_its_target() {
+        // Evenly spaced, so the cameras' mean up direction is the ring's axis.
         let ring: Vec<Camera> = (0..6)
             .map(|i| {
-                let a = i as f64;
+                let a = std::f64::consts::TAU * i as f64 / 6.0 + 0.3;
                 cam(DVec3::new(4.0 * a.cos(), 1.0, 4.0 * a.sin()))
             })
             .collect();
