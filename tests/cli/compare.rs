@@ -102,7 +102,8 @@ fn identical_images_and_missing_weights_are_reported_not_failed() {
     let why = v["lpips_unavailable"].as_str().expect("reason");
     assert!(why.contains("/nonexistent/alex.safetensors"), "{why}");
     // Text output says the same.
-    let text = maaf(&[a, fixture("near_b.png").to_str().expect("utf8")]);
+    let near_b = fixture("near_b.png");
+    let text = maaf(&["--render", a, "--gt", near_b.to_str().expect("utf8")]);
     let s = String::from_utf8_lossy(&text.stdout);
     assert!(
         s.contains("PSNR") && s.contains("SSIM") && s.contains("LPIPS 0.00"),
@@ -114,7 +115,12 @@ fn identical_images_and_missing_weights_are_reported_not_failed() {
 fn errors_name_the_file() {
     let missing = fixture("no_such_image.png");
     let b = fixture("near_b.png");
-    let out = maaf(&[missing.to_str().expect("utf8"), b.to_str().expect("utf8")]);
+    let out = maaf(&[
+        "--render",
+        missing.to_str().expect("utf8"),
+        "--gt",
+        b.to_str().expect("utf8"),
+    ]);
     assert_eq!(out.status.code(), Some(1));
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
@@ -122,7 +128,12 @@ fn errors_name_the_file() {
         "{err}"
     );
     let other = fixture("far_a.png");
-    let out = maaf(&[b.to_str().expect("utf8"), other.to_str().expect("utf8")]);
+    let out = maaf(&[
+        "--render",
+        b.to_str().expect("utf8"),
+        "--gt",
+        other.to_str().expect("utf8"),
+    ]);
     assert_eq!(out.status.code(), Some(1));
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
