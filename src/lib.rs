@@ -1,6 +1,6 @@
 //! maaf: alias-free 4D Gaussian splatting of dynamic scenes on the CPU.
 //!
-//! This facade re-exports the member crates (DESIGN.md section 1):
+//! This facade re-exports the member crates (docs/architecture.md):
 //! [`autodiff`] (reverse-mode tape and gradient checks), [`splat`] (differentiable
 //! Gaussian rasterization), [`filter`] (Mip-Splatting and motion-aware smoothing
 //! filters) and [`train`] (data, 4D representations, training and evaluation).

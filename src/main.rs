@@ -1,4 +1,4 @@
-//! The `maaf` command-line tool (DESIGN.md section 8).
+//! The `maaf` command-line tool (every command and option: docs/cli.md).
 
 use clap::{Parser, Subcommand};
 
@@ -22,6 +22,8 @@ enum Command {
     Info,
     /// Write a built-in synthetic dynamic scene (D-NeRF format, supersampled, with flow).
     Generate(cli::generate::GenerateArgs),
+    /// Write the cameras of a data set's split as camera files for render --camera.
+    Cameras(cli::cameras::CamerasArgs),
     /// Summarise a D-NeRF-format data set (views, resolution, times, cameras, bounds).
     Inspect(cli::inspect::InspectArgs),
     /// Train a 4D Gaussian model (SaRO-GS or Deformable-3DGS, + 3D filter) on a data set.
@@ -33,7 +35,8 @@ enum Command {
     Eval(cli::eval::EvalArgs),
     /// Render one image of a trained run at a time from a data-set view or camera JSON.
     Render(cli::render::RenderArgs),
-    /// Render a fixed-camera video of a trained run over time (PNG frames + GIF).
+    /// Render a video of a trained run (PNG frames + GIF): one camera over time, an
+    /// orbit or spiral path, or the data set's test views.
     RenderVideo(cli::render::RenderVideoArgs),
     /// Compare evaluated runs: markdown tables (paper Tab. 2 layout) and PNG charts.
     Report(cli::report::ReportArgs),
@@ -87,6 +90,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Eval(args) => cli::eval::run(&args)?,
         Command::Render(args) => cli::render::run(&args)?,
         Command::RenderVideo(args) => cli::render::run_video(&args)?,
+        Command::Cameras(args) => cli::cameras::run(&args)?,
         Command::Report(args) => cli::report::run(&args)?,
         Command::Compare(args) => cli::compare::run(&args)?,
         Command::Bench(args) => cli::bench::run(&args)?,

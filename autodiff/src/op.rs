@@ -19,7 +19,7 @@ pub struct BackwardCtx<'a, T: Float, S> {
     pub needs_grad: &'a [bool],
 }
 
-/// A differentiable operation with a hand-written backward (DESIGN.md section 2).
+/// A differentiable operation with a hand-written backward (docs/architecture.md, "Where things plug in").
 ///
 /// `forward` maps input tensors to output tensors and returns whatever it wants to
 /// keep for the backward as `Saved`. `backward` returns one entry per input: the

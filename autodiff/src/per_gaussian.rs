@@ -4,7 +4,7 @@
 //! Densification expresses every change as a row index list over the old rows:
 //! cloning Gaussian `i` appends `i` again, splitting appends it twice and drops the
 //! original, pruning leaves it out. Applying the same list to every container keeps
-//! them in lock-step (DESIGN.md sections 4 and 6).
+//! them in lock-step (docs/architecture.md, "One training step as data").
 
 use crate::{Float, Tensor};
 

@@ -114,7 +114,7 @@ struct Inner<T: Float> {
     profile: Option<OpProfile>,
 }
 
-/// A reverse-mode tape over tensors of `T` (DESIGN.md section 2). Build one per
+/// A reverse-mode tape over tensors of `T` (docs/architecture.md). Build one per
 /// training step: register parameters with [`Tape::param`], compute with [`Var`]
 /// methods or [`Tape::apply`], then call [`Tape::backward`].
 pub struct Tape<T: Float> {

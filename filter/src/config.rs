@@ -1,4 +1,4 @@
-//! Filter configuration, validated once at start-up (DESIGN.md section 4).
+//! Filter configuration, validated once at start-up (defaults: the paper's Sec. 5; docs/config.md).
 
 use serde::{Deserialize, Serialize};
 

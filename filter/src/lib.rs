@@ -1,4 +1,4 @@
-//! maaf-filter: the 3D smoothing filters of maaf (DESIGN.md section 4).
+//! maaf-filter: the 3D smoothing filters of maaf (the paper's Sec. 4 and Algorithm 1; choices in docs/decisions.md).
 //!
 //! * [`static_nu`]: Mip-Splatting's static sampling rate (paper Eq. 2) on canonical
 //!   centres, the "SaRO-GS + 3D filter" baseline.

@@ -1,4 +1,4 @@
-//! Mip-Splatting's static 3D filter (paper Eq. 2, Sec. 3.3; domain-notes 1.1).
+//! Mip-Splatting's static 3D filter (paper Eq. 2, Sec. 3.3).
 //!
 //! `nu_k = max_n 1_n(p_k) f_n / d_n` over the training cameras `n`, where the
 //! visibility indicator `1_n` is Mip-Splatting's `compute_3D_filter` rule: camera
@@ -131,7 +131,7 @@ pub(crate) fn fill_unseen(nu: &mut [f32]) -> Result<(), FilterError> {
 }
 
 /// The 3D filter variance `s3d / nu^2` (world units squared) per Gaussian, the
-/// input of the renderer's `apply_3d_filter` (DESIGN.md section 3).
+/// input of the renderer's `apply_3d_filter` (docs/conventions.md).
 pub fn variance_from_nu(nu: &[f32], s3d: f32) -> Vec<f32> {
     nu.iter().map(|&n| s3d / (n * n)).collect()
 }

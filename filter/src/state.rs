@@ -1,5 +1,5 @@
 //! The per-Gaussian filter state the trainer and renderer use: one variance per
-//! Gaussian at a time t, for the renderer's `apply_3d_filter` (DESIGN.md sec. 3-4).
+//! Gaussian at a time t, for the renderer's `apply_3d_filter` (docs/conventions.md, "3D filter fold").
 
 use maaf_autodiff::PerGaussian;
 use serde::{Deserialize, Serialize};

@@ -1,5 +1,5 @@
 //! The 3D covariance of a Gaussian from its rotation quaternion and scales, as an op
-//! with a hand-written backward (DESIGN.md section 3).
+//! with a hand-written backward (docs/conventions.md).
 
 use maaf_autodiff::{BackwardCtx, Float, Op, Tensor, Var};
 use rayon::prelude::*;

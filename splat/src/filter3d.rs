@@ -1,5 +1,5 @@
 //! The Mip-Splatting 3D smoothing filter folded into scales and opacity
-//! (DESIGN.md section 3; Mip-Splatting `get_scaling_with_3D_filter`,
+//! (docs/conventions.md; Mip-Splatting `get_scaling_with_3D_filter`,
 //! `get_opacity_with_3D_filter`).
 
 use maaf_autodiff::{BackwardCtx, Float, Op, Tensor, Var};

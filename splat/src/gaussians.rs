@@ -8,7 +8,7 @@ use crate::Camera;
 use crate::render::{RenderSettings, RenderedFrame, render_tensors};
 use crate::sh::num_coeffs;
 
-/// A static 3DGS scene in storage parameterisation (DESIGN.md section 3; Inria PLY):
+/// A static 3DGS scene in storage parameterisation (docs/conventions.md; Inria PLY):
 /// `means [N,3]`, `log_scales [N,3]` (scale = exp), `quats [N,4]` (w,x,y,z,
 /// unnormalised), `raw_opacity [N]` (opacity = sigmoid), `sh [N,K,3]` with
 /// `K = (sh_degree+1)^2`, coefficient-major then channel (`sh[i][k][c]`).

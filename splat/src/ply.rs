@@ -1,5 +1,5 @@
 //! The standard 3DGS PLY (Inria layout): read with `serde-ply`, written by hand as
-//! `binary_little_endian` (DESIGN.md section 3).
+//! `binary_little_endian` (docs/conventions.md).
 //!
 //! One `vertex` element with float properties `x y z nx ny nz f_dc_0..2
 //! f_rest_0..(3(K-1)-1) opacity scale_0..2 rot_0..3`: opacity is a logit, scales are

@@ -1,5 +1,5 @@
 //! The EWA projection of 3D Gaussians to screen space with the frustum clamp and the
-//! 2D filter (DESIGN.md section 3).
+//! 2D filter (docs/conventions.md).
 
 use maaf_autodiff::{BackwardCtx, Float, Op, Tensor, Var};
 use rayon::prelude::*;

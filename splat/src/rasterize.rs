@@ -1,5 +1,5 @@
 //! The rasterizer op: alpha compositing over 16x16 tiles, forward and backward
-//! (DESIGN.md section 3; Inria `renderCUDA`, gsplat `RasterizeToPixels3DGS*`).
+//! (docs/conventions.md; Inria `renderCUDA`, gsplat `RasterizeToPixels3DGS*`).
 //!
 //! Binning and the per-tile depth sort are in [`crate::binning`], the blend loop of
 //! one tile in `blend.rs`. Tiles are rendered in parallel (rayon); the backward

@@ -1,5 +1,5 @@
 //! The render entry point: activated Gaussian parameters on a tape -> image, alpha,
-//! depth and the screen-space means (DESIGN.md section 3).
+//! depth and the screen-space means (docs/conventions.md).
 
 use maaf_autodiff::{Float, Tape, Tensor, Var};
 

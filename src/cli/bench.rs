@@ -14,7 +14,7 @@ pub struct BenchArgs {
     /// timed on its training views.
     #[arg(long)]
     pub run: PathBuf,
-    /// The run's data set (default: the one recorded in the run).
+    /// The run's data set [default: the one recorded in the run].
     #[arg(long)]
     pub data: Option<PathBuf>,
     /// Gaussian counts to time, comma-separated.
@@ -26,7 +26,7 @@ pub struct BenchArgs {
     /// Untimed iterations before timing.
     #[arg(long, default_value_t = 5)]
     pub warmup: usize,
-    /// Views per iteration (default: the run's `batch`).
+    /// Views per iteration [default: the run's `batch`].
     #[arg(long)]
     pub batch: Option<usize>,
     /// Also list the ten slowest tape ops per count.

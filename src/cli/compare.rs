@@ -13,21 +13,24 @@ use maaf_train::data::image::decode_rgba;
 use maaf_train::metrics::{psnr, ssim};
 use serde_json::json;
 
-use super::BackgroundArg;
+use super::Background;
 
 /// Arguments of `maaf compare`.
 #[derive(clap::Args, Debug)]
 pub struct CompareArgs {
-    /// First image (PNG or JPEG), e.g. a render.
+    /// The image to score (PNG or JPEG), e.g. a render.
+    #[arg(long = "render", value_name = "IMAGE")]
     pub a: PathBuf,
-    /// Second image of the same size, e.g. the ground truth.
+    /// The reference image of the same size, e.g. the ground truth.
+    #[arg(long = "gt", value_name = "IMAGE")]
     pub b: PathBuf,
     /// Print one JSON object instead of text.
     #[arg(long)]
     pub json: bool,
-    /// Background for pixels with alpha < 1 (opaque images are unaffected).
-    #[arg(long, value_enum, default_value_t = BackgroundArg::White)]
-    pub background: BackgroundArg,
+    /// Background for pixels with alpha < 1 (opaque images are unaffected): white,
+    /// black, or r,g,b in [0, 1].
+    #[arg(long, value_parser = Background::parse, default_value = "white")]
+    pub background: Background,
 }
 
 /// An image file as an `[H, W, 3]` tensor on [0, 1], alpha composited on `bg`.

@@ -23,10 +23,11 @@ pub struct DemoArgs {
     #[arg(long)]
     pub quick: bool,
     /// Run the protocol on this D-NeRF-format data set instead of the built-in scene
-    /// (training at 1/4 of its resolution, as in the paper).
+    /// (training at 1/4 of its resolution, as in the paper) [default: the built-in
+    /// scene, generated into OUT/data].
     #[arg(long)]
     pub data: Option<PathBuf>,
-    /// Override the number of training iterations per run.
+    /// Training iterations per run [default: 2500; 150 with --quick; 20000 with --data].
     #[arg(long)]
     pub iters: Option<usize>,
     /// Seed shared by all runs.
@@ -205,4 +206,25 @@ fn generate_scene(dir: &Path, plan: &Plan) -> anyhow::Result<PathBuf> {
         summary.seconds
     );
     Ok(dir.to_path_buf())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `configs/demo.json` is the configuration `maaf demo` trains its motion-aware run
+    /// with (the other two runs differ in `filter.kind` only).
+    #[test]
+    fn demo_preset_is_the_demo_config() {
+        let preset: TrainConfig = serde_json::from_str(include_str!("../../configs/demo.json"))
+            .expect("configs/demo.json is a training config");
+        let plan = Plan::new(false, false);
+        let demo = plan.config(plan.iterations, FilterKind::Motion, 0);
+        assert_eq!(
+            preset,
+            demo,
+            "configs/demo.json differs from the demo's config:\n{}",
+            serde_json::to_string_pretty(&demo).expect("serialise")
+        );
+    }
 }

@@ -7,7 +7,7 @@ use anyhow::bail;
 use maaf_train::data::{Dataset, DatasetOptions, Split, WHITE};
 use maaf_train::eval::render::recorded_data;
 
-use super::BackgroundArg;
+use super::Background;
 use maaf_train::eval::{EvalOptions, evaluate_run, scale_label};
 
 /// [`maaf_train::eval::DEFAULT_SCALES`] as `--scales` takes them (comma-separated), so `--help` shows
@@ -20,7 +20,7 @@ pub struct EvalArgs {
     /// Run directory written by `maaf train` (holds model/).
     #[arg(long)]
     pub run: PathBuf,
-    /// Data folder the run was trained on (default: the one in RUN/data.json).
+    /// Data folder the run was trained on [default: the one in RUN/data.json].
     #[arg(long)]
     pub data: Option<PathBuf>,
     /// Scales relative to the training scale (2, 4 = zoom-in; 0.5, 0.25 = zoom-out).
@@ -29,7 +29,8 @@ pub struct EvalArgs {
     /// Split to evaluate.
     #[arg(long, value_enum, default_value = "test")]
     pub split: SplitArg,
-    /// Evaluate only the first N views (quick checks), after --frame-stride.
+    /// Evaluate only the first N views (quick checks), after --frame-stride [default:
+    /// every view].
     #[arg(long)]
     pub max_views: Option<usize>,
     /// Evaluate the views at every N-th distinct time only (all cameras at those
@@ -39,9 +40,10 @@ pub struct EvalArgs {
     /// Do not save renders and error maps (metrics only).
     #[arg(long)]
     pub no_images: bool,
-    /// Background the data is composited on (default: RUN/data.json's, else white).
-    #[arg(long, value_enum)]
-    pub background: Option<BackgroundArg>,
+    /// Background the data is composited on: white, black, or r,g,b in [0, 1]
+    /// [default: the one in RUN/data.json, else white].
+    #[arg(long, value_parser = Background::parse)]
+    pub background: Option<Background>,
     /// Also measure temporal stability (W-Temporal Error, W-SSIM, W-LPIPS) of a
     /// fixed-camera video at each scale, with exact flow (when the data has it) and
     /// model flow.
@@ -75,7 +77,7 @@ impl From<SplitArg> for Split {
 pub fn open_run_data(
     run: &Path,
     data: Option<&Path>,
-    background: Option<BackgroundArg>,
+    background: Option<Background>,
 ) -> anyhow::Result<Dataset> {
     let recorded = recorded_data(run)?;
     let root = match (data, &recorded) {

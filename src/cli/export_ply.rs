@@ -11,7 +11,7 @@ use maaf_train::eval::export::{
 };
 use maaf_train::eval::load_run;
 
-use super::BackgroundArg;
+use super::Background;
 use super::eval::{open_run_data, read_lock};
 
 /// Arguments of `maaf export-ply`.
@@ -20,7 +20,7 @@ pub struct ExportPlyArgs {
     /// Run directory written by `maaf train`.
     #[arg(long)]
     pub run: PathBuf,
-    /// Data folder the run was trained on (default: the one in RUN/data.json).
+    /// Data folder the run was trained on [default: the one in RUN/data.json].
     #[arg(long)]
     pub data: Option<PathBuf>,
     /// Time of the single frame to export (writes the PLY file --out).
@@ -33,9 +33,10 @@ pub struct ExportPlyArgs {
     /// Output PLY file (--time), or folder or .zip file (--frames).
     #[arg(long)]
     pub out: PathBuf,
-    /// Background of the run's data (only used to open the data set).
-    #[arg(long, value_enum)]
-    pub background: Option<BackgroundArg>,
+    /// Background of the run's data (only used to open the data set): white, black, or
+    /// r,g,b in [0, 1] [default: the one in RUN/data.json, else white].
+    #[arg(long, value_parser = Background::parse)]
+    pub background: Option<Background>,
 }
 
 /// Runs `maaf export-ply`.

@@ -1,6 +1,7 @@
 //! Subcommand implementations of the `maaf` binary, one file per command.
 
 pub mod bench;
+pub mod cameras;
 pub mod compare;
 pub mod demo;
 pub mod eval;
@@ -15,21 +16,65 @@ pub mod train;
 
 use maaf_train::data::{BLACK, WHITE};
 
-/// `--background` values (shared by `train`, `eval`, `render`).
-#[derive(clap::ValueEnum, Clone, Copy, Debug)]
-pub enum BackgroundArg {
-    /// White, as D-NeRF's `white_bkgd`.
-    White,
-    /// Black, as SaRO-GS's D-NeRF configs.
-    Black,
-}
+/// `--background` of every command: `white` (D-NeRF's `white_bkgd`), `black` (SaRO-GS's
+/// D-NeRF configs) or `r,g,b` with components in [0, 1].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Background(pub [f32; 3]);
 
-impl BackgroundArg {
+impl Background {
+    /// Parses `white`, `black` or `r,g,b` (clap's value parser for `--background`).
+    pub fn parse(s: &str) -> Result<Self, String> {
+        match s.trim() {
+            "white" => return Ok(Background(WHITE)),
+            "black" => return Ok(Background(BLACK)),
+            _ => {}
+        }
+        let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+        if parts.len() != 3 {
+            return Err(format!("expected white, black or r,g,b, got `{s}`"));
+        }
+        let mut rgb = [0.0f32; 3];
+        for (v, p) in rgb.iter_mut().zip(&parts) {
+            *v = p
+                .parse::<f32>()
+                .ok()
+                .filter(|x| (0.0..=1.0).contains(x))
+                .ok_or_else(|| format!("`{p}` in `{s}` is not a number in [0, 1]"))?;
+        }
+        Ok(Background(rgb))
+    }
+
     /// The colour.
     pub fn rgb(self) -> [f32; 3] {
-        match self {
-            BackgroundArg::White => WHITE,
-            BackgroundArg::Black => BLACK,
+        self.0
+    }
+}
+
+/// The spelling [`Background::parse`] reads back: `white`, `black` or `r,g,b`.
+impl std::fmt::Display for Background {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.0 {
+            c if c == WHITE => f.write_str("white"),
+            c if c == BLACK => f.write_str("black"),
+            [r, g, b] => write!(f, "{r},{g},{b}"),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn background_spellings_parse_and_print_back() {
+        for text in ["white", "black", "0.5,0.25,1"] {
+            let bg = Background::parse(text).expect(text);
+            assert_eq!(bg.to_string(), text);
+            assert_eq!(Background::parse(&bg.to_string()), Ok(bg));
+        }
+        assert_eq!(Background::parse("1,1,1"), Ok(Background(WHITE)));
+        for bad in ["grey", "1,1", "1,1,2", "a,b,c", "0,0,NaN"] {
+            assert!(Background::parse(bad).is_err(), "{bad}");
         }
     }
 }

@@ -6,12 +6,13 @@ use std::path::PathBuf;
 use anyhow::{Context, bail};
 use maaf_splat::Camera;
 use maaf_train::data::{Dataset, Split};
+use maaf_train::eval::camera_path::Rig;
 use maaf_train::eval::images::{save_png, to_rgb8};
 use maaf_train::eval::render::render_video;
-use maaf_train::eval::{load_run, render_image, run_camera};
+use maaf_train::eval::{frame_times, load_run, render_image, run_camera};
 use maaf_train::trainer::Trainer;
 
-use super::BackgroundArg;
+use super::Background;
 use super::eval::{open_run_data, read_lock};
 
 /// Where the camera comes from (shared by `render` and `render-video`).
@@ -20,21 +21,28 @@ pub struct CameraArgs {
     /// Run directory written by `maaf train`.
     #[arg(long)]
     pub run: PathBuf,
-    /// Data folder the run was trained on (default: the one in RUN/data.json).
+    /// Data folder the run was trained on [default: the one in RUN/data.json].
     #[arg(long)]
     pub data: Option<PathBuf>,
-    /// A data-set view as SPLIT:INDEX, e.g. test:0 or video:0.
-    #[arg(long, conflicts_with = "camera", required_unless_present = "camera")]
+    /// A data-set view as SPLIT:INDEX, e.g. test:0 or video:0 (render: this or
+    /// --camera) [default: test:0 as the start of an orbit or spiral].
+    #[arg(long, conflicts_with = "camera")]
     pub view: Option<String>,
-    /// Camera JSON: {"width","height","fx","fy","cx","cy","world_to_camera":[[4]x4]}.
+    /// Camera JSON: {"width","height","fx","fy","cx","cy","world_to_camera":[[4]x4]},
+    /// as `maaf cameras` writes them [default: none; see --view].
     #[arg(long)]
     pub camera: Option<PathBuf>,
     /// Scale relative to the training scale for --view (2 = zoom-in 2x).
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, conflicts_with = "size")]
     pub scale: f64,
-    /// Background (default: RUN/data.json's, else white).
-    #[arg(long, value_enum)]
-    pub background: Option<BackgroundArg>,
+    /// Image size WxH in pixels instead of --scale: the camera's intrinsics are
+    /// stretched to it [default: the camera's own size].
+    #[arg(long, value_parser = parse_size)]
+    pub size: Option<(u32, u32)>,
+    /// Background: white, black, or r,g,b in [0, 1] [default: the one in RUN/data.json,
+    /// else white].
+    #[arg(long, value_parser = Background::parse)]
+    pub background: Option<Background>,
 }
 
 /// Arguments of `maaf render`.
@@ -42,7 +50,7 @@ pub struct CameraArgs {
 pub struct RenderArgs {
     #[command(flatten)]
     camera: CameraArgs,
-    /// Time to render (default: the view's time with --view, else 0).
+    /// Time to render [default: the view's time with --view, else 0].
     #[arg(long)]
     pub time: Option<f64>,
     /// Output PNG (8-bit).
@@ -50,17 +58,72 @@ pub struct RenderArgs {
     pub out: PathBuf,
 }
 
+/// `render-video --path` values.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PathArg {
+    /// One camera (--view or --camera) over the data set's time range.
+    Fixed,
+    /// One turn around the point the training cameras look at, at their mean distance
+    /// and height, starting at --view / --camera, over the time range.
+    Orbit,
+    /// Two turns of a spiral around --view / --camera in its image plane, looking at
+    /// the same point, over the time range (forward-facing multi-view video).
+    Spiral,
+    /// The data set's test views in order, each at its own time.
+    Test,
+}
+
 /// Arguments of `maaf render-video`.
 #[derive(clap::Args, Debug)]
 pub struct RenderVideoArgs {
     #[command(flatten)]
     camera: CameraArgs,
-    /// Number of frames, evenly spaced over the data set's time range.
+    /// Camera path.
+    #[arg(long, value_enum, default_value_t = PathArg::Fixed)]
+    pub path: PathArg,
+    /// Number of frames, evenly spaced over the data set's time range (all test views
+    /// with --path test).
     #[arg(long, default_value_t = 30)]
     pub frames: usize,
     /// Output folder (frame_NNNN.png and video.gif).
     #[arg(long)]
     pub out: PathBuf,
+}
+
+/// Parses `--size WxH`.
+fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("expected WxH, e.g. 800x600, got `{s}`"))?;
+    let side = |v: &str| {
+        v.trim()
+            .parse::<u32>()
+            .ok()
+            .filter(|n| (1..=maaf_splat::camera::MAX_SIDE).contains(n))
+            .ok_or_else(|| {
+                format!(
+                    "`{v}` in `{s}` is not a size in 1..={}",
+                    maaf_splat::camera::MAX_SIDE
+                )
+            })
+    };
+    Ok((side(w)?, side(h)?))
+}
+
+/// `camera` stretched to `width` x `height` pixels (focal lengths and principal point
+/// scaled per axis).
+fn resized(camera: &Camera, (width, height): (u32, u32)) -> anyhow::Result<Camera> {
+    let sx = f64::from(width) / f64::from(camera.width);
+    let sy = f64::from(height) / f64::from(camera.height);
+    Ok(Camera::new(
+        width,
+        height,
+        camera.fx * sx,
+        camera.fy * sy,
+        camera.cx * sx,
+        camera.cy * sy,
+        camera.world_to_camera,
+    )?)
 }
 
 fn parse_view(s: &str) -> anyhow::Result<(Split, usize)> {
@@ -80,8 +143,9 @@ fn parse_view(s: &str) -> anyhow::Result<(Split, usize)> {
     Ok((split, index))
 }
 
-/// Loads the run and resolves the camera; also returns the view's time if any.
-fn setup(args: &CameraArgs) -> anyhow::Result<(Dataset, Trainer, Camera, Option<f64>)> {
+/// Loads the run and resolves the camera of --view or --camera (at --scale or
+/// --size), if any; also returns the view's time.
+fn setup(args: &CameraArgs) -> anyhow::Result<(Dataset, Trainer, Option<Camera>, Option<f64>)> {
     let data = open_run_data(&args.run, args.data.as_deref(), args.background)?;
     // Check the cheap arguments before loading the model.
     let view = args.view.as_deref().map(parse_view).transpose()?;
@@ -95,10 +159,14 @@ fn setup(args: &CameraArgs) -> anyhow::Result<(Dataset, Trainer, Camera, Option<
         (Some((split, index)), _) => {
             let cam = run_camera(&trainer, &data, split, index, args.scale)?;
             let time = data.times(split).get(index).copied();
-            (cam, time)
+            (Some(cam), time)
         }
-        (None, Some(cam)) => (cam, None),
-        (None, None) => bail!("give --view SPLIT:INDEX or --camera CAM.json"),
+        (None, Some(cam)) => (Some(cam), None),
+        (None, None) => (None, None),
+    };
+    let camera = match (camera, args.size) {
+        (Some(c), Some(size)) => Some(resized(&c, size)?),
+        (c, _) => c,
     };
     Ok((data, trainer, camera, time))
 }
@@ -122,6 +190,9 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     }
     let _lock = read_lock(&args.camera.run)?;
     let (data, trainer, camera, view_time) = setup(&args.camera)?;
+    let Some(camera) = camera else {
+        bail!("give --view SPLIT:INDEX or --camera CAM.json");
+    };
     let time = args.time.or(view_time).unwrap_or(0.0);
     let (t0, t1) = data.time_range();
     if !(t0..=t1).contains(&time) {
@@ -149,14 +220,67 @@ pub fn run_video(args: &RenderVideoArgs) -> anyhow::Result<()> {
     let _lock = read_lock(&args.camera.run)?;
     let (data, trainer, camera, _) = setup(&args.camera)?;
     let range = data.time_range();
-    let paths = render_video(&trainer, &camera, range, args.frames, &args.out)?;
+    let start = || -> anyhow::Result<Camera> {
+        match &camera {
+            Some(c) => Ok(c.clone()),
+            None => {
+                let c = run_camera(&trainer, &data, Split::Test, 0, args.camera.scale)?;
+                Ok(match args.camera.size {
+                    Some(size) => resized(&c, size)?,
+                    None => c,
+                })
+            }
+        }
+    };
+    let along = |cameras: Vec<Camera>| -> anyhow::Result<Vec<(Camera, f64)>> {
+        let times = frame_times(range, cameras.len())?;
+        Ok(cameras.into_iter().zip(times).collect())
+    };
+    let frames: Vec<(Camera, f64)> = match args.path {
+        PathArg::Fixed => {
+            let Some(c) = camera.clone() else {
+                bail!("--path fixed: give --view SPLIT:INDEX or --camera CAM.json");
+            };
+            along(vec![c; args.frames])?
+        }
+        PathArg::Orbit | PathArg::Spiral => {
+            let rig = Rig::of(&data.cameras(Split::Train, 1.0)?)?;
+            let start = start()?;
+            along(if args.path == PathArg::Orbit {
+                rig.orbit(&start, args.frames)?
+            } else {
+                rig.spiral(&start, args.frames)?
+            })?
+        }
+        PathArg::Test => {
+            if camera.is_some() {
+                bail!("--path test renders the test views' own cameras; drop --view / --camera");
+            }
+            let times = data.times(Split::Test);
+            if times.is_empty() {
+                bail!("--path test: the data set has no test views");
+            }
+            let mut frames = Vec::with_capacity(times.len());
+            for (i, t) in times.into_iter().enumerate() {
+                let c = run_camera(&trainer, &data, Split::Test, i, args.camera.scale)?;
+                let c = match args.camera.size {
+                    Some(size) => resized(&c, size)?,
+                    None => c,
+                };
+                frames.push((c, t));
+            }
+            frames
+        }
+    };
+    let paths = render_video(&trainer, &frames, &args.out)?;
+    let (first, last) = (&frames[0], &frames[frames.len() - 1]);
     println!(
         "rendered {} frames ({}x{}, t = {}..{}) to {} (frame_NNNN.png, video.gif)",
         paths.len(),
-        camera.width,
-        camera.height,
-        range.0,
-        range.1,
+        first.0.width,
+        first.0.height,
+        first.1,
+        last.1,
         args.out.display()
     );
     Ok(())

@@ -5,6 +5,8 @@ use std::path::PathBuf;
 use maaf_splat::output::save_image;
 use maaf_splat::{Camera, Filter2d, RenderSettings, read_ply, render_gaussians};
 
+use super::Background;
+
 /// The screen-space filter on the command line.
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
 pub enum Filter2dArg {
@@ -27,9 +29,9 @@ pub struct RenderPlyArgs {
     /// Output image: .png (8-bit) or .npy (float32 [H,W,3], linear, unquantised).
     #[arg(long)]
     pub out: PathBuf,
-    /// Background colour as r,g,b in [0,1].
-    #[arg(long, value_parser = parse_rgb, default_value = "0,0,0")]
-    pub background: [f64; 3],
+    /// Background: white, black, or r,g,b in [0, 1].
+    #[arg(long, value_parser = Background::parse, default_value = "black")]
+    pub background: Background,
     /// Screen-space filter.
     #[arg(long, value_enum, default_value_t = Filter2dArg::Mip)]
     pub filter2d: Filter2dArg,
@@ -38,28 +40,12 @@ pub struct RenderPlyArgs {
     pub sh_degree: u8,
 }
 
-fn parse_rgb(s: &str) -> Result<[f64; 3], String> {
-    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
-    if parts.len() != 3 {
-        return Err(format!("expected r,g,b (three numbers), got `{s}`"));
-    }
-    let mut rgb = [0.0; 3];
-    for (v, p) in rgb.iter_mut().zip(&parts) {
-        *v = p
-            .parse::<f64>()
-            .ok()
-            .filter(|x| x.is_finite())
-            .ok_or_else(|| format!("`{p}` in `{s}` is not a finite number"))?;
-    }
-    Ok(rgb)
-}
-
 /// Runs `maaf render-ply`.
 pub fn run(args: &RenderPlyArgs) -> anyhow::Result<()> {
     let camera = Camera::from_json_file(&args.camera)?;
     let gaussians = read_ply(&args.ply)?;
     let settings = RenderSettings {
-        background: args.background,
+        background: args.background.rgb().map(f64::from),
         filter2d: match args.filter2d {
             Filter2dArg::Classic => Filter2d::Classic,
             Filter2dArg::Mip => Filter2d::Mip,

@@ -65,7 +65,7 @@ pub fn run(args: &SweepArgs) -> anyhow::Result<()> {
     let out = std::path::absolute(&args.out)
         .with_context(|| format!("{}: cannot resolve", args.out.display()))?;
     let q = |p: &std::path::Path| shell_quote(&p.display().to_string());
-    let background = format!("{:?}", settings.background_or_default()).to_lowercase();
+    let background = settings.background_or_default().to_string();
     let mut jobs = String::new();
     let mut runs = Vec::with_capacity(pts.len());
     for p in &pts {

@@ -11,13 +11,14 @@ use maaf_train::metrics::psnr;
 use maaf_train::models::ModelConfig;
 use maaf_train::trainer::{TrainConfig, branch_run, load_checkpoint, train_run};
 
-use super::BackgroundArg;
+use super::Background;
 
 /// Arguments of `maaf train`.
 #[derive(clap::Args, Debug)]
 pub struct TrainArgs {
-    /// Run directory to create (config.json, log.csv, checkpoints/, model/).
-    #[arg(long)]
+    /// Run directory to create (config.json, log.csv, checkpoints/, model/); required
+    /// unless --resume names the run.
+    #[arg(long, required_unless_present = "resume")]
     pub out: Option<PathBuf>,
     /// Continue the run in this directory from its newest complete checkpoint, with its
     /// settings (only --iters may change the budget; absent, the run's is kept).
@@ -43,31 +44,35 @@ pub struct SettingsArgs {
     #[arg(long)]
     pub data: Option<PathBuf>,
     /// 4D representation: `saro` (SaRO-GS) or `deform` (Deformable-3DGS); its settings:
-    /// the `model` section of --config.
+    /// the `model` section of --config [default: the config's, else saro].
     #[arg(long, value_parser = ModelConfig::KINDS)]
     pub model: Option<String>,
-    /// 3D smoothing filter.
+    /// 3D smoothing filter [default: the config's, else motion].
     #[arg(long, value_enum)]
     pub filter: Option<FilterArg>,
-    /// Training scale relative to the source images (D-NeRF protocol: 0.25).
+    /// Training scale relative to the source images [default: the config's, else 0.25,
+    /// the D-NeRF protocol].
     #[arg(long)]
     pub train_scale: Option<f64>,
-    /// Iterations (D-NeRF protocol: 20000).
+    /// Iterations [default: the config's, else 20000, the D-NeRF protocol].
     #[arg(long)]
     pub iters: Option<usize>,
-    /// Training views per iteration, their gradients averaged (SaRO-GS configs: 4).
+    /// Training views per iteration, their gradients averaged (SaRO-GS configs: 4)
+    /// [default: the config's, else 1].
     #[arg(long)]
     pub batch: Option<usize>,
-    /// Seed of initialisation, view order and densification.
+    /// Seed of initialisation, view order and densification [default: the config's,
+    /// else 0].
     #[arg(long)]
     pub seed: Option<u64>,
-    /// JSON file with a full or partial TrainConfig (flags override it).
+    /// JSON file with a full or partial TrainConfig (flags override it; presets in
+    /// configs/, every key in docs/config.md) [default: none: the defaults].
     #[arg(long)]
     pub config: Option<PathBuf>,
-    /// Background the RGBA images are composited on [default: white; with --resume,
-    /// the run's].
-    #[arg(long, value_enum)]
-    pub background: Option<BackgroundArg>,
+    /// Background the RGBA images are composited on: white, black, or r,g,b in [0, 1]
+    /// [default: white; with --resume, the run's].
+    #[arg(long, value_parser = Background::parse)]
+    pub background: Option<Background>,
 }
 
 impl SettingsArgs {
@@ -79,8 +84,9 @@ impl SettingsArgs {
     }
 
     /// `--background`, white when not given.
-    pub fn background_or_default(&self) -> BackgroundArg {
-        self.background.unwrap_or(BackgroundArg::White)
+    pub fn background_or_default(&self) -> Background {
+        self.background
+            .unwrap_or(Background(maaf_train::data::WHITE))
     }
 }
 
@@ -248,7 +254,7 @@ fn resumed_data(settings: &SettingsArgs, run: &Path) -> anyhow::Result<(PathBuf,
         ),
         (Some(b), _) => b.rgb(),
         (None, Some(r)) => r.background,
-        (None, None) => BackgroundArg::White.rgb(),
+        (None, None) => maaf_train::data::WHITE,
     };
     Ok((root, background))
 }

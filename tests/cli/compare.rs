@@ -47,7 +47,9 @@ fn tensor(name: &str) -> maaf::autodiff::Tensor<f32> {
 fn json_output_has_the_eval_psnr_ssim_and_the_reference_lpips() {
     let (a, b) = (fixture("blur_a.png"), fixture("blur_b.png"));
     let out = maaf(&[
+        "--render",
         a.to_str().expect("utf8"),
+        "--gt",
         b.to_str().expect("utf8"),
         "--json",
     ]);
@@ -81,7 +83,7 @@ fn json_output_has_the_eval_psnr_ssim_and_the_reference_lpips() {
 fn identical_images_and_missing_weights_are_reported_not_failed() {
     let a = fixture("near_a.png");
     let a = a.to_str().expect("utf8");
-    let out = maaf(&[a, a, "--json"]);
+    let out = maaf(&["--render", a, "--gt", a, "--json"]);
     assert!(out.status.success());
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
     assert_eq!(v["identical"], serde_json::json!(true));
@@ -90,7 +92,7 @@ fn identical_images_and_missing_weights_are_reported_not_failed() {
         "{v}"
     );
     let out = Command::new(env!("CARGO_BIN_EXE_maaf"))
-        .args(["compare", a, a, "--json"])
+        .args(["compare", "--render", a, "--gt", a, "--json"])
         .env("MAAF_LPIPS_WEIGHTS", "/nonexistent/alex.safetensors")
         .output()
         .expect("run");
@@ -100,7 +102,8 @@ fn identical_images_and_missing_weights_are_reported_not_failed() {
     let why = v["lpips_unavailable"].as_str().expect("reason");
     assert!(why.contains("/nonexistent/alex.safetensors"), "{why}");
     // Text output says the same.
-    let text = maaf(&[a, fixture("near_b.png").to_str().expect("utf8")]);
+    let near_b = fixture("near_b.png");
+    let text = maaf(&["--render", a, "--gt", near_b.to_str().expect("utf8")]);
     let s = String::from_utf8_lossy(&text.stdout);
     assert!(
         s.contains("PSNR") && s.contains("SSIM") && s.contains("LPIPS 0.00"),
@@ -112,7 +115,12 @@ fn identical_images_and_missing_weights_are_reported_not_failed() {
 fn errors_name_the_file() {
     let missing = fixture("no_such_image.png");
     let b = fixture("near_b.png");
-    let out = maaf(&[missing.to_str().expect("utf8"), b.to_str().expect("utf8")]);
+    let out = maaf(&[
+        "--render",
+        missing.to_str().expect("utf8"),
+        "--gt",
+        b.to_str().expect("utf8"),
+    ]);
     assert_eq!(out.status.code(), Some(1));
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
@@ -120,7 +128,12 @@ fn errors_name_the_file() {
         "{err}"
     );
     let other = fixture("far_a.png");
-    let out = maaf(&[b.to_str().expect("utf8"), other.to_str().expect("utf8")]);
+    let out = maaf(&[
+        "--render",
+        b.to_str().expect("utf8"),
+        "--gt",
+        other.to_str().expect("utf8"),
+    ]);
     assert_eq!(out.status.code(), Some(1));
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(

@@ -3,10 +3,13 @@
 //! gradient check through the public API.
 
 mod bad_input;
+mod cli_habits;
 mod compare;
+mod config_doc;
 mod e2e_gradcheck;
 mod export_eval;
 mod panoptic;
+mod presets;
 mod resume_faults;
 mod run_integrity;
 mod support;

@@ -50,3 +50,33 @@ pub fn tiny_scene(data: &Path) {
         String::from_utf8_lossy(&out.stderr)
     );
 }
+
+/// Every leaf of a JSON object as `(dotted.path, value)`: objects are walked,
+/// anything else (numbers, strings, booleans, null, arrays) is a leaf.
+pub fn json_leaves(value: &serde_json::Value) -> Vec<(String, serde_json::Value)> {
+    fn walk(v: &serde_json::Value, prefix: &str, out: &mut Vec<(String, serde_json::Value)>) {
+        match v {
+            serde_json::Value::Object(map) => {
+                for (k, child) in map {
+                    let path = if prefix.is_empty() {
+                        k.clone()
+                    } else {
+                        format!("{prefix}.{k}")
+                    };
+                    walk(child, &path, out);
+                }
+            }
+            leaf => out.push((prefix.to_string(), leaf.clone())),
+        }
+    }
+    let mut out = Vec::new();
+    walk(value, "", &mut out);
+    out
+}
+
+/// A training configuration as JSON text and back, so an `f32` field reads as its
+/// shortest decimal (`0.2`, not `0.20000000298023224`).
+pub fn config_json(config: &maaf::train::trainer::TrainConfig) -> serde_json::Value {
+    let text = serde_json::to_string(config).expect("serialise");
+    serde_json::from_str(&text).expect("parse back")
+}

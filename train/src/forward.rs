@@ -1,4 +1,4 @@
-//! One forward pass of the pipeline (DESIGN.md section 6): deform at t, fold the 3D
+//! One forward pass of the pipeline (docs/architecture.md): deform at t, fold the 3D
 //! filter in, render; then, for training, the objective on that render.
 //!
 //! This is the only place the pipeline is written: `Trainer::step`, evaluation

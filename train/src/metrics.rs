@@ -1,4 +1,4 @@
-//! Evaluation metrics (DESIGN.md section 7, domain-notes section 6): PSNR, SSIM and
+//! Evaluation metrics (docs/conventions.md, "Metrics"): PSNR, SSIM and
 //! per-pixel error maps. Not differentiable; every sum is accumulated in f64 whatever
 //! the image type.
 //!
@@ -104,7 +104,7 @@ pub fn mse<T: Float>(render: &Tensor<T>, gt: &Tensor<T>) -> Result<f64, MetricEr
 /// MSE over all `H W C` values (3DGS `utils/image_utils.py::psnr`, scikit-image
 /// `peak_signal_noise_ratio(gt, render, data_range=1)`). Identical images give
 /// `f64::INFINITY` (never NaN), as scikit-image does. Report the mean of per-image
-/// values over a test set (domain-notes section 6).
+/// values over a test set (docs/conventions.md, "Metrics").
 pub fn psnr<T: Float>(render: &Tensor<T>, gt: &Tensor<T>) -> Result<f64, MetricError> {
     let m = mse(render, gt)?;
     Ok(if m == 0.0 {

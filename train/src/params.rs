@@ -1,4 +1,4 @@
-//! One store of named parameters for any representation (DESIGN.md section 5).
+//! One store of named parameters for any representation (docs/architecture.md).
 //!
 //! A representation declares each trainable tensor once with [`ParamStore::add`]: its
 //! name, its values, whether it has one row per Gaussian, its learning-rate schedule

@@ -99,6 +99,10 @@ fn report_writes_tables_and_charts() {
     // none at 1x/2x/4x: 30, 27, 24 -> avg 27.00.
     assert!(md.contains("| 30.00 | 27.00 | 24.00 | **27.00** |"), "{md}");
     assert!(result.table.lines().count() == 5, "{}", result.table);
+    // The printed table has every evaluated scale, zoom-out included.
+    for col in ["PSNR 1/4x", "PSNR 1/2x", "PSNR 1x", "PSNR 2x", "PSNR 4x"] {
+        assert!(result.table.contains(col), "{col}: {}", result.table);
+    }
     assert_eq!(result.charts.len(), 4);
     for c in &result.charts {
         let bytes = std::fs::read(c).expect("chart");

@@ -1,4 +1,4 @@
-//! Slow, obviously-correct reference implementations (DESIGN.md section 3), written
+//! Slow, obviously-correct reference implementations (docs/conventions.md), written
 //! independently of the fast path: no tiles, no binning, no shared kernels.
 //!
 //! * [`render`]: per-pixel, per-Gaussian forward oracle over all Gaussians in global

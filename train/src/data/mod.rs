@@ -1,5 +1,5 @@
 //! Data: the D-NeRF and Plenoptic Video loaders, multi-scale ground truth, the built-in synthetic dynamic
-//! scene generator and the data-set summary (DESIGN.md section 7).
+//! scene generator and the data-set summary (docs/conventions.md).
 //!
 //! - [`dnerf`]: `transforms_{train,val,test}.json` parsing, OpenGL to OpenCV cameras.
 //! - [`n3dv`]: Plenoptic Video `poses_bounds.npy` and `camXX/images/`, LLFF to OpenCV.

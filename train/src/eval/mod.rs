@@ -1,10 +1,10 @@
-//! Multi-scale evaluation of a trained run (DESIGN.md sections 7 and 8).
+//! Multi-scale evaluation of a trained run (docs/conventions.md).
 //!
 //! [`evaluate_run`] renders every view of a split at each evaluation scale, computes
 //! PSNR and SSIM on the float renders (no 8-bit quantisation) against ground truth at
 //! that resolution, saves 8-bit renders and colour-mapped error maps under
 //! `RUN/eval/<scale>x/`, and writes `RUN/eval.json` with exactly the fields of the
-//! DESIGN.md section 8 contract ([`EvalReport`]).
+//! docs/conventions.md contract ([`EvalReport`]).
 //!
 //! Evaluation scales are relative to the run's *training* scale: `2` and `4` zoom in,
 //! `0.5` and `0.25` zoom out. The data set's scale is `train_scale * s`, which must
@@ -14,6 +14,7 @@
 //! Nothing is overwritten on error: outputs go to a temporary folder that replaces
 //! `RUN/eval/` only when complete, then `eval.json` is written atomically.
 
+pub mod camera_path;
 pub mod export;
 pub mod filter_agreement;
 pub mod flow;
@@ -42,6 +43,7 @@ pub use render::{load_run, render_image, run_camera};
 pub use report::{
     EvalReport, PoppingResult, RegionSummary, ScaleResult, TemporalResult, scale_label, trim_float,
 };
+pub use sequence::frame_times;
 
 /// The paper's evaluation scales relative to the training scale: 1/4x, 1/2x (zoom-out),
 /// 1x, 2x and 4x (zoom-in).

@@ -8,7 +8,7 @@ use maaf_splat::{Camera, RenderSettings};
 use serde::{Deserialize, Serialize};
 
 use super::images;
-use super::sequence::{check_own_folder, frame_times};
+use super::sequence::check_own_folder;
 use crate::data::{Dataset, Split, SplitMeta};
 use crate::forward::forward;
 use crate::trainer::{Trainer, load_checkpoint};
@@ -261,19 +261,20 @@ pub fn render_image(
     image
 }
 
-/// Renders `frames` evenly spaced times over `[t0, t1]` from one fixed `camera` into
-/// `out` as `frame_NNNN.png` plus an animated `video.gif` (10 frames per second).
-/// Returns the PNG paths. The frames are built in a fresh temporary folder swapped in
-/// for `out` ([`maaf_io::replace_dir`]), so no frame of an earlier, longer video
-/// stays beside the new ones; an `out` holding anything but such frames is refused.
+/// Renders one frame per `(camera, time)` of `frames` (a fixed camera over time, a
+/// camera path, or a data set's views) into `out` as `frame_NNNN.png` plus an
+/// animated `video.gif` (10 frames per second). Returns the PNG paths. The frames are
+/// built in a fresh temporary folder swapped in for `out` ([`maaf_io::replace_dir`]),
+/// so no frame of an earlier, longer video stays beside the new ones; an `out`
+/// holding anything but such frames is refused.
 pub fn render_video(
     trainer: &Trainer,
-    camera: &Camera,
-    range: (f64, f64),
-    frames: usize,
+    frames: &[(Camera, f64)],
     out: &Path,
 ) -> Result<Vec<PathBuf>, Error> {
-    let times = frame_times(range, frames)?;
+    if frames.is_empty() {
+        return Err(Error::Input("a video needs at least one frame".into()));
+    }
     check_own_folder(out, "video", |name| {
         name == "video.gif" || (name.starts_with("frame_") && name.ends_with(".png"))
     })?;
@@ -283,11 +284,13 @@ pub fn render_video(
     }
     std::fs::create_dir_all(&tmp).map_err(|e| Error::io(&tmp, e))?;
     let settings = trainer.render_settings(trainer.iteration);
-    let names: Vec<String> = (0..frames).map(|i| format!("frame_{i:04}.png")).collect();
+    let names: Vec<String> = (0..frames.len())
+        .map(|i| format!("frame_{i:04}.png"))
+        .collect();
     let written = (|| {
-        let mut rgb = Vec::with_capacity(frames);
-        for (name, &t) in names.iter().zip(&times) {
-            let img = images::to_rgb8(&render_image(trainer, camera, t, &settings))?;
+        let mut rgb = Vec::with_capacity(frames.len());
+        for (name, (camera, t)) in names.iter().zip(frames) {
+            let img = images::to_rgb8(&render_image(trainer, camera, *t, &settings))?;
             images::save_png(&img, &tmp.join(name))?;
             rgb.push(img);
         }

@@ -1,4 +1,4 @@
-//! The `RUN/eval.json` contract (DESIGN.md section 8): [`EvalReport`], one
+//! The `RUN/eval.json` contract (docs/conventions.md): [`EvalReport`], one
 //! [`ScaleResult`] per evaluation scale, and the temporal-stability entries
 //! ([`TemporalResult`]) that `maaf eval --temporal` adds.
 
@@ -200,7 +200,7 @@ impl PoppingResult {
     }
 }
 
-/// `RUN/eval.json`: exactly the field names of the DESIGN.md section 8 contract.
+/// `RUN/eval.json`: exactly the field names of the docs/conventions.md contract.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct EvalReport {

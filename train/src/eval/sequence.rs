@@ -8,7 +8,7 @@ use crate::Error;
 
 /// The `frames` times of a sequence over `[t0, t1]`:
 /// `t_i = t0 + (t1 - t0) i / (frames - 1)` (just `t0` for one frame).
-pub(crate) fn frame_times((t0, t1): (f64, f64), frames: usize) -> Result<Vec<f64>, Error> {
+pub fn frame_times((t0, t1): (f64, f64), frames: usize) -> Result<Vec<f64>, Error> {
     if frames == 0 {
         return Err(Error::Input("--frames must be at least 1".into()));
     }

@@ -1,4 +1,4 @@
-//! The training objective (DESIGN.md section 6): a list of named, weighted [`Term`]s.
+//! The training objective (docs/architecture.md): a list of named, weighted [`Term`]s.
 //!
 //! `total = sum_k w_k * term_k(ctx)`, and every term's unweighted value is returned by
 //! name for logging. The default 3DGS / SaRO-GS photometric loss is

@@ -1,4 +1,4 @@
-//! Named, weighted loss terms and the context they read (DESIGN.md section 6).
+//! Named, weighted loss terms and the context they read (docs/architecture.md).
 
 use std::collections::BTreeMap;
 

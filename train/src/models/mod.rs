@@ -1,4 +1,4 @@
-//! 4D representations (DESIGN.md section 5): parameters in a [`ParamStore`], bound on
+//! 4D representations (docs/architecture.md): parameters in a [`ParamStore`], bound on
 //! a tape, plus a time t give the deformed 3D Gaussians the renderer takes.
 //!
 //! The trainer, the 3D filter and the renderer only see [`GaussianVars`]; which
@@ -112,7 +112,7 @@ pub struct Canonical<T: Float> {
     pub opacity: Tensor<T>,
 }
 
-/// A 4D representation (DESIGN.md section 5). Object safe: the trainer holds a
+/// A 4D representation (docs/architecture.md, "Where things plug in"). Object safe: the trainer holds a
 /// `Box<dyn Representation<f32>>`, built from the config by [`build_model`] or by the
 /// user.
 pub trait Representation<T: Float> {

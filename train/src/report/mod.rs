@@ -75,7 +75,8 @@ impl ReportRun {
 pub struct ReportOutput {
     /// `OUT/report.md`.
     pub markdown: PathBuf,
-    /// The main table (markdown), for printing.
+    /// PSNR and SSIM at every evaluated scale (markdown), for printing: zoom-out and
+    /// zoom-in in one table, so nothing the runs were evaluated at is left out.
     pub table: String,
     /// Chart PNGs written.
     pub charts: Vec<PathBuf>,
@@ -299,7 +300,7 @@ pub fn write_report(runs: &[PathBuf], out: &Path) -> Result<ReportOutput, Error>
     } else {
         scales.clone()
     };
-    let table = metrics_table(&runs, &main_scales);
+    let main_table = metrics_table(&runs, &main_scales);
     let mut md = String::from("# maaf evaluation report\n\n");
     let mut train_scales: Vec<String> = runs
         .iter()
@@ -324,14 +325,15 @@ pub fn write_report(runs: &[PathBuf], out: &Path) -> Result<ReportOutput, Error>
     } else {
         md.push_str("## All scales\n\n");
     }
-    md.push_str(&table);
+    md.push_str(&main_table);
     if zoom_out.len() > 1 {
         md.push_str("\n## Zoom-out (rendered below the training resolution)\n\n");
         md.push_str(&metrics_table(&runs, &zoom_out));
     }
+    let table = metrics_table(&runs, &scales);
     if zoom_in.len() > 1 && zoom_out.len() > 1 {
         md.push_str("\n## All scales\n\n");
-        md.push_str(&metrics_table(&runs, &scales));
+        md.push_str(&table);
     }
     let by_region = regions::region_table(&runs, &scales);
     if !by_region.is_empty() {

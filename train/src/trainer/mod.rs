@@ -1,4 +1,4 @@
-//! The training loop (DESIGN.md section 6): one view per iteration, a fresh tape per
+//! The training loop (docs/architecture.md): one view per iteration, a fresh tape per
 //! step, the pipeline of [`crate::forward`], the objective as named terms, Adam,
 //! densification and filter refreshes outside the tape.
 //!

@@ -1,7 +1,7 @@
 //! Differentiable SSIM as one fused op with a hand-written backward.
 //!
 //! Convention (the 3DGS / 4DGS / SaRO-GS training loss, `utils/loss_utils.py::ssim`;
-//! domain-notes section 6): images `[H, W, C]` with values in [0, 1], an 11 x 11
+//! docs/conventions.md, "Metrics"): images `[H, W, C]` with values in [0, 1], an 11 x 11
 //! Gaussian window with sigma 1.5 applied as a separable blur with **zero-padded
 //! "same"** borders, `C1 = 0.01^2`, `C2 = 0.03^2`, and the mean of the SSIM map over
 //! every pixel and channel. With `G` the blur, per channel:

@@ -15,7 +15,7 @@
 //!
 //! `L_SR = || ds at Dt = 0 ||_2` over all N x 3 entries, not squared, not averaged
 //! (`helper_train.py`, `torch.linalg.vector_norm`), weight 8e-6. The residual heads
-//! start at zero (DESIGN.md section 5), so at step 0 the deformed scene is the
+//! start at zero (docs/decisions.md), so at step 0 the deformed scene is the
 //! canonical one with the temporal opacity factor. For the first `static_iterations`
 //! the model renders plain 3D Gaussians (no field, no MLP, no temporal opacity).
 

@@ -399,8 +399,8 @@ fn thread_cpu_seconds() -> f64 {
 
 /// Cost of the default configuration at N = 20 000 (one view per step):
 /// `cargo test -p maaf-train --release cost_report -- --ignored --nocapture`.
-/// Prints thread CPU times (single-threaded code); never asserts a time (DESIGN.md
-/// section 9).
+/// Prints thread CPU times (single-threaded code); never asserts a time (the
+/// machine's speed drifts; docs/performance.md).
 #[test]
 #[ignore]
 fn cost_report() {

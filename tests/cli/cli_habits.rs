@@ -1,0 +1,328 @@
+//! The command line's habits, as a user meets them: every option's default in
+//! `--help`, one `--background` spelling everywhere, `maaf cameras` feeding `render
+//! --camera`, `render --size`, `render-video` along camera paths, `report` printing every
+//! evaluated scale, and `train` asking for `--out`.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+use maaf::train::data::{Dataset, DatasetOptions, Split};
+
+use super::support::{TempDir, s, tiny_scene};
+
+/// Runs `maaf args`, returning its output whatever the exit status.
+fn run(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_maaf"))
+        .args(args)
+        .output()
+        .expect("run maaf")
+}
+
+/// Runs `maaf args` and fails the test unless it succeeds; returns stdout.
+fn ok(args: &[&str]) -> String {
+    let out = run(args);
+    assert!(
+        out.status.success(),
+        "maaf {args:?} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// Runs `maaf args`, expects a failure, returns stderr.
+fn fails(args: &[&str]) -> String {
+    let out = run(args);
+    assert!(!out.status.success(), "maaf {args:?} should fail");
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+/// Width and height of a PNG.
+fn png_size(path: &Path) -> (u32, u32) {
+    let img = maaf::train::data::image::decode_rgba(path).expect("png");
+    (img.width, img.height)
+}
+
+/// Options that take a value but have no default by design: one of a required pair
+/// (`--view` / `--camera` of `render` say so in their text; `export-ply --time` /
+/// `--frames`), or the mode switches of `train` (`--resume`, `--from`) and the
+/// `--out` that `--resume` replaces.
+const NO_DEFAULT: [(&str, &str); 5] = [
+    ("export-ply", "--time"),
+    ("export-ply", "--frames"),
+    ("train", "--resume"),
+    ("train", "--from"),
+    ("train", "--out"),
+];
+
+#[test]
+fn every_optional_value_shows_its_default_in_help() {
+    let commands = [
+        "demo",
+        "generate",
+        "inspect",
+        "cameras",
+        "train",
+        "eval",
+        "render",
+        "render-video",
+        "report",
+        "compare",
+        "bench",
+        "export-ply",
+        "render-ply",
+        "sweep",
+    ];
+    let mut missing = Vec::new();
+    for cmd in commands {
+        let help = ok(&[cmd, "--help"]);
+        let usage = help
+            .lines()
+            .find(|l| l.starts_with("Usage:"))
+            .expect("usage line");
+        // The blocks of `--help`: an option line, then its indented description.
+        let mut blocks: Vec<(String, String)> = Vec::new();
+        for line in help.lines() {
+            let t = line.trim_start();
+            if t.starts_with("--") || (t.starts_with('-') && t.contains(", --")) {
+                blocks.push((t.to_string(), String::new()));
+            } else if let Some(b) = blocks.last_mut() {
+                b.1.push_str(line);
+                b.1.push('\n');
+            }
+        }
+        for (head, body) in blocks {
+            let name = head
+                .split(|c: char| c.is_whitespace() || c == ',')
+                .find(|w| w.starts_with("--"))
+                .expect("option name")
+                .to_string();
+            let takes_value = head.contains('<');
+            let required = usage.contains(&format!("{name} <"));
+            let text = format!("{head}\n{body}");
+            if takes_value
+                && !required
+                && !text.contains("[default:")
+                && !NO_DEFAULT.contains(&(cmd, name.as_str()))
+            {
+                missing.push(format!("maaf {cmd} {name}"));
+            }
+        }
+    }
+    assert!(
+        missing.is_empty(),
+        "options without a default in --help: {missing:?}"
+    );
+}
+
+#[test]
+fn cameras_render_sizes_paths_backgrounds_and_report() {
+    let tmp = TempDir::fresh("cli_habits");
+    let (data, run_dir) = (tmp.0.join("data"), tmp.0.join("run"));
+    tiny_scene(&data);
+    // `--out` is asked for by the parser, before any work.
+    let err = fails(&["train", "--data", s(&data), "--iters", "1"]);
+    assert!(err.contains("--out"), "{err}");
+    ok(&[
+        "train",
+        "--data",
+        s(&data),
+        "--out",
+        s(&run_dir),
+        "--train-scale",
+        "0.5",
+        "--iters",
+        "20",
+        "--background",
+        "1,1,1",
+    ]);
+
+    // A split's cameras as files, at the training scale: rendering one through
+    // --camera gives the same PNG as the view itself.
+    let cams = tmp.0.join("cams");
+    ok(&[
+        "cameras",
+        "--data",
+        s(&data),
+        "--split",
+        "test",
+        "--scale",
+        "0.5",
+        "--out",
+        s(&cams),
+    ]);
+    let ds = Dataset::open(&data, DatasetOptions::default()).expect("data");
+    let times = ds.times(Split::Test);
+    let listing: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(cams.join("cameras.json")).expect("listing"))
+            .expect("json");
+    let listed = listing["cameras"].as_array().expect("cameras");
+    assert_eq!(listed.len(), times.len());
+    assert_eq!(listed[1]["file"], "0001.json");
+    assert_eq!(listed[1]["time"].as_f64(), Some(times[1]));
+    let (by_view, by_file) = (tmp.0.join("view.png"), tmp.0.join("file.png"));
+    ok(&[
+        "render",
+        "--run",
+        s(&run_dir),
+        "--view",
+        "test:1",
+        "--out",
+        s(&by_view),
+    ]);
+    let t1 = times[1].to_string();
+    ok(&[
+        "render",
+        "--run",
+        s(&run_dir),
+        "--camera",
+        s(&cams.join("0001.json")),
+        "--time",
+        &t1,
+        "--out",
+        s(&by_file),
+    ]);
+    assert_eq!(
+        std::fs::read(&by_view).expect("view png"),
+        std::fs::read(&by_file).expect("file png")
+    );
+
+    // --size instead of --scale, on a view and on a camera file.
+    let sized = tmp.0.join("sized.png");
+    for source in [
+        ["--view", "test:0"],
+        ["--camera", s(&cams.join("0000.json"))],
+    ] {
+        ok(&[
+            "render",
+            "--run",
+            s(&run_dir),
+            source[0],
+            source[1],
+            "--size",
+            "40x30",
+            "--out",
+            s(&sized),
+        ]);
+        assert_eq!(png_size(&sized), (40, 30));
+    }
+    let err = fails(&[
+        "render",
+        "--run",
+        s(&run_dir),
+        "--view",
+        "test:0",
+        "--size",
+        "40x30",
+        "--scale",
+        "2",
+        "--out",
+        s(&sized),
+    ]);
+    assert!(err.contains("--scale") && err.contains("--size"), "{err}");
+    let err = fails(&[
+        "render",
+        "--run",
+        s(&run_dir),
+        "--view",
+        "test:0",
+        "--size",
+        "40",
+        "--out",
+        s(&sized),
+    ]);
+    assert!(err.contains("WxH"), "{err}");
+
+    // One --background spelling: the run trained on "1,1,1" renders with "white".
+    ok(&[
+        "render",
+        "--run",
+        s(&run_dir),
+        "--view",
+        "test:0",
+        "--background",
+        "white",
+        "--out",
+        s(&sized),
+    ]);
+    let err = fails(&[
+        "render",
+        "--run",
+        s(&run_dir),
+        "--view",
+        "test:0",
+        "--background",
+        "grey",
+        "--out",
+        s(&sized),
+    ]);
+    assert!(err.contains("white, black or r,g,b"), "{err}");
+
+    // Videos along an orbit, a spiral and the test views.
+    for (path, frames, expected) in [
+        ("orbit", "3", 3),
+        ("spiral", "4", 4),
+        ("test", "3", times.len()),
+    ] {
+        let video = tmp.0.join(format!("video_{path}"));
+        ok(&[
+            "render-video",
+            "--run",
+            s(&run_dir),
+            "--path",
+            path,
+            "--frames",
+            frames,
+            "--out",
+            s(&video),
+        ]);
+        let pngs = std::fs::read_dir(&video)
+            .expect("video folder")
+            .filter(|e| {
+                e.as_ref()
+                    .expect("entry")
+                    .file_name()
+                    .to_string_lossy()
+                    .ends_with(".png")
+            })
+            .count();
+        assert_eq!(pngs, expected, "{path}");
+        assert!(video.join("video.gif").exists());
+    }
+    let orbit0 = tmp.0.join("video_orbit").join("frame_0000.png");
+    let orbit1 = tmp.0.join("video_orbit").join("frame_0001.png");
+    assert_ne!(
+        std::fs::read(orbit0).expect("frame 0"),
+        std::fs::read(orbit1).expect("frame 1"),
+        "an orbit moves the camera"
+    );
+    let err = fails(&[
+        "render-video",
+        "--run",
+        s(&run_dir),
+        "--out",
+        s(&tmp.0.join("video_fixed")),
+    ]);
+    assert!(err.contains("--view"), "{err}");
+
+    // `report` prints every evaluated scale, zoom-out included.
+    ok(&[
+        "eval",
+        "--run",
+        s(&run_dir),
+        "--scales",
+        "0.5,1,2",
+        "--max-views",
+        "1",
+        "--no-images",
+    ]);
+    let printed = ok(&[
+        "report",
+        "--runs",
+        s(&run_dir),
+        "--out",
+        s(&tmp.0.join("report")),
+    ]);
+    for col in ["PSNR 1/2x", "PSNR 1x", "PSNR 2x"] {
+        assert!(printed.contains(col), "{col}: {printed}");
+    }
+}
