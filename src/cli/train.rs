@@ -39,8 +39,9 @@ pub struct TrainArgs {
 /// The data and training settings of a run (shared by `maaf train` and `maaf sweep`).
 #[derive(clap::Args, Debug)]
 pub struct SettingsArgs {
-    /// Data folder holding transforms_{train,val,test}.json (with --resume: the run's,
-    /// recorded in RUN/data.json, unless given).
+    /// Data folder (D-NeRF, Plenoptic Video or the Dynamic 3D Gaussians layout)
+    /// [default: none for a new run; with --resume, the run's, recorded in
+    /// RUN/data.json].
     #[arg(long)]
     pub data: Option<PathBuf>,
     /// 4D representation: `saro` (SaRO-GS) or `deform` (Deformable-3DGS); its settings:
@@ -248,7 +249,7 @@ fn resumed_data(settings: &SettingsArgs, run: &Path) -> anyhow::Result<(PathBuf,
     let background = match (settings.background, &recorded) {
         (Some(b), Some(r)) if b.rgb() != r.background => bail!(
             "--background {}: the run {} was trained on background {:?}; a resumed run keeps it",
-            format!("{b:?}").to_lowercase(),
+            b,
             run.display(),
             r.background
         ),
