@@ -4,87 +4,14 @@
 //! resume flags, and the smaller items (data paths, video folders, extensions, OS
 //! errors printed once, non-UTF-8 folder names).
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 
-use super::support::{s, tiny_scene};
-
-struct Fixture {
-    root: PathBuf,
-    data: PathBuf,
-}
-
-impl Drop for Fixture {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.root);
-    }
-}
-
-fn maaf(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_maaf"))
-        .args(args)
-        .output()
-        .expect("run maaf")
-}
-
-fn stderr(out: &Output) -> String {
-    String::from_utf8_lossy(&out.stderr).into_owned()
-}
-
-/// Asserts exit code 1 and exactly one `maaf: error:` line containing `needle`.
-fn refused(out: Output, needle: &str) {
-    let err = stderr(&out);
-    assert_eq!(out.status.code(), Some(1), "expected exit 1: {err}");
-    let lines: Vec<&str> = err
-        .lines()
-        .filter(|l| l.starts_with("maaf: error:"))
-        .collect();
-    assert_eq!(lines.len(), 1, "{err}");
-    assert!(lines[0].contains(needle), "`{needle}` not in: {err}");
-}
-
-fn succeeded(out: Output) -> String {
-    let err = stderr(&out);
-    assert!(out.status.success(), "failed: {err}");
-    err
-}
-
-fn fixture(name: &str) -> Fixture {
-    let root = std::env::temp_dir().join(format!("maaf_bad_{name}_{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&root);
-    std::fs::create_dir_all(&root).expect("temp dir");
-    let data = root.join("data");
-    tiny_scene(&data);
-    Fixture { root, data }
-}
-
-const BASE: &str = r#""iterations": 6, "init_points": 200, "train_scale": 0.5, "val_every": 0, "checkpoint_every": 2"#;
-
-fn train(fx: &Fixture, run: &str, extra: &str) -> Output {
-    let config = fx.root.join(format!("{run}.json"));
-    // `extra`'s top-level keys replace BASE's.
-    let mut merged: serde_json::Value = serde_json::from_str(&format!("{{{BASE}}}")).expect("base");
-    let extra: serde_json::Value = serde_json::from_str(&format!("{{{extra}}}")).expect("extra");
-    for (k, v) in extra.as_object().expect("object") {
-        merged[k] = v.clone();
-    }
-    std::fs::write(&config, merged.to_string()).expect("config");
-    let run = fx.root.join(run);
-    maaf(&[
-        "train",
-        "--data",
-        s(&fx.data),
-        "--out",
-        s(&run),
-        "--config",
-        s(&config),
-    ])
-}
+use super::support::{BASE, Fixture, copy_dir, fixture, maaf, refused, s, stderr, succeeded};
 
 #[test]
 fn case_1_a_run_killed_before_its_model_resumes_from_its_newest_checkpoint() {
-    let fx = fixture("resume");
-    succeeded(train(&fx, "run", ""));
+    let fx = fixture("bad_resume");
+    succeeded(fx.train("run", ""));
     let run = fx.root.join("run");
     // As if killed after iteration 5: no model, a temporary left behind.
     std::fs::remove_dir_all(run.join("model")).expect("rm model");
@@ -99,15 +26,15 @@ fn case_1_a_run_killed_before_its_model_resumes_from_its_newest_checkpoint() {
     assert_eq!(log.matches("iteration,").count(), 1, "{log}");
     // Rerunning with --out instead no longer starts over on top of it.
     refused(
-        train(&fx, "run", ""),
-        "already holds a run; continue it with --resume",
+        fx.train("run", ""),
+        &["already holds a run; continue it with --resume"],
     );
 }
 
 #[test]
 fn case_2_a_model_swap_cut_short_still_renders_and_resumes() {
-    let fx = fixture("swap");
-    succeeded(train(&fx, "run", ""));
+    let fx = fixture("bad_swap");
+    succeeded(fx.train("run", ""));
     let run = fx.root.join("run");
     // The fallback swap died between its renames: only the parked old model exists.
     std::fs::rename(run.join("model"), run.join(".model.old.maaf-tmp-4242")).expect("park");
@@ -137,17 +64,17 @@ fn case_2_a_model_swap_cut_short_still_renders_and_resumes() {
 
 #[test]
 fn case_3_a_diverged_run_fails_and_its_model_is_refused() {
-    let fx = fixture("diverge");
+    let fx = fixture("bad_diverge");
     let extra = r#""iterations": 40, "model": {"kind": "saro", "lr": {"scaling": 1000}}"#;
-    refused(train(&fx, "lr", extra), "training diverged");
+    refused(fx.train("lr", extra), &["training diverged"]);
     let extra =
         r#""iterations": 40, "validate": true, "model": {"kind": "saro", "lr": {"scaling": 1000}}"#;
     refused(
-        train(&fx, "lr_validate", extra),
-        "produced a non-finite value",
+        fx.train("lr_validate", extra),
+        &["produced a non-finite value"],
     );
     // A model with a NaN parameter (as an older version could save) is refused by eval.
-    succeeded(train(&fx, "run", ""));
+    succeeded(fx.train("run", ""));
     let run = fx.root.join("run");
     let data = maaf::train::data::Dataset::open(&fx.data, Default::default()).expect("data");
     let mut t = maaf::train::trainer::load_checkpoint(&data, &run.join("model")).expect("model");
@@ -156,7 +83,7 @@ fn case_3_a_diverged_run_fails_and_its_model_is_refused() {
     maaf::train::trainer::save_checkpoint(&t, &run.join("model")).expect("save");
     refused(
         maaf(&["eval", "--run", s(&run), "--max-views", "1"]),
-        "the run diverged, this model cannot be used",
+        &["the run diverged, this model cannot be used"],
     );
     assert!(!run.join("eval.json").exists());
     // An eval.json with a null metric (written by an older version): one line.
@@ -168,14 +95,14 @@ fn case_3_a_diverged_run_fails_and_its_model_is_refused() {
     let report = fx.root.join("report");
     refused(
         maaf(&["report", "--runs", s(&run), "--out", s(&report)]),
-        "a null metric",
+        &["a null metric"],
     );
 }
 
 #[test]
 fn case_4_huge_cameras_and_bad_field_sizes_are_one_line_errors() {
-    let fx = fixture("caps");
-    succeeded(train(&fx, "run", ""));
+    let fx = fixture("bad_caps");
+    succeeded(fx.train("run", ""));
     let cam = fx.root.join("cam.json");
     std::fs::write(
         &cam,
@@ -195,23 +122,23 @@ fn case_4_huge_cameras_and_bad_field_sizes_are_one_line_errors() {
             "--out",
             s(&png),
         ]),
-        "200000x200000 is over the cap of 16384 px a side",
+        &["200000x200000 is over the cap of 16384 px a side"],
     );
     let spatial = r#""model": {"kind": "saro", "field": {"spatial_res": 63}}"#;
     refused(
-        train(&fx, "a", spatial),
-        "model.field.spatial_res = 63: must be a power of two",
+        fx.train("a", spatial),
+        &["model.field.spatial_res = 63: must be a power of two"],
     );
     let channels = r#""model": {"kind": "saro", "field": {"channels": 0}}"#;
     refused(
-        train(&fx, "b", channels),
-        "model.field.channels = 0: must be in 1..=256",
+        fx.train("b", channels),
+        &["model.field.channels = 0: must be in 1..=256"],
     );
 }
 
 #[test]
 fn case_5_settings_are_checked_and_resume_keeps_the_run_settings() {
-    let fx = fixture("settings");
+    let fx = fixture("bad_settings");
     let cases = [
         (
             r#""model": {"kind": "saro", "lr": {"scaling": -0.1}}"#,
@@ -248,13 +175,13 @@ fn case_5_settings_are_checked_and_resume_keeps_the_run_settings() {
         (r#""max_skipped_fraction": 2"#, "max_skipped_fraction = 2"),
     ];
     for (i, (extra, needle)) in cases.iter().enumerate() {
-        refused(train(&fx, &format!("bad{i}"), extra), needle);
+        refused(fx.train(&format!("bad{i}"), extra), &[needle]);
         assert!(
             !fx.root.join(format!("bad{i}")).exists(),
             "no work before the check"
         );
     }
-    succeeded(train(&fx, "run", ""));
+    succeeded(fx.train("run", ""));
     let run = fx.root.join("run");
     let resume = |extra: &[&str]| {
         let mut args = vec!["train", "--data", s(&fx.data), "--resume", s(&run)];
@@ -266,7 +193,10 @@ fn case_5_settings_are_checked_and_resume_keeps_the_run_settings() {
         ("--filter", "mip3d"),
         ("--train-scale", "0.25"),
     ] {
-        refused(resume(&[flag, value]), "a resumed run keeps its settings");
+        refused(
+            resume(&[flag, value]),
+            &["a resumed run keeps its settings"],
+        );
     }
     succeeded(resume(&[]));
     let config = std::fs::read_to_string(run.join("config.json")).expect("config");
@@ -286,7 +216,7 @@ fn case_5_settings_are_checked_and_resume_keeps_the_run_settings() {
     std::fs::write(&json, v.to_string()).expect("write");
     refused(
         maaf(&["inspect", "--data", s(&bad)]),
-        "field `frames[0].time`: 1.5 is outside [0, 1]",
+        &["field `frames[0].time`: 1.5 is outside [0, 1]"],
     );
     // Rendering outside the data's time range warns.
     let png = fx.root.join("t2.png");
@@ -307,21 +237,9 @@ fn case_5_settings_are_checked_and_resume_keeps_the_run_settings() {
     );
 }
 
-fn copy_dir(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).expect("mkdir");
-    for e in std::fs::read_dir(from).expect("ls").flatten() {
-        let target = to.join(e.file_name());
-        if e.path().is_dir() {
-            copy_dir(&e.path(), &target);
-        } else {
-            std::fs::copy(e.path(), target).expect("copy");
-        }
-    }
-}
-
 #[test]
 fn case_6_paths_video_folders_extensions_and_os_errors() {
-    let fx = fixture("small");
+    let fx = fixture("bad_small");
     // Trained with a relative data path from the fixture folder.
     let config = fx.root.join("c.json");
     std::fs::write(&config, format!("{{{BASE}}}")).expect("config");
@@ -386,7 +304,7 @@ fn case_6_paths_video_folders_extensions_and_os_errors() {
             "--out",
             s(&video),
         ]),
-        "holds `notes.txt`, which is not a frame",
+        &["holds `notes.txt`, which is not a frame"],
     );
     let jpg = fx.root.join("x.jpg");
     refused(
@@ -399,7 +317,7 @@ fn case_6_paths_video_folders_extensions_and_os_errors() {
             "--out",
             s(&jpg),
         ]),
-        "writes PNG; give a file name ending in .png",
+        &["writes PNG; give a file name ending in .png"],
     );
     // An OS error is printed once.
     let missing = fx.root.join("no_such_dir/x.png");
@@ -413,7 +331,7 @@ fn case_6_paths_video_folders_extensions_and_os_errors() {
         s(&missing),
     ]);
     let err = stderr(&out);
-    refused(out, "No such file or directory");
+    refused(out, &["No such file or directory"]);
     assert_eq!(err.matches("No such file or directory").count(), 1, "{err}");
     non_utf8_data_is_refused_before_training(&fx);
 }
@@ -432,7 +350,7 @@ fn non_utf8_data_is_refused_before_training(fx: &Fixture) {
         .args(["--out", s(&run)])
         .output()
         .expect("train");
-    refused(out, "is not valid UTF-8");
+    refused(out, &["is not valid UTF-8"]);
     assert!(!run.exists(), "refused before any work");
     std::fs::rename(&data, &fx.data).expect("rename back");
 }

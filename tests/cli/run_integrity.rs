@@ -5,88 +5,12 @@
 //! settings that cannot be honoured, damaged checkpoints, and the smaller items.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use super::support::{TempDir, s, tiny_scene};
-
-fn maaf(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_maaf"))
-        .args(args)
-        .output()
-        .expect("run maaf")
-}
-
-fn stderr(out: &Output) -> String {
-    String::from_utf8_lossy(&out.stderr).into_owned()
-}
-
-/// Asserts exit code 1 and exactly one `maaf: error:` line containing every needle.
-fn refused(out: Output, needles: &[&str]) -> String {
-    let err = stderr(&out);
-    assert_eq!(out.status.code(), Some(1), "expected exit 1: {err}");
-    let lines: Vec<&str> = err
-        .lines()
-        .filter(|l| l.starts_with("maaf: error:"))
-        .collect();
-    assert_eq!(lines.len(), 1, "{err}");
-    for needle in needles {
-        assert!(lines[0].contains(needle), "`{needle}` not in: {err}");
-    }
-    lines[0].to_string()
-}
-
-fn succeeded(out: Output) -> String {
-    let err = stderr(&out);
-    assert!(out.status.success(), "failed: {err}");
-    err
-}
-
-struct Fixture {
-    _tmp: TempDir,
-    root: PathBuf,
-    data: PathBuf,
-}
-
-fn fixture(name: &str) -> Fixture {
-    let tmp = TempDir::fresh(&format!("integrity_{name}"));
-    let root = tmp.0.clone();
-    let data = root.join("data");
-    tiny_scene(&data);
-    Fixture {
-        _tmp: tmp,
-        root,
-        data,
-    }
-}
-
-const BASE: &str = r#""iterations": 6, "init_points": 200, "train_scale": 0.5, "val_every": 0, "checkpoint_every": 2"#;
+use super::support::{BASE, Fixture, copy_dir, fixture, maaf, refused, s, succeeded};
 
 impl Fixture {
-    /// `maaf train --data DATA --out RUN --config C` with BASE and `extra`'s
-    /// top-level keys.
-    fn train(&self, run: &str, extra: &str) -> Output {
-        let config = self.root.join(format!("{run}.json"));
-        let mut merged: serde_json::Value =
-            serde_json::from_str(&format!("{{{BASE}}}")).expect("base");
-        let extra: serde_json::Value =
-            serde_json::from_str(&format!("{{{extra}}}")).expect("extra");
-        for (k, v) in extra.as_object().expect("object") {
-            merged[k] = v.clone();
-        }
-        std::fs::write(&config, merged.to_string()).expect("config");
-        let run = self.root.join(run);
-        maaf(&[
-            "train",
-            "--data",
-            s(&self.data),
-            "--out",
-            s(&run),
-            "--config",
-            s(&config),
-        ])
-    }
-
     /// A copy of the data set under `name` with `edit` applied to its `split` json.
     fn edited_copy(
         &self,
@@ -105,18 +29,6 @@ impl Fixture {
     }
 }
 
-fn copy_dir(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).expect("mkdir");
-    for e in std::fs::read_dir(from).expect("ls").flatten() {
-        let target = to.join(e.file_name());
-        if e.path().is_dir() {
-            copy_dir(&e.path(), &target);
-        } else {
-            std::fs::copy(e.path(), target).expect("copy");
-        }
-    }
-}
-
 fn checkpoint_names(run: &Path) -> Vec<String> {
     let mut names: Vec<String> = std::fs::read_dir(run.join("checkpoints"))
         .expect("ls")
@@ -129,7 +41,7 @@ fn checkpoint_names(run: &Path) -> Vec<String> {
 
 #[test]
 fn case_1_a_run_remembers_its_data_set_and_refuses_another() {
-    let fx = fixture("data");
+    let fx = fixture("integrity_data");
     succeeded(fx.train("run", ""));
     let run = fx.root.join("run");
     let recorded = std::fs::read_to_string(run.join("data.json")).expect("data.json");
@@ -216,7 +128,7 @@ fn case_1_a_run_remembers_its_data_set_and_refuses_another() {
 
 #[test]
 fn case_2_one_trainer_per_run_and_no_reader_while_it_trains() {
-    let fx = fixture("lock");
+    let fx = fixture("integrity_lock");
     succeeded(fx.train("run", ""));
     let run = fx.root.join("run");
     // A long resumed session holds the run until it is killed.
@@ -301,7 +213,7 @@ fn case_2_one_trainer_per_run_and_no_reader_while_it_trains() {
 
 #[test]
 fn case_3_a_size_the_machine_cannot_hold_is_refused_before_allocating() {
-    let fx = fixture("memory");
+    let fx = fixture("integrity_memory");
     succeeded(fx.train("run", ""));
     let run = fx.root.join("run");
     refused(
@@ -318,7 +230,7 @@ fn case_3_a_size_the_machine_cannot_hold_is_refused_before_allocating() {
 // 3.14159265 is the issue's value: just under pi, so a focal length of 1e-8 px.
 #[allow(clippy::approx_constant)]
 fn case_4_degenerate_cameras_and_non_finite_output_fail() {
-    let fx = fixture("camera");
+    let fx = fixture("integrity_camera");
     let fov = fx.edited_copy("fov", "train", |v| {
         v["camera_angle_x"] = serde_json::json!(3.14159265);
     });
@@ -412,7 +324,7 @@ fn case_4_degenerate_cameras_and_non_finite_output_fail() {
 
 #[test]
 fn case_5_typos_under_model_and_a_config_that_is_not_an_object_are_refused() {
-    let fx = fixture("typos");
+    let fx = fixture("integrity_typos");
     refused(
         fx.train("a", r#""model": {"lr": {"feture": 0.1}}"#),
         &["invalid training config", "unknown field `feture`"],
@@ -447,7 +359,7 @@ fn case_5_typos_under_model_and_a_config_that_is_not_an_object_are_refused() {
 
 #[test]
 fn case_6_settings_a_resume_cannot_honour_are_refused() {
-    let fx = fixture("settings");
+    let fx = fixture("integrity_settings");
     succeeded(fx.train("run", ""));
     let run = fx.root.join("run");
     refused(
@@ -506,7 +418,7 @@ fn case_6_settings_a_resume_cannot_honour_are_refused() {
 
 #[test]
 fn case_7_a_damaged_checkpoint_is_detected_and_the_previous_one_used() {
-    let fx = fixture("checksum");
+    let fx = fixture("integrity_checksum");
     succeeded(fx.train("run", ""));
     let run = fx.root.join("run");
     let tensors = run.join("model/tensors.safetensors");
@@ -543,7 +455,7 @@ fn case_7_a_damaged_checkpoint_is_detected_and_the_previous_one_used() {
 
 #[test]
 fn case_8_the_smaller_items() {
-    let fx = fixture("small");
+    let fx = fixture("integrity_small");
     succeeded(fx.train("run", ""));
     let run = fx.root.join("run");
     // A killed evaluation's temporaries are swept by the next one.

@@ -2,7 +2,7 @@
 //! the tiny built-in scene most of them train on.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::process::{Command, Output};
 
 /// A scratch folder `maaf_{name}_{pid}` in the system temp folder, emptied on
 /// creation and removed on drop.
@@ -79,4 +79,104 @@ pub fn json_leaves(value: &serde_json::Value) -> Vec<(String, serde_json::Value)
 pub fn config_json(config: &maaf::train::trainer::TrainConfig) -> serde_json::Value {
     let text = serde_json::to_string(config).expect("serialise");
     serde_json::from_str(&text).expect("parse back")
+}
+
+/// `maaf ARGS`, its output captured.
+pub fn maaf(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_maaf"))
+        .args(args)
+        .output()
+        .expect("run maaf")
+}
+
+/// The standard error of a finished command, as text.
+pub fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+/// Asserts exit code 1 and exactly one `maaf: error:` line containing every needle;
+/// returns that line.
+pub fn refused(out: Output, needles: &[&str]) -> String {
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(1), "expected exit 1: {err}");
+    let lines: Vec<&str> = err
+        .lines()
+        .filter(|l| l.starts_with("maaf: error:"))
+        .collect();
+    assert_eq!(lines.len(), 1, "{err}");
+    for needle in needles {
+        assert!(lines[0].contains(needle), "`{needle}` not in: {err}");
+    }
+    lines[0].to_string()
+}
+
+/// Asserts success; returns the standard error.
+pub fn succeeded(out: Output) -> String {
+    let err = stderr(&out);
+    assert!(out.status.success(), "failed: {err}");
+    err
+}
+
+/// A scratch folder holding the tiny scene (`data/`), removed on drop.
+pub struct Fixture {
+    _tmp: TempDir,
+    /// The scratch folder.
+    pub root: PathBuf,
+    /// The tiny scene inside it.
+    pub data: PathBuf,
+}
+
+/// A [`Fixture`] named `name` (unique across the test binary).
+pub fn fixture(name: &str) -> Fixture {
+    let tmp = TempDir::fresh(name);
+    let root = tmp.0.clone();
+    let data = root.join("data");
+    tiny_scene(&data);
+    Fixture {
+        _tmp: tmp,
+        root,
+        data,
+    }
+}
+
+/// The short training run most cases start from.
+pub const BASE: &str = r#""iterations": 6, "init_points": 200, "train_scale": 0.5, "val_every": 0, "checkpoint_every": 2"#;
+
+impl Fixture {
+    /// `maaf train --data DATA --out ROOT/RUN --config C`, C being [`BASE`] with
+    /// `extra`'s top-level keys replacing its own.
+    pub fn train(&self, run: &str, extra: &str) -> Output {
+        let config = self.root.join(format!("{run}.json"));
+        let mut merged: serde_json::Value =
+            serde_json::from_str(&format!("{{{BASE}}}")).expect("base");
+        let extra: serde_json::Value =
+            serde_json::from_str(&format!("{{{extra}}}")).expect("extra");
+        for (k, v) in extra.as_object().expect("object") {
+            merged[k] = v.clone();
+        }
+        std::fs::write(&config, merged.to_string()).expect("config");
+        let run = self.root.join(run);
+        maaf(&[
+            "train",
+            "--data",
+            s(&self.data),
+            "--out",
+            s(&run),
+            "--config",
+            s(&config),
+        ])
+    }
+}
+
+/// Copies a folder tree.
+pub fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).expect("mkdir");
+    for e in std::fs::read_dir(from).expect("ls").flatten() {
+        let target = to.join(e.file_name());
+        if e.path().is_dir() {
+            copy_dir(&e.path(), &target);
+        } else {
+            std::fs::copy(e.path(), target).expect("copy");
+        }
+    }
 }
