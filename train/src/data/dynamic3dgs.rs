@@ -108,13 +108,7 @@ impl Meta {
 
     /// The camera numbers in order of first appearance.
     pub fn cameras(&self) -> Vec<i64> {
-        let mut ids: Vec<i64> = Vec::new();
-        for v in &self.views {
-            if ids.last() != Some(&v.cam_id) && !ids.contains(&v.cam_id) {
-                ids.push(v.cam_id);
-            }
-        }
-        ids
+        camera_order(&self.views)
     }
 
     /// The split's [`SplitMeta`] (frames in the order of [`Meta::views`]).
@@ -239,12 +233,7 @@ pub fn parse_meta(root: &Path, json: &Path, file: &MetaFile) -> Result<Meta, Dat
             });
         }
     }
-    let mut order: Vec<i64> = Vec::new();
-    for v in &views {
-        if !order.contains(&v.cam_id) {
-            order.push(v.cam_id);
-        }
-    }
+    let order = camera_order(&views);
     views.sort_by_key(|v| {
         let rank = order.iter().position(|&c| c == v.cam_id).unwrap_or(0);
         (rank, v.frame)
@@ -268,6 +257,17 @@ pub fn parse_meta(root: &Path, json: &Path, file: &MetaFile) -> Result<Meta, Dat
         frames,
         views,
     })
+}
+
+/// The camera numbers of `views` in order of first appearance.
+fn camera_order(views: &[MetaView]) -> Vec<i64> {
+    let mut ids: Vec<i64> = Vec::new();
+    for v in views {
+        if !ids.contains(&v.cam_id) {
+            ids.push(v.cam_id);
+        }
+    }
+    ids
 }
 
 /// The camera of entry `i` of frame `j`: `k` must be `[[fx, 0, cx], [0, fy, cy], [0, 0,

@@ -384,7 +384,7 @@ pub fn evaluate_trainer(
     }
     let result = (|| {
         let sources: Vec<f64> = scales.iter().map(|s| s.source).collect();
-        data.preload_views(split, &indices, &sources)
+        data.preload(split, &indices, &sources)
             .map_err(|e| Error::Input(e.to_string()))?;
         for s in &scales {
             let start = Instant::now();

@@ -463,19 +463,10 @@ impl Dataset {
         self.views(Split::Test, scale)
     }
 
-    /// Decodes every image of `split` once and fills the cache for all `scales` at once
-    /// (the multi-scale evaluation asks for several scales of the same test images).
-    pub fn preload(&self, split: Split, scales: &[f64]) -> Result<(), DataError> {
-        let ks = scales
-            .iter()
-            .map(|&s| self.factor(split, s))
-            .collect::<Result<Vec<u32>, _>>()?;
-        let all: Vec<usize> = (0..self.len(split)).collect();
-        self.load(split, &all, &ks)
-    }
-
-    /// [`Dataset::preload`] for the views `indices` of `split` only.
-    pub fn preload_views(
+    /// Decodes the views `indices` of `split` once each and fills the cache for all
+    /// `scales` at once (the multi-scale evaluation asks for several scales of the same
+    /// test images).
+    pub fn preload(
         &self,
         split: Split,
         indices: &[usize],
