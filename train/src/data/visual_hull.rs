@@ -61,6 +61,9 @@ pub struct HullStep {
 /// Settings of the carving and of the cloud.
 #[derive(Clone, Debug, PartialEq)]
 pub struct HullOptions {
+    /// Training times carved, evenly spread (30: every fifth frame of a 150-frame
+    /// Panoptic sequence).
+    pub steps: usize,
     /// Cells along the longest side of the region.
     pub resolution: usize,
     /// Cameras that must see a cell for it to be kept.
@@ -75,10 +78,12 @@ pub struct HullOptions {
 }
 
 impl Default for HullOptions {
-    /// 192 cells along the longest side, at least 4 cameras, one miss in ten, half of
-    /// the budget on the movers, the camera box grown by half its size on every side.
+    /// 30 times, 192 cells along the longest side, at least 4 cameras, one miss in ten,
+    /// half of the budget on the movers, the camera box grown by half its size on every
+    /// side.
     fn default() -> Self {
         HullOptions {
+            steps: 30,
             resolution: 192,
             min_views: 4,
             miss_fraction: 0.1,

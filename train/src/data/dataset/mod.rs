@@ -37,10 +37,6 @@ use super::points::{POINTS_FILE, read_points};
 use super::visual_hull::{HullOptions, HullStep, HullView, hull_cloud};
 use crate::models::PointCloud;
 
-/// Time steps carved for the initial points of a data set with foreground masks
-/// ([`Dataset::initial_cloud`]): 30, every fifth frame of a 150-frame Panoptic sequence.
-pub const HULL_STEPS: usize = 30;
-
 /// White background, `[1, 1, 1]` (the default, as D-NeRF's `white_bkgd = True`).
 pub const WHITE: [f32; 3] = [1.0, 1.0, 1.0];
 /// Black background, `[0, 0, 0]` (Deformable-3DGS's default).
@@ -269,7 +265,7 @@ impl Dataset {
     /// The points a run starts from when the folder ships a point cloud or can carve
     /// one, with a line saying which: `points3d.ply` subsampled to `budget`; else, when
     /// the training images have foreground masks (the Dynamic 3D Gaussians layout),
-    /// [`hull_cloud`] over at most [`HULL_STEPS`] evenly spread training times with
+    /// [`hull_cloud`] over at most `HullOptions::steps` evenly spread training times with
     /// `hull_fraction` of the budget on the hulls; `None` otherwise (the trainer then
     /// draws random points).
     pub fn initial_cloud(
@@ -296,7 +292,11 @@ impl Dataset {
         let mut times: Vec<f64> = train.frames.iter().map(|f| f.time).collect();
         times.sort_by(f64::total_cmp);
         times.dedup();
-        let picked = spread(&times, HULL_STEPS);
+        let options = HullOptions {
+            dynamic_fraction: hull_fraction,
+            ..HullOptions::default()
+        };
+        let picked = spread(&times, options.steps);
         let steps: Vec<HullStep> = picked
             .iter()
             .map(|&time| HullStep {
@@ -318,10 +318,6 @@ impl Dataset {
         let mut centres: Vec<glam::DVec3> =
             train.frames.iter().map(|f| f.camera.center()).collect();
         centres.dedup();
-        let options = HullOptions {
-            dynamic_fraction: hull_fraction,
-            ..HullOptions::default()
-        };
         let (cloud, dynamic) = hull_cloud(&steps, &centres, budget, &options, seed)?;
         let description = format!(
             "{} points: {dynamic} on the visual hulls of the foreground masks at {} times (at most {:.0} % of the budget), {} static at random in the box of the cameras and the hulls ({:.1} s)",
