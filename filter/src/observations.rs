@@ -37,6 +37,25 @@ pub struct CameraTime {
     pub time: f32,
 }
 
+/// The training frames the motion filter observes, at most `max` of them
+/// ([`crate::FilterConfig::max_views`]): all frames, in order, when there are no
+/// more; otherwise the frames at positions `floor(j F / max)`, `j = 0..max`, of the
+/// frames sorted by (time, camera). Each time then keeps about `max / F` of its
+/// cameras, and as `F / max` is rarely whole the kept cameras shift from one time to
+/// the next, so over the video every camera is observed.
+pub fn observed_frames(frames: &[CameraTime], max: usize) -> Vec<usize> {
+    let f = frames.len();
+    if f <= max {
+        return (0..f).collect();
+    }
+    let mut order: Vec<usize> = (0..f).collect();
+    order.sort_by(|&a, &b| {
+        let (x, y) = (frames[a], frames[b]);
+        x.time.total_cmp(&y.time).then(x.camera.cmp(&y.camera))
+    });
+    (0..max).map(|j| order[j * f / max]).collect()
+}
+
 /// Per-Gaussian, per-frame observations `x = f/z` (0 = not visible / not recorded).
 /// Layout: Gaussian-major, `slots[n * F + f]`.
 #[derive(Clone, Debug, PartialEq)]

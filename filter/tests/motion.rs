@@ -5,7 +5,7 @@ use maaf_autodiff::PerGaussian;
 use maaf_filter::reference::{algorithm1, window_max};
 use maaf_filter::{
     CameraTime, FALLBACK, FilterConfig, FilterState, Kernels, MotionCurves, MotionEstimator,
-    ObservationTable, static_nu,
+    ObservationTable, observed_frames, static_nu,
 };
 use maaf_splat::Camera;
 use rand::{RngExt, SeedableRng};
@@ -636,5 +636,70 @@ fn window_max_of_a_static_scene_is_the_static_nu() {
     let nu = static_nu(&centres, &cameras, &cfg).expect("visible");
     for (n, &nu_n) in nu.iter().enumerate() {
         assert!(curves.curve(n).iter().all(|&v| v == nu_n), "{n}: {nu_n}");
+    }
+}
+
+#[test]
+fn observed_frames_keep_a_share_of_every_time_and_every_camera() {
+    // Panoptic basketball's layout: 27 training cameras at 150 times.
+    let frames = multiview_frames(150, 27);
+    let few = &frames[..100];
+    assert_eq!(observed_frames(few, 1024), (0..100).collect::<Vec<_>>());
+    let kept = observed_frames(&frames, 1024);
+    let mut distinct = kept.clone();
+    distinct.sort_unstable();
+    distinct.dedup();
+    assert_eq!(distinct.len(), 1024, "1024 distinct frames");
+    let (mut per_time, mut per_camera) = (vec![0usize; 150], vec![0usize; 27]);
+    for &f in &kept {
+        per_time[f / 27] += 1;
+        per_camera[frames[f].camera] += 1;
+    }
+    // 1024 x 27 / 4050 = 6.83 cameras per time: 6 or 7 at every time.
+    assert!(per_time.iter().all(|&c| c == 6 || c == 7), "{per_time:?}");
+    // Every camera is observed, none more than twice as often as another.
+    let (lo, hi) = (per_camera.iter().min(), per_camera.iter().max());
+    assert!(lo.is_some_and(|&lo| lo > 0 && hi.is_some_and(|&hi| hi <= 2 * lo)));
+}
+
+#[test]
+fn capped_observations_follow_an_approaching_gaussian_like_all_of_them() {
+    // Nine cameras at several distances and focals, 60 times; one Gaussian comes
+    // from depth 8 to 1.5 along the axis, one stays.
+    let cameras: Vec<Camera> = (0..9)
+        .map(|c| {
+            cam(
+                1.0 + 0.5 * c as f64,
+                80.0 + 15.0 * c as f64,
+                0.05 * c as f64,
+            )
+        })
+        .collect();
+    let frames = multiview_frames(60, 9);
+    let centres = |t: f32| vec![[0.0f32, 0.0, 8.0 - 6.5 * t], [0.1, -0.1, 3.0]];
+    let cfg = FilterConfig::default();
+    let curves = |kept: &[usize]| {
+        let sub: Vec<CameraTime> = kept.iter().map(|&f| frames[f]).collect();
+        let mut table = ObservationTable::for_frames(&sub, 2);
+        table
+            .observe_all(&sub, &cameras, &cfg, centres)
+            .expect("observe");
+        MotionCurves::refresh(&table, &cfg).expect("refresh")
+    };
+    let all = curves(&observed_frames(&frames, frames.len()));
+    // A third of the views: 3 of the 9 cameras at each time.
+    let third = curves(&observed_frames(&frames, frames.len() / 3));
+    for n in 0..2 {
+        let (a, b) = (all.curve(n), third.curve(n));
+        let worst = a
+            .iter()
+            .zip(&b)
+            .map(|(x, y)| (x - y).abs() / x)
+            .fold(0.0f32, f32::max);
+        assert!(
+            worst < 0.1,
+            "Gaussian {n}: nu(t) off by {worst}: {a:?} vs {b:?}"
+        );
+        eprintln!("Gaussian {n}: worst relative nu difference {worst}");
     }
 }

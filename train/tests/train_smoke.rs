@@ -5,7 +5,7 @@
 use std::path::PathBuf;
 
 use maaf_autodiff::{PerGaussian, Tensor};
-use maaf_filter::FilterKind;
+use maaf_filter::{CameraTime, FilterKind, observed_frames};
 use maaf_train::data::{Dataset, DatasetOptions, Split};
 use maaf_train::models::ModelConfig;
 use maaf_train::params::Rows;
@@ -574,5 +574,73 @@ fn a_branch_continues_a_checkpoint_with_its_own_settings() {
         .branch_from(&dir)
         .expect_err("another filter kind is refused");
     assert!(err.to_string().contains("filter kind"), "{err}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn the_motion_filter_observes_at_most_max_views_and_the_others_none() {
+    let Some(data) = mutant() else { return };
+    let cfg = tiny_config(FilterKind::Motion);
+    let mut full = Trainer::new(&data, cfg.clone()).expect("trainer");
+    for _ in 0..25 {
+        full.step();
+    }
+    let views = full.observations.num_frames();
+    assert!(
+        views > 50,
+        "mutant has more than 50 training views ({views})"
+    );
+    let dir = std::env::temp_dir().join(format!("maaf_max_views_{}", std::process::id()));
+    save_checkpoint(&full, &dir).expect("checkpoint");
+
+    // Capped at 50: the table holds 50 frames, and a branch from a checkpoint that
+    // observed every view reads exactly the kept views' columns.
+    let mut capped_cfg = cfg.clone();
+    capped_cfg.filter.max_views = 50;
+    let mut capped = Trainer::new(&data, capped_cfg).expect("trainer");
+    assert_eq!(capped.observations.num_frames(), 50);
+    capped.branch_from(&dir).expect("branch");
+    let frames: Vec<CameraTime> = full
+        .observations
+        .times()
+        .iter()
+        .enumerate()
+        .map(|(camera, &time)| CameraTime { camera, time })
+        .collect();
+    let kept = observed_frames(&frames, 50);
+    for (k, &f) in kept.iter().enumerate() {
+        assert_eq!(capped.observations.times()[k], frames[f].time, "frame {k}");
+    }
+    assert_eq!(capped.num_gaussians(), full.num_gaussians());
+    for n in 0..full.num_gaussians() {
+        let (a, b) = (full.observations.row(n), capped.observations.row(n));
+        assert!(
+            kept.iter().zip(b).all(|(&f, &x)| a[f] == x),
+            "Gaussian {n}: columns not the kept views'"
+        );
+    }
+    for _ in 0..10 {
+        capped.step();
+    }
+    assert!(
+        (0..capped.num_gaussians()).any(|n| capped.observations.row(n).iter().any(|&x| x > 0.0)),
+        "the capped table is recorded"
+    );
+
+    // The static filter reads no observation: none are kept or saved.
+    let mut stat = Trainer::new(&data, tiny_config(FilterKind::Mip3d)).expect("trainer");
+    stat.step();
+    assert_eq!(stat.observations.num_frames(), 0);
+    save_checkpoint(&stat, &dir).expect("checkpoint");
+    let blob = std::fs::read(dir.join("tensors.safetensors")).expect("blob");
+    let names = safetensors::SafeTensors::deserialize(&blob)
+        .expect("safetensors")
+        .names()
+        .into_iter()
+        .map(str::to_string)
+        .collect::<Vec<_>>();
+    assert!(!names.iter().any(|n| n == "observations"), "{names:?}");
+    let loaded = load_checkpoint(&data, &dir).expect("load");
+    assert_eq!(loaded.iteration, 1);
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -85,10 +85,13 @@ pub fn save_checkpoint(trainer: &Trainer, dir: &Path) -> Result<(), Error> {
     named.push(("stats/denom".into(), vec![n], bytes_of(&s.denom)));
     named.push(("stats/max_radii".into(), vec![n], bytes_of(&s.max_radii)));
     let f = trainer.observations.num_frames();
-    let obs: Vec<f32> = (0..n)
-        .flat_map(|i| trainer.observations.row(i).to_vec())
-        .collect();
-    named.push(("observations".into(), vec![n, f], bytes_of(&obs)));
+    if f > 0 {
+        let obs: Vec<u8> = (0..n)
+            .flat_map(|i| trainer.observations.row(i))
+            .flat_map(|v| v.to_le_bytes())
+            .collect();
+        named.push(("observations".into(), vec![n, f], obs));
+    }
     let views: Vec<(String, TensorView<'_>)> = named
         .iter()
         .map(|(name, shape, bytes)| {
@@ -284,20 +287,33 @@ impl Trainer {
             denom: tensor(&st, "stats/denom", &blob_path)?.into_vec(),
             max_radii: tensor(&st, "stats/max_radii", &blob_path)?.into_vec(),
         };
-        let obs = tensor(&st, "observations", &blob_path)?;
         let f = self.observations.num_frames();
-        if obs.shape() != [n, f] {
-            return Err(Error::Input(format!(
-                "{}: observations have shape {:?}, expected [{n}, {f}] (different data set?)",
-                blob_path.display(),
-                obs.shape()
-            )));
-        }
-        self.observations = ObservationTable::new(self.observations.times().to_vec(), n);
-        for i in 0..n {
-            self.observations
-                .row_mut(i)
-                .copy_from_slice(&obs.data()[i * f..(i + 1) * f]);
+        // Only the motion filter reads observations (older runs saved them for every
+        // filter: ignored).
+        if f > 0 {
+            let obs = tensor(&st, "observations", &blob_path)?;
+            self.observations = ObservationTable::new(self.observations.times().to_vec(), n);
+            // A run saved before `filter.max_views` holds every training view: its
+            // observed views' columns are read.
+            let views = self.observed_slot.len();
+            let columns: Vec<usize> = if obs.shape() == [n, f] {
+                (0..f).collect()
+            } else if obs.shape() == [n, views] {
+                self.observed.iter().map(|o| o.camera).collect()
+            } else {
+                return Err(Error::Input(format!(
+                    "{}: observations have shape {:?}, expected [{n}, {f}] (a different data set, or another filter.max_views?)",
+                    blob_path.display(),
+                    obs.shape()
+                )));
+            };
+            let width = obs.shape()[1];
+            for i in 0..n {
+                let row = &obs.data()[i * width..(i + 1) * width];
+                for (slot, &c) in self.observations.row_mut(i).iter_mut().zip(&columns) {
+                    *slot = row[c];
+                }
+            }
         }
         self.filter = state.filter;
         self.filter_ready = true;

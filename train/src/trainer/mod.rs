@@ -20,7 +20,7 @@ mod validation;
 
 use maaf_autodiff::optim::{Adam, AdamConfig};
 use maaf_autodiff::{OpProfile, PerGaussian, Tensor};
-use maaf_filter::{CameraTime, FilterState, ObservationTable};
+use maaf_filter::{CameraTime, FilterKind, FilterState, ObservationTable, observed_frames};
 use maaf_splat::Camera;
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
@@ -49,7 +49,8 @@ pub struct Trainer {
     pub adam: Adam<f32>,
     /// Current 3D filter of every Gaussian.
     pub filter: FilterState,
-    /// f/d observations recorded from training forward passes (motion filter input).
+    /// f/d observations recorded from training forward passes: the motion filter's
+    /// input, at most `filter.max_views` frames; no frames for the other filters.
     pub observations: ObservationTable,
     /// Densification statistics.
     pub stats: DensifyStats,
@@ -80,7 +81,11 @@ pub struct Trainer {
     held_out: Vec<validation::HeldOut>,
     gts: Vec<Tensor<f32>>,
     cameras: Vec<Camera>,
-    shots: Vec<CameraTime>,
+    /// The training views the motion filter observes (`camera` is the view's index),
+    /// the observation table's frames; none for the other filters.
+    observed: Vec<CameraTime>,
+    /// Each training view's frame in the observation table, if it is observed.
+    observed_slot: Vec<Option<usize>>,
     extent: f64,
     background: [f32; 3],
 }
@@ -99,6 +104,37 @@ pub fn camera_extent(cameras: &[Camera]) -> f64 {
         .iter()
         .map(|cam| (cam.center() - c).length())
         .fold(0.0, f64::max)
+}
+
+/// The training views the motion filter observes (at most `filter.max_views`, by
+/// [`observed_frames`]; none for the other filters, which read no observation) and
+/// each view's frame in the observation table. Logs the table's size when capped.
+fn observed_views(views: &[View], config: &TrainConfig) -> (Vec<CameraTime>, Vec<Option<usize>>) {
+    let mut slot = vec![None; views.len()];
+    if config.filter.kind != FilterKind::Motion {
+        return (Vec::new(), slot);
+    }
+    let all: Vec<CameraTime> = views
+        .iter()
+        .enumerate()
+        .map(|(i, v)| CameraTime {
+            camera: i,
+            time: v.time as f32,
+        })
+        .collect();
+    let kept = observed_frames(&all, config.filter.max_views);
+    if kept.len() < all.len() {
+        log_line(&format!(
+            "motion filter: observing {} of {} training views (filter.max_views), {} B per Gaussian",
+            kept.len(),
+            all.len(),
+            4 * kept.len()
+        ));
+    }
+    for (frame, &v) in kept.iter().enumerate() {
+        slot[v] = Some(frame);
+    }
+    (kept.iter().map(|&v| all[v]).collect(), slot)
 }
 
 /// The training views of `data` at the config's scale, or an error naming the folder.
@@ -192,14 +228,7 @@ impl Trainer {
         let cameras: Vec<Camera> = views.iter().map(|v| v.camera.clone()).collect();
         let extent = camera_extent(&cameras);
         let n = model.num_gaussians();
-        let shots: Vec<CameraTime> = views
-            .iter()
-            .enumerate()
-            .map(|(i, v)| CameraTime {
-                camera: i,
-                time: v.time as f32,
-            })
-            .collect();
+        let (observed, observed_slot) = observed_views(&views, &config);
         let gts = views.iter().map(|v| v.image.to_tensor()).collect();
         // The tensors are the trainer's copy: the data set's cached one would double
         // the images' memory for the whole run.
@@ -209,7 +238,7 @@ impl Trainer {
         Ok(Trainer {
             adam: Adam::new(AdamConfig::default()),
             filter: FilterState::None { rows: n },
-            observations: ObservationTable::for_frames(&shots, n),
+            observations: ObservationTable::for_frames(&observed, n),
             stats: DensifyStats::new(n),
             objective,
             iteration: 0,
@@ -227,7 +256,8 @@ impl Trainer {
             held_out,
             gts,
             cameras,
-            shots,
+            observed,
+            observed_slot,
             extent,
         })
     }

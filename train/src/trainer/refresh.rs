@@ -26,13 +26,13 @@ impl Trainer {
         }
         self.filter_ready = true;
         if self.config.filter.kind == FilterKind::Motion {
-            let mut times: Vec<f32> = self.shots.iter().map(|f| f.time).collect();
+            let mut times: Vec<f32> = self.observed.iter().map(|f| f.time).collect();
             times.sort_by(f32::total_cmp);
             times.dedup();
             let at: Vec<f64> = times.iter().map(|&t| f64::from(t)).collect();
             let all = self.model.centres_at_times(&at);
             let result = self.observations.observe_all(
-                &self.shots,
+                &self.observed,
                 &self.cameras,
                 &self.config.filter,
                 |t| {

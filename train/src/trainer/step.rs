@@ -157,12 +157,15 @@ impl Trainer {
                     .collect();
                 self.stats.record_views(&seen, batch as f32);
                 for (fwd, &vi) in fwds.iter().zip(&views) {
+                    let Some(frame) = self.observed_slot[vi] else {
+                        continue;
+                    };
                     let centres = centres(&fwd.deformed.means.value());
                     // A Gaussian absent at this time is not observed in this frame.
                     let present = drawable(fwd.deformed.opacity.value().data());
                     // The frame index is valid and the row count matches by construction.
                     let _ = self.observations.record_present(
-                        vi,
+                        frame,
                         &fwd.camera,
                         &centres,
                         &present,
