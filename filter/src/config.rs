@@ -184,12 +184,12 @@ pub struct FilterConfig {
     /// counts as "no observation near t" and falls back to the static nu
     /// (1e-30: far below any real density, above f32 underflow noise).
     pub density_floor: f32,
-    /// Most training views whose f/d the motion filter keeps per Gaussian, 1024:
+    /// Most training views whose f/d the motion filter keeps per Gaussian, 2048:
     /// the observation table holds `4 * min(views, max_views)` bytes per Gaussian
-    /// (4 kB, 123 MB at 30 000 Gaussians). With more views it observes an even
-    /// stride of them in (time, camera) order ([`crate::observed_frames`]), so every
-    /// time keeps a share of its cameras. A bound of ours: the paper observes every
-    /// training view (D-NeRF's 150-200 are far below it).
+    /// (8 kB, 246 MB at 30 000 Gaussians). With more views it observes every camera
+    /// of an even stride of the times ([`crate::observed_frames`]). A bound of ours:
+    /// the paper observes every training view (D-NeRF's 150-200 are far below it;
+    /// Panoptic's 4 050 are not).
     pub max_views: usize,
     /// When to recompute.
     pub refresh: RefreshSchedule,
@@ -213,7 +213,7 @@ impl Default for FilterConfig {
             time_support: 4.0,
             weibull_cutoff: 1e-7,
             density_floor: 1e-30,
-            max_views: 1024,
+            max_views: 2048,
             refresh: RefreshSchedule::default(),
         }
     }

@@ -47,8 +47,8 @@
 //!   (J = 300 x 20): ~0.27 ms CPU per Gaussian, ~13 s CPU for 50k.
 //! * Memory: 108 B per Gaussian for the curves (paper: `4 D T` = 40 kB for the
 //!   density); the observation table is `4 F` B (600 B for D-NeRF, 24 kB for
-//!   6000-frame video), `F` capped at `max_views` (1024: 4 kB) by observing an even
-//!   stride of the views ([`observed_frames`]).
+//!   6000-frame video), `F` capped at `max_views` (2048: 8 kB) by observing every
+//!   camera of an even stride of the times ([`observed_frames`]).
 //! * Stale recorder vs fresh full pass (`examples/stale_observations.rs`, motion
 //!   still being learnt): D-NeRF layout mean |dnu|/nu 0.1-0.25%, p95 < 1%;
 //!   6000-frame video layout (most slots never recorded early on) mean 1-1.6%,

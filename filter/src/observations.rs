@@ -39,10 +39,13 @@ pub struct CameraTime {
 
 /// The training frames the motion filter observes, at most `max` of them
 /// ([`crate::FilterConfig::max_views`]): all frames, in order, when there are no
-/// more; otherwise the frames at positions `floor(j F / max)`, `j = 0..max`, of the
-/// frames sorted by (time, camera). Each time then keeps about `max / F` of its
-/// cameras, and as `F / max` is rarely whole the kept cameras shift from one time to
-/// the next, so over the video every camera is observed.
+/// more; otherwise every frame of an even stride of the distinct times (the most
+/// times whose frames fit in `max`, at positions `floor(j G / g)` of the `G` times),
+/// so each kept time keeps all its cameras. Thinning times rather than cameras
+/// keeps the KDE's conditional density `p(x | t)` (a mode over the cameras of a
+/// time) and only coarsens its time sampling, which the Gaussian time kernel
+/// (`h_t`) smooths over. A single time with more than `max` cameras keeps an even
+/// stride of them.
 pub fn observed_frames(frames: &[CameraTime], max: usize) -> Vec<usize> {
     let f = frames.len();
     if f <= max {
@@ -53,7 +56,24 @@ pub fn observed_frames(frames: &[CameraTime], max: usize) -> Vec<usize> {
         let (x, y) = (frames[a], frames[b]);
         x.time.total_cmp(&y.time).then(x.camera.cmp(&y.camera))
     });
-    (0..max).map(|j| order[j * f / max]).collect()
+    let mut starts: Vec<usize> = (0..f)
+        .filter(|&i| i == 0 || frames[order[i]].time != frames[order[i - 1]].time)
+        .collect();
+    let groups = starts.len();
+    starts.push(f);
+    let pick = |g: usize| (0..g).map(move |j| j * groups / g);
+    let size = |k: usize| starts[k + 1] - starts[k];
+    let mut g = (max * groups / f).clamp(1, groups);
+    while g > 1 && pick(g).map(size).sum::<usize>() > max {
+        g -= 1;
+    }
+    let kept: Vec<usize> = pick(g)
+        .flat_map(|k| order[starts[k]..starts[k + 1]].iter().copied())
+        .collect();
+    if kept.len() <= max {
+        return kept;
+    }
+    (0..max).map(|j| kept[j * kept.len() / max]).collect()
 }
 
 /// Per-Gaussian, per-frame observations `x = f/z` (0 = not visible / not recorded).

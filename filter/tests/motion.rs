@@ -640,26 +640,37 @@ fn window_max_of_a_static_scene_is_the_static_nu() {
 }
 
 #[test]
-fn observed_frames_keep_a_share_of_every_time_and_every_camera() {
+fn observed_frames_keep_every_camera_of_an_even_stride_of_times() {
     // Panoptic basketball's layout: 27 training cameras at 150 times.
     let frames = multiview_frames(150, 27);
     let few = &frames[..100];
     assert_eq!(observed_frames(few, 1024), (0..100).collect::<Vec<_>>());
     let kept = observed_frames(&frames, 1024);
-    let mut distinct = kept.clone();
-    distinct.sort_unstable();
-    distinct.dedup();
-    assert_eq!(distinct.len(), 1024, "1024 distinct frames");
-    let (mut per_time, mut per_camera) = (vec![0usize; 150], vec![0usize; 27]);
+    // 1024 / 27 = 37 whole times, 999 frames, every camera of each.
+    assert_eq!(kept.len(), 37 * 27);
+    let mut per_time = vec![0usize; 150];
     for &f in &kept {
         per_time[f / 27] += 1;
-        per_camera[frames[f].camera] += 1;
     }
-    // 1024 x 27 / 4050 = 6.83 cameras per time: 6 or 7 at every time.
-    assert!(per_time.iter().all(|&c| c == 6 || c == 7), "{per_time:?}");
-    // Every camera is observed, none more than twice as often as another.
-    let (lo, hi) = (per_camera.iter().min(), per_camera.iter().max());
-    assert!(lo.is_some_and(|&lo| lo > 0 && hi.is_some_and(|&hi| hi <= 2 * lo)));
+    let times: Vec<usize> = (0..150).filter(|&t| per_time[t] > 0).collect();
+    assert!(times.iter().all(|&t| per_time[t] == 27), "{per_time:?}");
+    assert_eq!(times.len(), 37);
+    // Evenly spread: the first time, and steps of 4 or 5 of the 150.
+    assert_eq!(times[0], 0);
+    assert!(
+        times
+            .windows(2)
+            .all(|w| w[1] - w[0] == 4 || w[1] - w[0] == 5),
+        "{times:?}"
+    );
+    // One time with more cameras than the bound: an even stride of its cameras.
+    let one: Vec<CameraTime> = (0..27)
+        .map(|camera| CameraTime { camera, time: 0.5 })
+        .collect();
+    assert_eq!(
+        observed_frames(&one, 9),
+        (0..27).step_by(3).collect::<Vec<_>>()
+    );
 }
 
 #[test]
@@ -687,7 +698,7 @@ fn capped_observations_follow_an_approaching_gaussian_like_all_of_them() {
         MotionCurves::refresh(&table, &cfg).expect("refresh")
     };
     let all = curves(&observed_frames(&frames, frames.len()));
-    // A third of the views: 3 of the 9 cameras at each time.
+    // A third of the views: every camera at 20 of the 60 times.
     let third = curves(&observed_frames(&frames, frames.len() / 3));
     for n in 0..2 {
         let (a, b) = (all.curve(n), third.curve(n));
