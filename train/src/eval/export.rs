@@ -55,7 +55,12 @@ pub fn frame_gaussians(trainer: &Trainer, time: f64) -> Gaussians {
         .collect();
     // Kept unless surely culled: a NaN opacity stays so the export refuses it.
     let cutoff = maaf_splat::compositing::ALPHA_MIN as f32;
-    let keep: Vec<usize> = (0..n).filter(|&i| !(opacity.data()[i] <= cutoff)).collect();
+    let keep: Vec<usize> = (0..n)
+        .filter(|&i| {
+            let o = opacity.data()[i];
+            o > cutoff || o.is_nan()
+        })
+        .collect();
     Gaussians {
         means: means.gather_rows(&keep),
         log_scales: scales.gather_rows(&keep).map(f32::ln),
