@@ -359,6 +359,12 @@ pub fn read_ply(path: &Path) -> Result<Gaussians, PlyError> {
 
 /// Encodes `g` as a `binary_little_endian` 3DGS PLY.
 pub fn ply_bytes(g: &Gaussians) -> Vec<u8> {
+    ply_bytes_with_comments(g, &[])
+}
+
+/// [`ply_bytes`] with one `comment` header line per entry of `comments` (each a single
+/// line; 3DGS readers skip comments).
+pub fn ply_bytes_with_comments(g: &Gaussians, comments: &[String]) -> Vec<u8> {
     let n = g.len();
     let layout = Layout {
         k: crate::sh::num_coeffs(g.sh_degree),
@@ -366,6 +372,9 @@ pub fn ply_bytes(g: &Gaussians) -> Vec<u8> {
     let names = layout.names();
     let mut out = Vec::with_capacity(200 + n * names.len() * 4);
     out.extend_from_slice(b"ply\nformat binary_little_endian 1.0\n");
+    for c in comments {
+        out.extend_from_slice(format!("comment {}\n", c.replace('\n', " ")).as_bytes());
+    }
     out.extend_from_slice(format!("element vertex {n}\n").as_bytes());
     for name in &names {
         out.extend_from_slice(format!("property float {name}\n").as_bytes());

@@ -1,7 +1,8 @@
 //! `maaf export-ply`: the deformed, filtered Gaussians of a trained run at a time as a
 //! standard 3DGS PLY (`--time T --out F.ply`), or a sequence of `N` frames over the
-//! data set's time range (`--frames N --out DIR`: `frame_NNNN.ply` + `frames.json`;
-//! `--out X.zip`: the same files as one zip archive).
+//! data set's time range (`--frames N --out DIR`: only `frame_NNNN.ply`, each with its
+//! time in its header, as brush and SuperSplat play them; `--out X.zip`: the same
+//! files as one zip archive). Gaussians invisible at a frame's time are left out.
 
 use std::path::PathBuf;
 
@@ -64,10 +65,10 @@ pub fn run(args: &ExportPlyArgs) -> anyhow::Result<()> {
                     "maaf: warning: --time {t} is outside the data's time range [{t0}, {t1}]: the model extrapolates"
                 );
             }
-            export_frame(&trainer, t, &args.out)?;
+            let kept = export_frame(&trainer, t, &args.out)?;
             let bytes = std::fs::metadata(&args.out).map_or(0, |m| m.len());
             println!(
-                "wrote {} ({} Gaussians at t = {t}, {:.2} MB)",
+                "wrote {} ({kept} of {} Gaussians, those drawn at t = {t}; {:.2} MB)",
                 args.out.display(),
                 trainer.num_gaussians(),
                 bytes as f64 / 1e6

@@ -83,7 +83,9 @@ fn exported_frame_renders_as_the_run_and_eval_survives_missing_weights() {
     );
     let header = std::fs::read(&ply).expect("ply");
     let header = String::from_utf8_lossy(&header[..header.len().min(400)]).into_owned();
-    assert!(header.starts_with("ply\nformat binary_little_endian 1.0\nelement vertex "));
+    assert!(header.starts_with(
+        "ply\nformat binary_little_endian 1.0\ncomment maaf time 0.4\nelement vertex "
+    ));
     assert!(header.contains("property float x\nproperty float y\nproperty float z\n"));
     let (from_ply, from_run) = (tmp.0.join("ply.png"), tmp.0.join("run.png"));
     maaf(

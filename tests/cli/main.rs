@@ -8,6 +8,7 @@ mod compare;
 mod config_doc;
 mod e2e_gradcheck;
 mod export_eval;
+mod log_columns;
 mod panoptic;
 mod presets;
 mod resume_faults;

@@ -5,10 +5,17 @@
 //! and opacity as Mip-Splatting's fused export does, `s' = sqrt(s^2 + var)`,
 //! `o' = o sqrt(prod s^2 / prod(s^2 + var))`), stored in the Inria parameterisation
 //! (`log s'`, `logit o'`, SH up to the degree the run renders with), so that any 3DGS
-//! viewer shows the frame as `maaf render` does. A sequence is a folder of
-//! `frame_NNNN.ply` plus `frames.json` (file name and time of each frame), swapped
-//! into place whole, or the same files as one zip archive (`--out X.zip`), which
-//! viewers that play PLY sequences also open.
+//! viewer shows the frame as `maaf render` does. Gaussians whose opacity at `t` is at
+//! most 1/255 (SaRO's lifespan opacity outside a Gaussian's life, a pruned-looking
+//! one) are left out: the renderer culls them ([`maaf_splat::compositing::ALPHA_MIN`]),
+//! so the frame renders the same and the file is smaller.
+//!
+//! A sequence is a folder holding only `frame_0000.ply`, `frame_0001.ply`, ..., each
+//! with its time in a header comment (`comment maaf time T`), swapped into place whole,
+//! or the same files as one zip archive (`--out X.zip`). Only PLY files, because brush
+//! plays a folder or zip as a sequence only when every file in it is a PLY (in natural
+//! file-name order) and SuperSplat takes dropped files as a sequence only when all share
+//! one prefix followed by a frame number (`docs/viewing.md`).
 
 use std::io::{BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
@@ -16,11 +23,10 @@ use std::path::{Path, PathBuf};
 use maaf_autodiff::Tensor;
 use maaf_autodiff::scalar::logit;
 use maaf_splat::Gaussians;
-use maaf_splat::ply::ply_bytes;
+use maaf_splat::ply::ply_bytes_with_comments;
 
 use super::sequence::{check_own_folder, frame_times};
 use maaf_splat::sh::num_coeffs;
-use serde_json::json;
 use zip::write::SimpleFileOptions;
 use zip::{CompressionMethod, ZipWriter};
 
@@ -28,7 +34,8 @@ use crate::trainer::Trainer;
 use crate::{Error, write_atomic};
 
 /// The deformed, filtered Gaussians of `trainer` at `time` as a static 3DGS scene, SH
-/// truncated to the degree the run renders with ([`Trainer::render_settings`]).
+/// truncated to the degree the run renders with ([`Trainer::render_settings`]), less
+/// those the renderer culls at `time` (opacity at most 1/255).
 pub fn frame_gaussians(trainer: &Trainer, time: f64) -> Gaussians {
     let [means, scales, quats, opacity, sh] = trainer.frame_at(time);
     let n = means.shape()[0];
@@ -46,12 +53,20 @@ pub fn frame_gaussians(trainer: &Trainer, time: f64) -> Gaussians {
                 .copied()
         })
         .collect();
+    // Kept unless surely culled: a NaN opacity stays so the export refuses it.
+    let cutoff = maaf_splat::compositing::ALPHA_MIN as f32;
+    let keep: Vec<usize> = (0..n)
+        .filter(|&i| {
+            let o = opacity.data()[i];
+            o > cutoff || o.is_nan()
+        })
+        .collect();
     Gaussians {
-        means,
-        log_scales: scales.map(f32::ln),
-        quats,
-        raw_opacity: opacity.map(logit),
-        sh: Tensor::from_vec(sh_data, &[n, k, 3]),
+        means: means.gather_rows(&keep),
+        log_scales: scales.gather_rows(&keep).map(f32::ln),
+        quats: quats.gather_rows(&keep),
+        raw_opacity: opacity.gather_rows(&keep).map(logit),
+        sh: Tensor::from_vec(sh_data, &[n, k, 3]).gather_rows(&keep),
         sh_degree: degree,
     }
 }
@@ -82,11 +97,18 @@ pub fn finite_frame_gaussians(trainer: &Trainer, time: f64) -> Result<Gaussians,
     Ok(g)
 }
 
-/// Writes the frame at `time` to `out` as a binary 3DGS PLY (atomically); refuses
-/// non-finite Gaussians ([`finite_frame_gaussians`]).
-pub fn export_frame(trainer: &Trainer, time: f64, out: &Path) -> Result<(), Error> {
-    maaf_splat::write_ply(out, &finite_frame_gaussians(trainer, time)?)
-        .map_err(|e| Error::Input(e.to_string()))
+/// Writes the frame at `time` to `out` as a binary 3DGS PLY (atomically), its time
+/// in a header comment; refuses non-finite Gaussians ([`finite_frame_gaussians`]).
+/// Returns how many Gaussians it holds (those drawn at `time`).
+pub fn export_frame(trainer: &Trainer, time: f64, out: &Path) -> Result<usize, Error> {
+    let g = finite_frame_gaussians(trainer, time)?;
+    write_atomic(out, &ply_bytes_with_comments(&g, &[time_comment(time)]))?;
+    Ok(g.len())
+}
+
+/// The header comment that records a frame's time.
+fn time_comment(time: f64) -> String {
+    format!("maaf time {time}")
 }
 
 /// Name of frame `i` of a sequence, `frame_NNNN.ply`.
@@ -94,16 +116,11 @@ fn frame_name(i: usize) -> String {
     format!("frame_{i:04}.ply")
 }
 
-/// `frames.json` of a sequence: `{"frames": [{"file": "frame_0000.ply", "time": t_0},
-/// ...]}`, the same bytes in a folder and in a zip.
-fn index_json(times: &[f64]) -> Result<Vec<u8>, Error> {
-    let index: Vec<_> = times
-        .iter()
-        .enumerate()
-        .map(|(i, t)| json!({"file": frame_name(i), "time": t}))
-        .collect();
-    serde_json::to_vec_pretty(&json!({ "frames": index }))
-        .map_err(|e| Error::Input(format!("frames.json: {e}")))
+/// Frame `time` as PLY bytes with its time in a header comment (`comment maaf time
+/// T`), refused when non-finite ([`finite_frame_gaussians`]).
+fn frame_bytes(trainer: &Trainer, time: f64) -> Result<Vec<u8>, Error> {
+    let g = finite_frame_gaussians(trainer, time)?;
+    Ok(ply_bytes_with_comments(&g, &[time_comment(time)]))
 }
 
 /// Whether `out` names a zip archive (its extension is `zip`, any case): then
@@ -125,7 +142,8 @@ pub fn check_sequence_target(out: &Path) -> Result<(), Error> {
 }
 
 /// Refuses an `out` folder that a sequence must not replace: an existing file, or a
-/// folder holding anything but `frame_*.ply` and `frames.json` of an earlier export.
+/// folder holding anything but the `frame_*.ply` (and the `frames.json` of exports
+/// before the times moved into the PLY headers) of an earlier export.
 fn check_sequence_folder(out: &Path) -> Result<(), Error> {
     if !out.exists() {
         return Ok(());
@@ -168,9 +186,9 @@ fn check_zip_target(out: &Path) -> Result<(), Error> {
 }
 
 /// Writes `frames` evenly spaced times over `[t0, t1]` (`t_i = t0 + (t1 - t0) i /
-/// (frames - 1)`) into the folder `out` as `frame_0000.ply ...` and `frames.json`
-/// (`{"frames": [{"file", "time"}]}`), built in a temporary sibling and swapped in
-/// whole. An existing file at `out`, or a folder holding other files, is refused.
+/// (frames - 1)`) into the folder `out` as `frame_0000.ply ...` (nothing else; each
+/// frame's time in its header, [`frame_bytes`]), built in a temporary sibling and
+/// swapped in whole. An existing file at `out`, or a folder holding other files, is refused.
 /// Returns the PLY paths.
 pub fn export_sequence(
     trainer: &Trainer,
@@ -187,9 +205,9 @@ pub fn export_sequence(
     std::fs::create_dir_all(&tmp).map_err(|e| Error::io(&tmp, e))?;
     let result = (|| {
         for (i, &t) in times.iter().enumerate() {
-            export_frame(trainer, t, &tmp.join(frame_name(i)))?;
+            write_atomic(&tmp.join(frame_name(i)), &frame_bytes(trainer, t)?)?;
         }
-        write_atomic(&tmp.join("frames.json"), &index_json(&times)?)
+        Ok(())
     })();
     if let Err(e) = result {
         let _ = std::fs::remove_dir_all(&tmp);
@@ -200,7 +218,7 @@ pub fn export_sequence(
 }
 
 /// The same sequence as [`export_sequence`] as one zip archive `out`: the entries
-/// `frame_0000.ply ...` then `frames.json`, byte for byte the files of the folder
+/// `frame_0000.ply ...`, byte for byte the files of the folder
 /// version, deflated, with the zip format's fixed default timestamp (1980-01-01) so
 /// that equal runs give equal archives. The archive is streamed into a temporary
 /// sibling and renamed into place ([`maaf_io::write_atomic_with`]: fsync, rename,
@@ -214,7 +232,6 @@ pub fn export_sequence_zip(
 ) -> Result<u64, Error> {
     let times = frame_times(range, frames)?;
     check_zip_target(out)?;
-    let index = index_json(&times)?;
     maaf_io::write_atomic_with(out, |file| {
         let mut zip = ZipWriter::new(BufWriter::new(file));
         let mut put = |name: &str, bytes: &[u8]| -> std::io::Result<()> {
@@ -226,11 +243,10 @@ pub fn export_sequence_zip(
         };
         for (i, &t) in times.iter().enumerate() {
             // A refused frame fails the write, which removes the partial archive.
-            let g = finite_frame_gaussians(trainer, t)
-                .map_err(|e| std::io::Error::other(e.to_string()))?;
-            put(&frame_name(i), &ply_bytes(&g))?;
+            let bytes =
+                frame_bytes(trainer, t).map_err(|e| std::io::Error::other(e.to_string()))?;
+            put(&frame_name(i), &bytes)?;
         }
-        put("frames.json", &index)?;
         zip.finish()?.flush()
     })
     .map_err(|e| Error::io(out, e))?;

@@ -39,8 +39,9 @@ pub fn to_rgb8(image: &Tensor<f32>) -> Result<RgbImage, Error> {
         .ok_or_else(|| Error::Input("image buffer does not match its shape".into()))
 }
 
-/// A colour ramp (black, purple, red, orange, pale yellow) for `v` on [0, 1].
-fn ramp(v: f32) -> [u8; 3] {
+/// The error maps' colour ramp (black, purple, red, orange, pale yellow) for `v` on
+/// [0, 1] (clamped): perceptually ordered from dark to light like inferno.
+pub fn ramp(v: f32) -> [u8; 3] {
     const STOPS: [[f32; 3]; 5] = [
         [0.0, 0.0, 0.0],
         [0.35, 0.05, 0.45],

@@ -231,7 +231,7 @@ fn evaluate_scale(
 }
 
 /// Metrics of one rendered view (LPIPS when the model loaded), plus its PNGs when
-/// asked.
+/// asked (render, error map and ground truth, for the report's pictures).
 fn measure_view(
     v: &crate::data::View,
     image: &Tensor<f32>,
@@ -274,6 +274,10 @@ fn measure_view(
         images::save_png(
             &images::error_to_rgb8(&err)?,
             &dir.join(format!("error_{:03}.png", v.index)),
+        )?;
+        images::save_png(
+            &images::to_rgb8(&gt)?,
+            &dir.join(format!("gt_{:03}.png", v.index)),
         )?;
     }
     Ok(ViewResult {

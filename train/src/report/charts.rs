@@ -11,6 +11,7 @@ use plotters::element::DashedPathElement;
 use plotters::prelude::*;
 use plotters::style::{FontStyle, register_font};
 
+use super::style::{line, marker, method, method_colour, series_style, with_legend};
 use super::{ReportRun, scale_header};
 use crate::Error;
 use crate::eval::images::save_png;
@@ -20,37 +21,6 @@ static FONT: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
 
 /// Font family name the charts use.
 const FAMILY: &str = "sans-serif";
-
-/// Series colours (Tableau 10, colour-blind-safe), by run order.
-const PALETTE: [RGBColor; 10] = [
-    RGBColor(31, 119, 180),
-    RGBColor(255, 127, 14),
-    RGBColor(214, 39, 40),
-    RGBColor(44, 160, 44),
-    RGBColor(148, 103, 189),
-    RGBColor(140, 86, 75),
-    RGBColor(227, 119, 194),
-    RGBColor(127, 127, 127),
-    RGBColor(188, 189, 34),
-    RGBColor(23, 190, 207),
-];
-
-/// Colour of `runs[i]`: by filter (none blue, Mip orange, motion red) when no two
-/// runs share a filter (the protocol's comparison), else by position, so that runs
-/// of one filter (representations, budgets, sweep points) stay apart.
-pub(super) fn colour(runs: &[ReportRun], i: usize) -> RGBColor {
-    let filter = |r: &ReportRun| r.eval.filter.clone();
-    let shared = runs
-        .iter()
-        .enumerate()
-        .any(|(j, a)| runs[..j].iter().any(|b| filter(a) == filter(b)));
-    match runs[i].eval.filter.as_str() {
-        "none" if !shared => PALETTE[0],
-        "mip3d" if !shared => PALETTE[1],
-        "motion" if !shared => PALETTE[2],
-        _ => PALETTE[i % PALETTE.len()],
-    }
-}
 
 /// Registers the embedded font once per process.
 fn ensure_font() -> Result<(), Error> {
@@ -146,7 +116,7 @@ pub(super) fn new_chart<'a, 'b>(
 
 /// Draws the series legend of `chart` at `position`: white at 85 % opacity, a black
 /// border, 15 px labels.
-pub(super) fn draw_legend<'a, 'b: 'a>(
+fn draw_legend<'a, 'b: 'a>(
     chart: &mut Chart<'a, 'b>,
     position: SeriesLabelPosition,
 ) -> Result<(), String> {
@@ -163,7 +133,7 @@ pub(super) fn draw_legend<'a, 'b: 'a>(
 /// PSNR (left) and SSIM (right) against the render scale (log2 axis), one line per run.
 pub fn quality_vs_scale(runs: &[ReportRun], path: &Path) -> Result<(), Error> {
     save_chart(path, (1300, 560), |root| {
-        let panels = root.split_evenly((1, 2));
+        let panels = with_legend(root, runs)?.split_evenly((1, 2));
         scale_panel(
             &panels[0],
             runs,
@@ -189,7 +159,7 @@ pub fn quality_by_region(runs: &[ReportRun], path: &Path) -> Result<(), Error> {
         ("silhouette band", |g| g.band),
     ];
     save_chart(path, (1800, 560), |root| {
-        let panels = root.split_evenly((1, 3));
+        let panels = with_legend(root, runs)?.split_evenly((1, 3));
         for (area, (name, pick)) in panels.iter().zip(regions) {
             let title = format!("PSNR of {name} vs render scale");
             scale_panel(area, runs, &title, "PSNR (dB)", 1, &|s| {
@@ -228,8 +198,6 @@ fn scale_panel(
         })
         .collect();
     let (y0, y1) = padded_range(series.iter().flatten().map(|p| p.1), 0.05);
-    // Room below the lines for the legend.
-    let (y0, y1) = widen((y0, y1), 0.45, 0.0);
     let mut chart = new_chart(area, title, 24, 70, (x0, x1), (y0, y1))?;
     chart
         .configure_mesh()
@@ -250,21 +218,20 @@ fn scale_panel(
         .light_line_style(WHITE.mix(0.0))
         .draw()
         .map_err(e2s)?;
-    for (i, (r, pts)) in runs.iter().zip(&series).enumerate() {
-        let c = colour(runs, i);
+    for (i, pts) in series.iter().enumerate() {
+        let style = series_style(runs, i);
         chart
-            .draw_series(LineSeries::new(pts.clone(), c.stroke_width(3)))
-            .map_err(e2s)?
-            .label(r.label.clone())
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], c.stroke_width(3)));
+            .draw_series(std::iter::once(line(pts.clone(), style)))
+            .map_err(e2s)?;
         chart
-            .draw_series(pts.iter().map(|&q| Circle::new(q, 5, c.filled())))
+            .draw_series(pts.iter().map(|&q| marker(q, style)))
             .map_err(e2s)?;
     }
-    draw_legend(&mut chart, SeriesLabelPosition::LowerLeft)
+    Ok(())
 }
 
-/// One scatter panel: a point per run at `(x(run), y(run))`, labelled in the legend.
+/// One scatter panel: a point per run at `(x(run), y(run))` (the legend is the
+/// figure's strip).
 fn scatter_panel(
     area: &Area<'_>,
     runs: &[ReportRun],
@@ -273,7 +240,7 @@ fn scatter_panel(
     (y_desc, y): (&str, &dyn Fn(&ReportRun) -> f64),
 ) -> Result<(), String> {
     let (x0, x1) = padded_range(runs.iter().map(x), 0.15);
-    let (y0, y1) = widen(padded_range(runs.iter().map(y), 0.15), 0.5, 0.0);
+    let (y0, y1) = padded_range(runs.iter().map(y), 0.15);
     let x0 = if x0 < 0.0 && runs.iter().all(|r| x(r) >= 0.0) {
         0.0
     } else {
@@ -291,15 +258,11 @@ fn scatter_panel(
         .y_labels(6)
         .draw()
         .map_err(e2s)?;
-    for (i, r) in runs.iter().enumerate() {
-        let c = colour(runs, i);
-        chart
-            .draw_series(std::iter::once(Circle::new((x(r), y(r)), 8, c.filled())))
-            .map_err(e2s)?
-            .label(r.label.clone())
-            .legend(move |(px, py)| Circle::new((px + 12, py), 6, c.filled()));
-    }
-    draw_legend(&mut chart, SeriesLabelPosition::LowerRight)?;
+    chart
+        .draw_series(
+            (0..runs.len()).map(|i| marker((x(&runs[i]), y(&runs[i])), series_style(runs, i))),
+        )
+        .map_err(e2s)?;
     Ok(())
 }
 
@@ -307,7 +270,7 @@ fn scatter_panel(
 /// training wall time: speed vs accuracy.
 pub fn quality_vs_time(runs: &[ReportRun], path: &Path) -> Result<(), Error> {
     save_chart(path, (1300, 560), |root| {
-        let panels = root.split_evenly((1, 2));
+        let panels = with_legend(root, runs)?.split_evenly((1, 2));
         let t = |r: &ReportRun| r.eval.train_seconds;
         let psnr = |r: &ReportRun| r.eval.mean_psnr();
         let ssim = |r: &ReportRun| r.eval.mean_ssim();
@@ -332,7 +295,7 @@ pub fn quality_vs_time(runs: &[ReportRun], path: &Path) -> Result<(), Error> {
 /// model plus its filter state (right).
 pub fn quality_vs_size(runs: &[ReportRun], path: &Path) -> Result<(), Error> {
     save_chart(path, (1300, 560), |root| {
-        let panels = root.split_evenly((1, 2));
+        let panels = with_legend(root, runs)?.split_evenly((1, 2));
         let n = |r: &ReportRun| r.eval.num_gaussians as f64 / 1000.0;
         let mb = |r: &ReportRun| r.eval.total_bytes() as f64 / 1e6;
         let psnr = |r: &ReportRun| r.eval.mean_psnr();
@@ -443,20 +406,20 @@ pub fn nu_over_time(run: &ReportRun, path: &Path) -> Result<(), Error> {
                     &mut chart,
                     curve,
                     10,
-                    PALETTE[1].stroke_width(3),
+                    estimator_colour(estimator).stroke_width(3),
                     format!("nu(t), {}", estimator_label(estimator)),
                 )?;
             }
-            let red = PALETTE[2];
+            let own = method_colour(&method(run));
             chart
-                .draw_series(LineSeries::new(nu, red.stroke_width(3)))
+                .draw_series(LineSeries::new(nu, own.stroke_width(3)))
                 .map_err(e2s)?
                 .label(format!(
                     "nu(t), {}: the run's filter",
                     estimator_label(&export.estimator)
                 ))
                 .legend(move |(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 24, y)], red.stroke_width(3))
+                    PathElement::new(vec![(x, y), (x + 24, y)], own.stroke_width(3))
                 });
             draw_legend(&mut chart, SeriesLabelPosition::UpperRight)?;
         }
@@ -481,6 +444,14 @@ fn draw_dashed(
     Ok(())
 }
 
+/// The colour of the motion filter with estimator `name` ([`method_colour`]).
+fn estimator_colour(name: &str) -> RGBColor {
+    match name {
+        "kde" => method_colour("motion"),
+        other => method_colour(other),
+    }
+}
+
 /// A motion estimator's config name as the charts spell it.
 fn estimator_label(name: &str) -> String {
     match name {
@@ -495,32 +466,5 @@ fn capitalise(s: &str) -> String {
     match c.next() {
         Some(f) => f.to_uppercase().collect::<String>() + c.as_str(),
         None => String::new(),
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn run(model: &str, filter: &str) -> ReportRun {
-        ReportRun::for_test(&format!("{model} {filter}"), model, filter, Vec::new())
-    }
-
-    #[test]
-    fn colours_follow_the_filter_unless_two_runs_share_one() {
-        let three = [
-            run("saro", "motion"),
-            run("saro", "none"),
-            run("saro", "mip3d"),
-        ];
-        let by_filter: Vec<_> = (0..3).map(|i| colour(&three, i)).collect();
-        assert_eq!(by_filter, vec![PALETTE[2], PALETTE[0], PALETTE[1]]);
-        let shared = [
-            run("saro", "none"),
-            run("deform", "none"),
-            run("deform", "motion"),
-        ];
-        let c: Vec<_> = (0..3).map(|i| colour(&shared, i)).collect();
-        assert!(c[0] != c[1] && c[1] != c[2] && c[0] != c[2], "{c:?}");
     }
 }

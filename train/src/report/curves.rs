@@ -8,7 +8,8 @@ use std::path::Path;
 use plotters::prelude::*;
 
 use super::ReportRun;
-use super::charts::{colour, draw_legend, e2s, new_chart, padded_range, save_chart, text};
+use super::charts::{e2s, new_chart, padded_range, save_chart, text};
+use super::style::{line, marker, series_style, with_legend};
 use crate::Error;
 
 /// `(elapsed_seconds, val_psnr)` of every `log.csv` row of `run` that has a
@@ -62,8 +63,9 @@ pub fn validation_psnr_vs_time(runs: &[ReportRun], path: &Path) -> Result<bool, 
     let (x0, x1) = padded_range(all().map(|p| p.0), 0.03);
     let (y0, y1) = padded_range(all().map(|p| p.1), 0.08);
     save_chart(path, (900, 560), |root| {
+        let plots = with_legend(root, runs)?;
         let mut chart = new_chart(
-            root,
+            &plots,
             "Validation PSNR during training",
             22,
             70,
@@ -79,23 +81,16 @@ pub fn validation_psnr_vs_time(runs: &[ReportRun], path: &Path) -> Result<bool, 
             .light_line_style(WHITE.mix(0.0))
             .draw()
             .map_err(e2s)?;
-        for (i, (r, curve)) in runs.iter().zip(&curves).enumerate() {
-            if curve.is_empty() {
-                continue;
-            }
-            let c = colour(runs, i);
+        for (i, curve) in curves.iter().enumerate() {
+            let style = series_style(runs, i);
             chart
-                .draw_series(LineSeries::new(curve.iter().copied(), c.stroke_width(3)))
+                .draw_series(std::iter::once(line(curve.clone(), style)))
                 .map_err(e2s)?;
             chart
-                .draw_series(curve.iter().map(|&p| Circle::new(p, 5, c.filled())))
-                .map_err(e2s)?
-                .label(r.label.clone())
-                .legend(move |(px, py)| {
-                    PathElement::new(vec![(px, py), (px + 24, py)], c.stroke_width(3))
-                });
+                .draw_series(curve.iter().map(|&p| marker(p, style)))
+                .map_err(e2s)?;
         }
-        draw_legend(&mut chart, SeriesLabelPosition::LowerRight)
+        Ok(())
     })?;
     Ok(true)
 }

@@ -3,7 +3,10 @@
 //! zoom-out tables) plus PNG charts drawn with plotters and an embedded font:
 //! quality vs scale, quality vs training time (and the validation PSNR logged during
 //! training as curves), quality vs model size, and nu(t) of a
-//! static and a moving Gaussian (the paper's f/d-over-time figure).
+//! static and a moving Gaussian (the paper's f/d-over-time figure); and, beside the
+//! tables, the ground truth, each run's render and its error map (with a colour bar)
+//! of one test view at every evaluated scale ([`views`]). Each method keeps one colour
+//! in every chart ([`style`]).
 //!
 //! Inputs are run directories holding `eval.json` (from [`crate::eval::evaluate_run`])
 //! and, for motion-filter runs, `eval/filter_analysis.json`. No data set is needed.
@@ -11,7 +14,9 @@
 pub mod charts;
 pub mod curves;
 pub mod regions;
+pub mod style;
 pub mod temporal;
+pub mod views;
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -247,6 +252,8 @@ pub fn all_scales(runs: &[ReportRun]) -> Vec<f64> {
 /// `quality_vs_time.png`, `quality_vs_size.png`, `quality_by_region.png` when a run
 /// has PSNR by region, `warp_error_over_time.png` when a
 /// run has temporal metrics, and `nu_t.png` when a motion run has a nu(t) export),
+/// the pictures of one test view per scale (`views/<scale>x/`, `error_colour_bar.png`)
+/// when the runs saved images,
 /// the LPIPS table and the Tab. 3-shaped temporal tables for the evaluated runs in `runs`. Every file is written
 /// atomically; `OUT` is created if needed.
 pub fn write_report(runs: &[PathBuf], out: &Path) -> Result<ReportOutput, Error> {
@@ -334,6 +341,11 @@ pub fn write_report(runs: &[PathBuf], out: &Path) -> Result<ReportOutput, Error>
     if zoom_in.len() > 1 && zoom_out.len() > 1 {
         md.push_str("\n## All scales\n\n");
         md.push_str(&table);
+    }
+    let pictures = views::view_section(&runs, &scales, out)?;
+    if !pictures.is_empty() {
+        md.push_str("\n## Renders and error maps\n\n");
+        md.push_str(&pictures);
     }
     let by_region = regions::region_table(&runs, &scales);
     if !by_region.is_empty() {

@@ -7,13 +7,14 @@ use std::path::Path;
 
 use plotters::prelude::*;
 
-use super::charts::{colour, e2s, padded_range, save_chart, text};
+use super::charts::{e2s, padded_range, save_chart, text};
+use super::style::{line, series_style, with_legend};
 use super::{ReportRun, scale_header};
 use crate::Error;
 use crate::eval::TemporalResult;
 
-/// One line of the chart: run index (for its colour), run, `(t, E_warp)` points.
-type Series<'a> = (usize, &'a ReportRun, Vec<(f64, f64)>);
+/// One line of the chart: run index (for its style) and `(t, E_warp)` points.
+type Series = (usize, Vec<(f64, f64)>);
 
 fn cell(v: Option<f64>, digits: usize) -> String {
     v.map_or("-".to_string(), |v| format!("{v:.digits$}"))
@@ -142,28 +143,28 @@ pub fn warp_error_over_time(runs: &[ReportRun], path: &Path) -> Result<bool, Err
     }
     let size = (520 * scales.len() as u32, 420 * flows.len() as u32);
     save_chart(path, size, |root| {
-        let panels = root.split_evenly((flows.len(), scales.len()));
+        let panels = with_legend(root, runs)?.split_evenly((flows.len(), scales.len()));
         for (fi, flow) in flows.iter().enumerate() {
             for (si, &s) in scales.iter().enumerate() {
                 let area = &panels[fi * scales.len() + si];
-                let series: Vec<Series<'_>> = runs
+                let series: Vec<Series> = runs
                     .iter()
                     .enumerate()
                     .filter_map(|(i, r)| {
                         let t = entries(r, s).iter().find(|t| t.flow == *flow)?;
                         let pts = t.times.iter().zip(&t.per_step).map(|(&x, &y)| (x, y));
-                        Some((i, r, pts.collect()))
+                        Some((i, pts.collect()))
                     })
                     .collect();
-                let all = || series.iter().flat_map(|(_, _, p)| p.iter());
+                let all = || series.iter().flat_map(|(_, p)| p.iter());
                 let (x0, x1) = padded_range(all().map(|p| p.0), 0.02);
-                let (_, y1) = padded_range(all().map(|p| p.1), 0.35);
+                let (y0, y1) = padded_range(all().map(|p| p.1), 0.05);
                 let mut chart = ChartBuilder::on(area)
                     .caption(format!("{} flow, {}", flow, scale_header(s)), text(20))
                     .margin(12)
                     .x_label_area_size(45)
                     .y_label_area_size(75)
-                    .build_cartesian_2d(x0..x1, 0.0..y1.max(1e-9))
+                    .build_cartesian_2d(x0..x1, y0.max(0.0)..y1)
                     .map_err(e2s)?;
                 chart
                     .configure_mesh()
@@ -176,24 +177,11 @@ pub fn warp_error_over_time(runs: &[ReportRun], path: &Path) -> Result<bool, Err
                     .y_label_formatter(&|y| format!("{y:.4}"))
                     .draw()
                     .map_err(e2s)?;
-                for (i, r, pts) in &series {
-                    let c = colour(runs, *i);
+                for (i, pts) in &series {
                     chart
-                        .draw_series(LineSeries::new(pts.clone(), c.stroke_width(2)))
-                        .map_err(e2s)?
-                        .label(r.label.clone())
-                        .legend(move |(x, y)| {
-                            PathElement::new(vec![(x, y), (x + 22, y)], c.stroke_width(3))
-                        });
+                        .draw_series(std::iter::once(line(pts.clone(), series_style(runs, *i))))
+                        .map_err(e2s)?;
                 }
-                chart
-                    .configure_series_labels()
-                    .position(SeriesLabelPosition::UpperMiddle)
-                    .background_style(WHITE.mix(0.85))
-                    .border_style(BLACK)
-                    .label_font(text(13))
-                    .draw()
-                    .map_err(e2s)?;
             }
         }
         Ok(())

@@ -10,6 +10,7 @@ mod checkpoint;
 mod config;
 mod densify;
 mod health;
+mod log;
 mod prune;
 mod refresh;
 mod resume;

@@ -77,26 +77,30 @@ pub fn load_newest<T>(
     None
 }
 
-/// Rewrites `log.csv` (atomically) as `header` plus its rows up to `iteration`:
+/// Rewrites `log.csv` (atomically) as its header plus its rows up to `iteration`:
 /// rows a killed process logged after its last checkpoint and a torn last line go.
-/// Refuses a log whose header differs (a different objective).
-pub fn truncate_log(path: &Path, header: &str, iteration: usize) -> Result<(), Error> {
+/// `headers` are the layouts the run may have been logged in, the current one first;
+/// returns the index of the one the log has (0 for a log not written yet, which is
+/// started with `headers[0]`). Refuses a log whose header is none of them (a
+/// different objective).
+pub fn truncate_log(path: &Path, headers: &[String], iteration: usize) -> Result<usize, Error> {
     let text = match std::fs::read(path) {
         Ok(bytes) => String::from_utf8_lossy(&bytes).into_owned(),
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => String::new(),
         Err(e) => return Err(Error::io(path, e)),
     };
     let mut lines = text.split_inclusive('\n');
-    if let Some(first) = lines.next()
-        && first.trim_end_matches('\n') != header
-    {
-        return Err(Error::Input(format!(
-            "{}: its columns `{}` differ from this run's objective `{header}` (on resume, add the same custom terms as in the first session)",
-            path.display(),
-            first.trim_end_matches('\n')
-        )));
-    }
-    let mut kept = format!("{header}\n");
+    let found = match lines.next().map(|l| l.trim_end_matches('\n')) {
+        None => 0,
+        Some(first) => headers.iter().position(|h| h == first).ok_or_else(|| {
+            Error::Input(format!(
+                "{}: its columns `{first}` differ from this run's objective `{}` (on resume, add the same custom terms as in the first session)",
+                path.display(),
+                headers.first().map_or("", String::as_str)
+            ))
+        })?,
+    };
+    let mut kept = format!("{}\n", headers.get(found).map_or("", String::as_str));
     // Only complete rows (ending with a newline) of iterations the checkpoint covers.
     for line in lines.take_while(|l| {
         let it = l.split(',').next().and_then(|v| v.parse::<usize>().ok());
@@ -104,7 +108,8 @@ pub fn truncate_log(path: &Path, header: &str, iteration: usize) -> Result<(), E
     }) {
         kept.push_str(line);
     }
-    write_atomic(path, kept.as_bytes())
+    write_atomic(path, kept.as_bytes())?;
+    Ok(found)
 }
 
 #[cfg(test)]
@@ -116,30 +121,37 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("maaf-log-{}", std::process::id()));
         std::fs::create_dir_all(&dir).expect("dir");
         let log = dir.join("log.csv");
-        let header = "iteration,l1,total";
+        let header = ["iteration,l1,total".to_string()];
         std::fs::write(
             &log,
             "iteration,l1,total\n1,0.5,0.5\n2,0.4,0.4\n3,0.3,0.3\n4,0.2",
         )
         .expect("w");
-        truncate_log(&log, header, 2).expect("truncate");
+        truncate_log(&log, &header, 2).expect("truncate");
         assert_eq!(
             std::fs::read_to_string(&log).expect("r"),
             "iteration,l1,total\n1,0.5,0.5\n2,0.4,0.4\n"
         );
         std::fs::write(&log, "iteration,l1,total\n1,0.5,0.5\n2,0.4").expect("w");
-        truncate_log(&log, header, 9).expect("truncate");
+        assert_eq!(truncate_log(&log, &header, 9).expect("truncate"), 0);
         assert_eq!(
             std::fs::read_to_string(&log).expect("r"),
             "iteration,l1,total\n1,0.5,0.5\n"
         );
-        let err = truncate_log(&log, "iteration,l1,mine,total", 9).expect_err("other objective");
+        let both = ["iteration,l1,0.8*l1,total".to_string(), header[0].clone()];
+        assert_eq!(truncate_log(&log, &both, 9).expect("older layout"), 1);
+        assert_eq!(
+            std::fs::read_to_string(&log).expect("r"),
+            "iteration,l1,total\n1,0.5,0.5\n"
+        );
+        let other = ["iteration,l1,mine,total".to_string()];
+        let err = truncate_log(&log, &other, 9).expect_err("other objective");
         assert!(
             err.to_string().contains("differ from this run's objective"),
             "{err}"
         );
         std::fs::remove_file(&log).expect("rm");
-        truncate_log(&log, header, 0).expect("no log yet");
+        truncate_log(&log, &header, 0).expect("no log yet");
         assert_eq!(
             std::fs::read_to_string(&log).expect("r"),
             "iteration,l1,total\n"

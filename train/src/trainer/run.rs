@@ -8,6 +8,7 @@ use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 
+use super::log::{LogLayout, RowStats};
 use super::{
     Timings, TrainConfig, Trainer, load_checkpoint, load_newest, log_line, repair_run_dir,
     save_checkpoint, truncate_log,
@@ -232,17 +233,6 @@ fn say_resumed(trainer: &Trainer, dir: &Path) {
     ));
 }
 
-/// The header of `log.csv` for `trainer`'s objective.
-fn log_header(trainer: &Trainer) -> String {
-    let mut header = String::from("iteration");
-    for name in trainer.objective.names() {
-        header.push(',');
-        header.push_str(&name);
-    }
-    header.push_str(",total,num_gaussians,elapsed_seconds,skipped_steps,val_psnr");
-    header
-}
-
 fn run_trainer(mut trainer: Trainer, out: &Path, resume: bool) -> Result<RunSummary, Error> {
     trainer.check_memory(trainer.num_gaussians())?;
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
@@ -251,12 +241,20 @@ fn run_trainer(mut trainer: Trainer, out: &Path, resume: bool) -> Result<RunSumm
         serde_json::to_vec_pretty(&trainer.config).map_err(|e| Error::Input(e.to_string()))?;
     write_atomic(&out.join("config.json"), &config_json)?;
     let log_path = out.join("log.csv");
-    let header = log_header(&trainer);
-    if resume {
-        truncate_log(&log_path, &header, trainer.iteration)?;
+    let current = LogLayout::of(&trainer.objective);
+    let layout = if resume {
+        let old = current.unweighted();
+        let headers = [current.header(), old.header()];
+        if truncate_log(&log_path, &headers, trainer.iteration)? == 0 {
+            current
+        } else {
+            log_line("log.csv predates the weighted-term columns: appending in its layout");
+            old
+        }
     } else {
-        write_atomic(&log_path, format!("{header}\n").as_bytes())?;
-    }
+        write_atomic(&log_path, format!("{}\n", current.header()).as_bytes())?;
+        current
+    };
     let mut log = std::fs::OpenOptions::new()
         .append(true)
         .open(&log_path)
@@ -297,21 +295,16 @@ fn run_trainer(mut trainer: Trainer, out: &Path, resume: bool) -> Result<RunSumm
             .find(|(n, _)| n == "total")
             .map_or(f64::NAN, |(_, v)| *v);
         if it.is_multiple_of(trainer.config.log_every.max(1)) || it == total {
-            let mut row = it.to_string();
-            for name in trainer.objective.names() {
-                let v = trainer
-                    .last_terms
-                    .iter()
-                    .find(|(n, _)| *n == name)
-                    .map_or(f64::NAN, |(_, v)| *v);
-                row.push_str(&format!(",{v:.6e}"));
-            }
             let elapsed = before + start.elapsed().as_secs_f64() - val_seconds;
-            row.push_str(&format!(
-                ",{loss:.6e},{},{elapsed:.3},{},{val}\n",
-                trainer.num_gaussians(),
-                trainer.skipped_steps
-            ));
+            let stats = RowStats {
+                iteration: it,
+                total: loss,
+                num_gaussians: trainer.num_gaussians(),
+                elapsed,
+                skipped: trainer.skipped_steps,
+                val: &val,
+            };
+            let row = layout.row(&trainer.last_terms, &stats);
             log.write_all(row.as_bytes())
                 .map_err(|e| Error::io(&log_path, e))?;
             bar.set_message(format!(
