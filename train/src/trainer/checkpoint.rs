@@ -307,7 +307,7 @@ impl Trainer {
             denom: tensor(&st, "stats/denom", &blob_path)?.into_vec(),
             max_radii: tensor(&st, "stats/max_radii", &blob_path)?.into_vec(),
         };
-        self.liveness = if st.names().iter().any(|k| *k == LAST_GRAD) {
+        self.liveness = if st.names().contains(&LAST_GRAD) {
             let last_grad = st
                 .tensor(LAST_GRAD)
                 .ok()
