@@ -63,6 +63,24 @@ impl FilterState {
         }
     }
 
+    /// The largest variance each Gaussian gets at any time, `max_t var_k(t)`:
+    /// `s3d / nu_k^2` (Mip3d), `s3d / (min_s nu_k(s))^2` over the T time bins of its
+    /// curve (Motion: the widest filter, i.e. the smallest opacity compensation
+    /// `sqrt(det Sigma / det(Sigma + var I))` it is drawn with), or 0 (None).
+    pub fn max_variance(&self) -> Vec<f32> {
+        match self {
+            FilterState::Motion { s3d, curves } => (0..curves.rows())
+                .map(|n| {
+                    let nu = (0..curves.grid_t())
+                        .map(|s| curves.nu(n, s))
+                        .fold(f32::INFINITY, f32::min);
+                    s3d / (nu * nu)
+                })
+                .collect(),
+            FilterState::None { .. } | FilterState::Mip3d { .. } => self.variance_at(0.0),
+        }
+    }
+
     /// Bytes of filter state per Gaussian (0, 4, or `T + 8`), for `eval.json`'s
     /// `filter_bytes` (times the number of Gaussians).
     pub fn bytes_per_gaussian(&self) -> usize {

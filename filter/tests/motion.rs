@@ -317,10 +317,17 @@ fn nu_is_positive_and_finite_everywhere() {
                 assert!(nu.is_finite() && nu > 0.0, "n {n} s {s}: {nu}");
             }
         }
+        let bins: Vec<f32> = (0..cfg.grid_t).map(|s| curves.bin_time(s)).collect();
         let state = FilterState::Motion {
             s3d: cfg.s3d,
             curves,
         };
+        // The widest filter over time is the largest variance at any bin's time.
+        let widest = bins.iter().fold(vec![0.0f32; table.rows()], |acc, &t| {
+            let v = state.variance_at(t);
+            acc.iter().zip(&v).map(|(a, b)| a.max(*b)).collect()
+        });
+        assert_eq!(state.max_variance(), widest);
         for t in [-0.5f32, 0.0, 0.3, 1.0, 2.0] {
             assert!(
                 state

@@ -315,9 +315,17 @@ pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
         Some(from) => branch_run(&data, config, &out, from)?,
         None => train_run(&data, config, &out, args.resume.is_some())?,
     };
+    let since = summary
+        .last_reset
+        .map_or("ever".to_string(), |r| format!("since the reset at {r}"));
     println!(
-        "trained {} iterations in {:.1} s: {} Gaussians, {} skipped steps",
-        summary.iterations, summary.train_seconds, summary.num_gaussians, summary.skipped_steps
+        "trained {} iterations in {:.1} s: {} Gaussians ({} without a gradient {since}, {} of them at its cap), {} skipped steps",
+        summary.iterations,
+        summary.train_seconds,
+        summary.num_gaussians,
+        summary.dead_gaussians,
+        summary.dead_at_cap,
+        summary.skipped_steps
     );
     print!("{}", summary.timings.report(summary.iterations));
     let trainer = load_checkpoint(&data, &out.join("model"))?;

@@ -458,6 +458,29 @@ fn case_8_the_smaller_items() {
     let fx = fixture("integrity_small");
     succeeded(fx.train("run", ""));
     let run = fx.root.join("run");
+    // summary.json and the last line of training count the Gaussians without a
+    // gradient since the last opacity reset.
+    let out = fx.train(
+        "reset",
+        r#""densify": {"from": 2, "until": 5, "every": 2, "opacity_reset_every": 4}"#,
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    succeeded(out);
+    let summary: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(fx.root.join("reset/summary.json")).expect("summary"),
+    )
+    .expect("json");
+    assert_eq!(summary["last_reset"], 4, "{summary}");
+    let count = |k: &str| summary[k].as_u64().expect(k);
+    let (n, dead, cap) = (
+        count("num_gaussians"),
+        count("dead_gaussians"),
+        count("dead_at_cap"),
+    );
+    assert!(cap <= dead && dead <= n, "{summary}");
+    let line =
+        format!("({dead} without a gradient since the reset at 4, {cap} of them at its cap)");
+    assert!(stdout.contains(&line), "`{line}` not in: {stdout}");
     // A killed evaluation's temporaries are swept by the next one.
     let leftover = run.join(".eval.maaf-tmp-999999");
     std::fs::create_dir_all(leftover.join("1x")).expect("leftover");

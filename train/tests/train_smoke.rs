@@ -10,7 +10,7 @@ use maaf_train::data::{Dataset, DatasetOptions, Split};
 use maaf_train::models::ModelConfig;
 use maaf_train::params::Rows;
 use maaf_train::trainer::{
-    DensifyPlan, TrainConfig, Trainer, keep_highest, load_checkpoint, save_checkpoint,
+    DensifyPlan, Liveness, TrainConfig, Trainer, keep_highest, load_checkpoint, save_checkpoint,
 };
 
 fn mutant() -> Option<Dataset> {
@@ -203,6 +203,51 @@ fn resume_is_bit_identical_for(data: &Dataset, kind: &str, cfg: TrainConfig) {
     assert_eq!(resumed.num_gaussians(), straight.num_gaussians());
     assert_same_params(&mut straight, &mut resumed, kind);
     assert_eq!(straight.filter, resumed.filter);
+    assert_eq!(straight.liveness, resumed.liveness, "{kind}: liveness");
+}
+
+/// A checkpoint written before the liveness record existed (no `liveness/*` tensors)
+/// loads with every Gaussian alive at its iteration; a current one restores the
+/// record exactly.
+#[test]
+fn a_checkpoint_without_the_liveness_record_loads() {
+    let Some(data) = mutant() else { return };
+    let mut t = Trainer::new(&data, tiny_config(FilterKind::Mip3d)).expect("trainer");
+    for _ in 0..30 {
+        t.step();
+    }
+    let n = t.num_gaussians();
+    assert!(
+        t.liveness.last_grad.iter().any(|&g| g < 30),
+        "some rows had no gradient at the last step"
+    );
+    let dir = std::env::temp_dir().join(format!("maaf_liveness_{}", std::process::id()));
+    save_checkpoint(&t, &dir).expect("checkpoint");
+    let loaded = load_checkpoint(&data, &dir).expect("load");
+    assert_eq!(loaded.liveness, t.liveness);
+
+    // The same checkpoint as an older build wrote it: the tensors without the record
+    // and the state's CRC-32 of that file.
+    let path = dir.join("tensors.safetensors");
+    let blob = std::fs::read(&path).expect("tensors");
+    let st = safetensors::SafeTensors::deserialize(&blob).expect("safetensors");
+    let kept: Vec<_> = st
+        .tensors()
+        .into_iter()
+        .filter(|(name, _)| !name.starts_with("liveness/"))
+        .collect();
+    assert_eq!(kept.len() + 2, st.len());
+    let old = safetensors::serialize(kept, None).expect("serialise");
+    std::fs::write(&path, &old).expect("write tensors");
+    let state_path = dir.join("state.json");
+    let mut state: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&state_path).expect("state")).expect("json");
+    state["tensors_crc32"] = format!("{:08x}", crc32fast::hash(&old)).into();
+    std::fs::write(&state_path, serde_json::to_vec(&state).expect("json")).expect("write");
+    let loaded = load_checkpoint(&data, &dir).expect("an old checkpoint loads");
+    std::fs::remove_dir_all(&dir).ok();
+    assert_eq!(loaded.liveness, Liveness::alive_at(n, 30));
+    assert_eq!(loaded.liveness.dead(loaded.last_reset), 0);
 }
 
 #[test]
@@ -269,6 +314,8 @@ fn one_plan_resizes_every_container_in_lock_step() {
     let nu_before = t.filter.variance_at(0.4);
     assert!(nu_before.iter().any(|&v| v > 0.0), "the filter has state");
     let obs_before: Vec<Vec<f32>> = (0..n).map(|i| t.observations.row(i).to_vec()).collect();
+    t.liveness.lowered[3] = true;
+    let live_before = t.liveness.clone();
 
     // Prune rows 0 and 5, keep the rest, clone row 3, split row 7 (two halves, the
     // original dropped).
@@ -296,6 +343,7 @@ fn one_plan_resizes_every_container_in_lock_step() {
     assert_eq!(t.stats.grad_accum.len(), m);
     assert_eq!(t.stats.denom.len(), m);
     assert_eq!(t.stats.max_radii.len(), m);
+    assert_eq!(t.liveness.rows(), m);
     let after = params(&mut t);
     for ((name, old), (_, new)) in before.iter().zip(&after) {
         if !per_gaussian.contains(name) {
@@ -341,6 +389,11 @@ fn one_plan_resizes_every_container_in_lock_step() {
             t.observations.row(r),
             obs_before[i].as_slice(),
             "observations row {r}"
+        );
+        assert_eq!(
+            (t.liveness.last_grad[r], t.liveness.lowered[r]),
+            (live_before.last_grad[i], live_before.lowered[i]),
+            "liveness row {r}"
         );
     }
     // The planned centres and scales landed in the new rows.

@@ -199,16 +199,19 @@ pub trait Representation<T: Float> {
         }
     }
 
-    /// Opacity reset (3DGS `reset_opacity`): `o = min(o, logit(max_opacity))` on the
-    /// logits. Returns the names of the parameters it overwrote, whose optimiser
+    /// Opacity reset (3DGS `reset_opacity`), one cap per Gaussian:
+    /// `o_i = min(o_i, logit(caps_i))` on the logits (a cap of 1 or more leaves the
+    /// row as it is). The trainer computes the caps ([`crate::trainer::opacity_caps`]).
+    /// Returns the names of the parameters it overwrote, whose optimiser
     /// moments the trainer then zeroes (3DGS `replace_tensor_to_optimizer`): stale
     /// momentum would otherwise keep pushing the reset opacities down.
-    fn reset_opacity(&mut self, max_opacity: f64) -> Vec<String> {
+    fn reset_opacity(&mut self, caps: &[f64]) -> Vec<String> {
         let id = self.canonical_ids().opacity_logits;
-        let cap = logit(T::of(max_opacity));
         let p = self.params_mut();
-        for v in p.value_mut(id).data_mut() {
-            *v = v.min(cap);
+        for (v, &cap) in p.value_mut(id).data_mut().iter_mut().zip(caps) {
+            if cap < 1.0 {
+                *v = v.min(logit(T::of(cap)));
+            }
         }
         vec![p.param(id).name.clone()]
     }

@@ -1,6 +1,6 @@
 //! Checkpoints: a folder holding `tensors.safetensors` (the parameter store as
 //! `param/{name}`, Adam moments, the representation's buffers, densification
-//! statistics, f/d observations) and
+//! statistics, the liveness record, f/d observations) and
 //! `state.json` (model name, iteration, counters, configuration, filter state, and
 //! the CRC-32 of the tensors file, checked on every load).
 //! Built under a temporary name and swapped in by [`maaf_io::replace_dir`], so a
@@ -15,7 +15,7 @@ use maaf_filter::{FilterState, ObservationTable};
 use safetensors::{Dtype, SafeTensors, tensor::TensorView};
 use serde::{Deserialize, Serialize};
 
-use super::{DensifyStats, Timings, TrainConfig, Trainer};
+use super::{DensifyStats, Liveness, Timings, TrainConfig, Trainer};
 use crate::Error;
 use crate::data::Dataset;
 use crate::models::Representation;
@@ -39,6 +39,12 @@ struct State {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     tensors_crc32: Option<String>,
 }
+
+/// Per Gaussian (u32), the last iteration with an opacity gradient
+/// ([`super::Liveness`]); absent in checkpoints written before it existed.
+const LAST_GRAD: &str = "liveness/last_grad";
+/// Per Gaussian, 1 where the last opacity reset lowered the opacity, else 0.
+const LOWERED: &str = "liveness/lowered";
 
 /// Prefix of the representation's buffers ([`crate::models::Representation::buffers`]).
 const BUFFER: &str = "buffer/";
@@ -84,6 +90,13 @@ pub fn save_checkpoint(trainer: &Trainer, dir: &Path) -> Result<(), Error> {
     named.push(("stats/grad_accum".into(), vec![n], bytes_of(&s.grad_accum)));
     named.push(("stats/denom".into(), vec![n], bytes_of(&s.denom)));
     named.push(("stats/max_radii".into(), vec![n], bytes_of(&s.max_radii)));
+    let live = &trainer.liveness;
+    let lowered: Vec<f32> = live
+        .lowered
+        .iter()
+        .map(|&l| f32::from(u8::from(l)))
+        .collect();
+    named.push((LOWERED.into(), vec![n], bytes_of(&lowered)));
     let f = trainer.observations.num_frames();
     if f > 0 {
         let obs: Vec<u8> = (0..n)
@@ -92,7 +105,7 @@ pub fn save_checkpoint(trainer: &Trainer, dir: &Path) -> Result<(), Error> {
             .collect();
         named.push(("observations".into(), vec![n, f], obs));
     }
-    let views: Vec<(String, TensorView<'_>)> = named
+    let mut views: Vec<(String, TensorView<'_>)> = named
         .iter()
         .map(|(name, shape, bytes)| {
             TensorView::new(Dtype::F32, shape.clone(), bytes)
@@ -100,6 +113,16 @@ pub fn save_checkpoint(trainer: &Trainer, dir: &Path) -> Result<(), Error> {
                 .map_err(|e| Error::Input(format!("checkpoint tensor {name}: {e}")))
         })
         .collect::<Result<_, _>>()?;
+    let last_grad: Vec<u8> = live
+        .last_grad
+        .iter()
+        .flat_map(|i| i.to_le_bytes())
+        .collect();
+    views.push((
+        LAST_GRAD.into(),
+        TensorView::new(Dtype::U32, vec![n], &last_grad)
+            .map_err(|e| Error::Input(format!("checkpoint tensor {LAST_GRAD}: {e}")))?,
+    ));
     let blob = safetensors::serialize(views, None)
         .map_err(|e| Error::Input(format!("checkpoint serialisation: {e}")))?;
     let state = State {
@@ -286,6 +309,36 @@ impl Trainer {
             grad_accum: tensor(&st, "stats/grad_accum", &blob_path)?.into_vec(),
             denom: tensor(&st, "stats/denom", &blob_path)?.into_vec(),
             max_radii: tensor(&st, "stats/max_radii", &blob_path)?.into_vec(),
+        };
+        self.liveness = if st.names().contains(&LAST_GRAD) {
+            let last_grad = st
+                .tensor(LAST_GRAD)
+                .ok()
+                .filter(|v| v.dtype() == Dtype::U32 && v.shape() == [n])
+                .ok_or_else(|| {
+                    Error::Input(format!(
+                        "{}: tensor `{LAST_GRAD}` is not u32 of shape [{n}]",
+                        blob_path.display()
+                    ))
+                })?;
+            let lowered = tensor(&st, LOWERED, &blob_path)?;
+            if lowered.shape() != [n] {
+                return Err(Error::Input(format!(
+                    "{}: tensor `{LOWERED}` has shape {:?}, expected [{n}]",
+                    blob_path.display(),
+                    lowered.shape()
+                )));
+            }
+            Liveness {
+                last_grad: last_grad
+                    .data()
+                    .chunks_exact(4)
+                    .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+                    .collect(),
+                lowered: lowered.data().iter().map(|&l| l != 0.0).collect(),
+            }
+        } else {
+            Liveness::alive_at(n, state.iteration)
         };
         let f = self.observations.num_frames();
         // Only the motion filter reads observations (older runs saved them for every

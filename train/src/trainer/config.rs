@@ -25,6 +25,9 @@ pub struct DensifyConfig {
     pub grad_threshold: f64,
     /// Opacity reset interval (0 = never).
     pub opacity_reset_every: usize,
+    /// What the opacity reset caps ([`OpacityReset`]): the opacity the 3D filter
+    /// draws (`filtered`, Mip-Splatting) or the stored one (`raw`, 3DGS).
+    pub reset_opacity: OpacityReset,
     /// Opacity below which Gaussians are pruned.
     pub min_opacity: f64,
     /// Clone if the largest scale is at most this fraction of the scene extent, else split.
@@ -51,6 +54,7 @@ impl Default for DensifyConfig {
             every: 100,
             grad_threshold: 2e-4,
             opacity_reset_every: 2000,
+            reset_opacity: OpacityReset::Filtered,
             min_opacity: 0.005,
             percent_dense: 0.01,
             max_world_size: 0.1,
@@ -58,6 +62,27 @@ impl Default for DensifyConfig {
             max_gaussians: 60_000,
         }
     }
+}
+
+/// Which opacity the periodic reset caps at `c = 0.01` (3DGS `reset_opacity`).
+///
+/// With a 3D filter a Gaussian is drawn with the opacity `sigmoid(o) * k`, where
+/// `k = sqrt(det S / det(S + var I)) = prod_a sqrt(s_a^2 / (s_a^2 + var))` is the
+/// filter's compensation (paper Eq. 3) on the canonical scales `s`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum OpacityReset {
+    /// Mip-Splatting's reset: the drawn opacity is capped,
+    /// `sigmoid(o') = min(sigmoid(o) * k, c) / k`, with the widest variance the filter
+    /// gives the Gaussian at any time (the smallest `k`; for the motion filter
+    /// `var = s3d / (min_t nu(t))^2`), so after a reset it is drawn at `c` or more at
+    /// every time and keeps receiving gradients. Without a filter `k = 1`: the same
+    /// as `Raw`.
+    #[default]
+    Filtered,
+    /// 3DGS's reset: `sigmoid(o') = min(sigmoid(o), c)`; with a filter the smallest
+    /// Gaussians are then drawn below 1/255 and stop receiving gradients.
+    Raw,
 }
 
 /// Sensitivity pruning (Speedy-Splat's soft and hard pruning, scheduled as SpeeDe3DGS

@@ -13,6 +13,7 @@ mod health;
 mod log;
 mod prune;
 mod refresh;
+mod reset;
 mod resume;
 mod run;
 mod step;
@@ -27,9 +28,10 @@ use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 
 pub use checkpoint::{checkpoint_iteration, load_checkpoint, save_checkpoint};
-pub use config::{DensifyConfig, MAX_BATCH, PruneConfig, TrainConfig};
+pub use config::{DensifyConfig, MAX_BATCH, OpacityReset, PruneConfig, TrainConfig};
 pub use densify::{DensifyPlan, DensifyStats, ViewGrad, plan as plan_densify};
 pub use prune::{keep_highest, removal_sensitivity};
+pub use reset::{Liveness, opacity_caps};
 pub use resume::{checkpoints_newest_first, load_newest, repair_run_dir, truncate_log};
 pub use run::{RunSummary, branch_run, checkpoint_dir, train_run, train_run_with};
 pub use timings::Timings;
@@ -66,6 +68,9 @@ pub struct Trainer {
     pub last_skip: Option<String>,
     /// Iteration of the last opacity reset (large-screen pruning starts after it).
     pub last_reset: Option<usize>,
+    /// Per Gaussian, the last iteration with an opacity gradient and whether the last
+    /// reset lowered it: the dead-Gaussian counts of the run's summary.
+    pub liveness: Liveness,
     /// Wall time per phase.
     pub timings: Timings,
     /// Wall time per tape op, summed over steps, when set to `Some` (off by default:
@@ -246,6 +251,7 @@ impl Trainer {
             skipped_steps: 0,
             last_skip: None,
             last_reset: None,
+            liveness: Liveness::new(n),
             timings: Timings::default(),
             op_profile: None,
             last_terms: Vec::new(),
@@ -308,7 +314,7 @@ impl Trainer {
     }
 
     /// Applies a densification plan to the model, its Adam moments, the filter state,
-    /// the observations and the statistics with one index list (each row's statistics
+    /// the observations, the statistics and the liveness record with one index list (each row's statistics
     /// travel with it; a densification then restarts them, a pruning keeps them).
     pub fn apply_plan(&mut self, plan: &DensifyPlan) {
         let n_old = self.model.num_gaussians();
@@ -332,6 +338,7 @@ impl Trainer {
         self.filter.select_rows(&plan.index);
         self.observations.select_rows(&plan.index);
         self.stats.select_rows(&plan.index);
+        self.liveness.select_rows(&plan.index);
     }
 }
 

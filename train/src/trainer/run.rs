@@ -27,6 +27,16 @@ pub struct RunSummary {
     pub num_gaussians: usize,
     /// Steps skipped for non-finite values.
     pub skipped_steps: usize,
+    /// Iteration of the last opacity reset, if there was one.
+    #[serde(default)]
+    pub last_reset: Option<usize>,
+    /// Final Gaussians whose opacity received no gradient after the last reset
+    /// (`last gradient iteration <= last_reset`; without a reset: none ever).
+    #[serde(default)]
+    pub dead_gaussians: usize,
+    /// Of `dead_gaussians`, those the last reset lowered: still at its cap.
+    #[serde(default)]
+    pub dead_at_cap: usize,
     /// Time per phase.
     pub timings: Timings,
     /// Mean test PSNR at the training scale, dB, when the caller measured it (`maaf
@@ -330,6 +340,9 @@ fn run_trainer(mut trainer: Trainer, out: &Path, resume: bool) -> Result<RunSumm
         train_seconds: trainer.timings.total(),
         num_gaussians: trainer.num_gaussians(),
         skipped_steps: trainer.skipped_steps,
+        last_reset: trainer.last_reset,
+        dead_gaussians: trainer.liveness.dead(trainer.last_reset),
+        dead_at_cap: trainer.liveness.at_cap(trainer.last_reset),
         timings: trainer.timings.clone(),
         test_psnr: None,
         failure: None,
