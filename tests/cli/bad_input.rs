@@ -49,15 +49,7 @@ fn case_2_a_model_swap_cut_short_still_renders_and_resumes() {
         s(&png),
     ]));
     assert!(png.is_file());
-    succeeded(maaf(&[
-        "train",
-        "--data",
-        s(&fx.data),
-        "--resume",
-        s(&run),
-        "--iters",
-        "8",
-    ]));
+    succeeded(fx.resume(&run, "8"));
     assert!(run.join("model/state.json").is_file());
     assert!(!run.join(".model.old.maaf-tmp-4242").exists());
 }

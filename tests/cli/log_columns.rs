@@ -2,7 +2,7 @@
 //! unweighted value, and a run logged before those columns still resumes, appending
 //! in its own layout.
 
-use super::support::{fixture, maaf, s, succeeded};
+use super::support::{fixture, succeeded};
 
 /// The header and the rows of a `log.csv`, split on commas.
 fn read_log(path: &std::path::Path) -> (Vec<String>, Vec<Vec<String>>) {
@@ -52,15 +52,7 @@ fn the_log_has_weighted_terms_and_an_older_log_resumes_in_its_layout() {
         })
         .collect();
     std::fs::write(run.join("log.csv"), &old_text).expect("old log");
-    let err = succeeded(maaf(&[
-        "train",
-        "--data",
-        s(&fx.data),
-        "--resume",
-        s(&run),
-        "--iters",
-        "8",
-    ]));
+    let err = succeeded(fx.resume(&run, "8"));
     assert!(err.contains("predates the weighted-term columns"), "{err}");
     let (resumed_header, resumed) = read_log(&run.join("log.csv"));
     assert_eq!(

@@ -166,6 +166,20 @@ impl Fixture {
             s(&config),
         ])
     }
+
+    /// `maaf train --data DATA --resume RUN --iters ITERS`: a run of this fixture
+    /// continued to a new budget.
+    pub fn resume(&self, run: &Path, iters: &str) -> Output {
+        maaf(&[
+            "train",
+            "--data",
+            s(&self.data),
+            "--resume",
+            s(run),
+            "--iters",
+            iters,
+        ])
+    }
 }
 
 /// Copies a folder tree.
