@@ -11,8 +11,7 @@ use super::support::{BASE, Fixture, copy_dir, fixture, maaf, refused, s, stderr,
 #[test]
 fn case_1_a_run_killed_before_its_model_resumes_from_its_newest_checkpoint() {
     let fx = fixture("bad_resume");
-    succeeded(fx.train("run", ""));
-    let run = fx.root.join("run");
+    let run = fx.trained("run");
     // As if killed after iteration 5: no model, a temporary left behind.
     std::fs::remove_dir_all(run.join("model")).expect("rm model");
     std::fs::write(run.join("checkpoints/.iter_000006.maaf-tmp-1"), b"partial").expect("temp");
@@ -34,8 +33,7 @@ fn case_1_a_run_killed_before_its_model_resumes_from_its_newest_checkpoint() {
 #[test]
 fn case_2_a_model_swap_cut_short_still_renders_and_resumes() {
     let fx = fixture("bad_swap");
-    succeeded(fx.train("run", ""));
-    let run = fx.root.join("run");
+    let run = fx.trained("run");
     // The fallback swap died between its renames: only the parked old model exists.
     std::fs::rename(run.join("model"), run.join(".model.old.maaf-tmp-4242")).expect("park");
     let png = fx.root.join("a.png");
@@ -66,8 +64,7 @@ fn case_3_a_diverged_run_fails_and_its_model_is_refused() {
         &["produced a non-finite value"],
     );
     // A model with a NaN parameter (as an older version could save) is refused by eval.
-    succeeded(fx.train("run", ""));
-    let run = fx.root.join("run");
+    let run = fx.trained("run");
     let data = maaf::train::data::Dataset::open(&fx.data, Default::default()).expect("data");
     let mut t = maaf::train::trainer::load_checkpoint(&data, &run.join("model")).expect("model");
     let p = t.model.params_mut().iter_mut().next().expect("a parameter");
@@ -173,8 +170,7 @@ fn case_5_settings_are_checked_and_resume_keeps_the_run_settings() {
             "no work before the check"
         );
     }
-    succeeded(fx.train("run", ""));
-    let run = fx.root.join("run");
+    let run = fx.trained("run");
     let resume = |extra: &[&str]| {
         let mut args = vec!["train", "--data", s(&fx.data), "--resume", s(&run)];
         args.extend_from_slice(extra);

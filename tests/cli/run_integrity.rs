@@ -42,8 +42,7 @@ fn checkpoint_names(run: &Path) -> Vec<String> {
 #[test]
 fn case_1_a_run_remembers_its_data_set_and_refuses_another() {
     let fx = fixture("integrity_data");
-    succeeded(fx.train("run", ""));
-    let run = fx.root.join("run");
+    let run = fx.trained("run");
     let recorded = std::fs::read_to_string(run.join("data.json")).expect("data.json");
     assert!(recorded.contains("\"frames\""), "{recorded}");
     // Fewer training views, and the same count with one camera moved.
@@ -129,8 +128,7 @@ fn case_1_a_run_remembers_its_data_set_and_refuses_another() {
 #[test]
 fn case_2_one_trainer_per_run_and_no_reader_while_it_trains() {
     let fx = fixture("integrity_lock");
-    succeeded(fx.train("run", ""));
-    let run = fx.root.join("run");
+    let run = fx.trained("run");
     // A long resumed session holds the run until it is killed.
     let mut first = Command::new(env!("CARGO_BIN_EXE_maaf"))
         .args(["train", "--resume", s(&run), "--iters", "100000000"])
@@ -214,8 +212,7 @@ fn case_2_one_trainer_per_run_and_no_reader_while_it_trains() {
 #[test]
 fn case_3_a_size_the_machine_cannot_hold_is_refused_before_allocating() {
     let fx = fixture("integrity_memory");
-    succeeded(fx.train("run", ""));
-    let run = fx.root.join("run");
+    let run = fx.trained("run");
     refused(
         maaf(&["bench", "--run", s(&run), "--gaussians", "999999999999"]),
         &[
@@ -360,8 +357,7 @@ fn case_5_typos_under_model_and_a_config_that_is_not_an_object_are_refused() {
 #[test]
 fn case_6_settings_a_resume_cannot_honour_are_refused() {
     let fx = fixture("integrity_settings");
-    succeeded(fx.train("run", ""));
-    let run = fx.root.join("run");
+    let run = fx.trained("run");
     refused(
         maaf(&["train", "--resume", s(&run), "--background", "black"]),
         &[
@@ -419,8 +415,7 @@ fn case_6_settings_a_resume_cannot_honour_are_refused() {
 #[test]
 fn case_7_a_damaged_checkpoint_is_detected_and_the_previous_one_used() {
     let fx = fixture("integrity_checksum");
-    succeeded(fx.train("run", ""));
-    let run = fx.root.join("run");
+    let run = fx.trained("run");
     let tensors = run.join("model/tensors.safetensors");
     let mut bytes = std::fs::read(&tensors).expect("tensors");
     let n = bytes.len();
@@ -456,8 +451,7 @@ fn case_7_a_damaged_checkpoint_is_detected_and_the_previous_one_used() {
 #[test]
 fn case_8_the_smaller_items() {
     let fx = fixture("integrity_small");
-    succeeded(fx.train("run", ""));
-    let run = fx.root.join("run");
+    let run = fx.trained("run");
     // summary.json and the last line of training count the Gaussians without a
     // gradient since the last opacity reset.
     let out = fx.train(

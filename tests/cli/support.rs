@@ -167,6 +167,12 @@ impl Fixture {
         ])
     }
 
+    /// The path of run `run`, trained with [`BASE`] alone; the training must succeed.
+    pub fn trained(&self, run: &str) -> PathBuf {
+        succeeded(self.train(run, ""));
+        self.root.join(run)
+    }
+
     /// `maaf train --data DATA --resume RUN --iters ITERS`: a run of this fixture
     /// continued to a new budget.
     pub fn resume(&self, run: &Path, iters: &str) -> Output {

@@ -6,7 +6,7 @@
 use maaf_autodiff::{PerGaussian, Tensor};
 use maaf_filter::FilterState;
 
-use super::OpacityReset;
+use super::{OpacityReset, Trainer};
 
 /// The cap on the base opacity `sigmoid(o)` of each Gaussian at a reset to `max`
 /// (3DGS and Mip-Splatting use 0.01):
@@ -131,6 +131,27 @@ impl PerGaussian for Liveness {
     fn select_rows(&mut self, index: &[usize]) {
         self.last_grad.select_rows(index);
         self.lowered.select_rows(index);
+    }
+}
+
+impl Trainer {
+    /// The opacity reset to 0.01 ([`opacity_caps`] of `mode` with the current filter
+    /// and canonical scales); zeroes the Adam moments of the parameters it overwrote
+    /// and records in [`Trainer::liveness`] which Gaussians it lowered.
+    pub fn reset_opacity(&mut self, mode: OpacityReset) {
+        let opacity = self.model.canonical_ids().opacity_logits;
+        let before = self.model.params().value(opacity).clone();
+        let scales = self.model.canonical().scales;
+        let caps = opacity_caps(mode, &self.filter, &scales, 0.01);
+        for name in self.model.reset_opacity(&caps) {
+            if let Some(m) = self.adam.moments_mut(&name) {
+                m.m.data_mut().fill(0.0);
+                m.v.data_mut().fill(0.0);
+            }
+        }
+        let after = self.model.params().value(opacity);
+        let lowered = before.data().iter().zip(after.data()).map(|(a, b)| a != b);
+        self.liveness.reset(lowered.collect());
     }
 }
 

@@ -13,7 +13,7 @@ use rand_pcg::Pcg64;
 
 use super::ViewGrad;
 use super::refresh::centres;
-use super::{DensifyStats, OpacityReset, Trainer, log_line, opacity_caps, plan_densify};
+use super::{DensifyStats, Trainer, log_line, plan_densify};
 use crate::forward::{batch_mean, forward_bound};
 use crate::loss::Evaluated;
 
@@ -253,27 +253,6 @@ impl Trainer {
             self.last_reset = Some(it);
         }
         changed
-    }
-}
-
-impl Trainer {
-    /// The opacity reset to 0.01 ([`opacity_caps`] of `mode` with the current filter
-    /// and canonical scales); zeroes the Adam moments of the parameters it overwrote
-    /// and records in [`Trainer::liveness`] which Gaussians it lowered.
-    pub fn reset_opacity(&mut self, mode: OpacityReset) {
-        let opacity = self.model.canonical_ids().opacity_logits;
-        let before = self.model.params().value(opacity).clone();
-        let scales = self.model.canonical().scales;
-        let caps = opacity_caps(mode, &self.filter, &scales, 0.01);
-        for name in self.model.reset_opacity(&caps) {
-            if let Some(m) = self.adam.moments_mut(&name) {
-                m.m.data_mut().fill(0.0);
-                m.v.data_mut().fill(0.0);
-            }
-        }
-        let after = self.model.params().value(opacity);
-        let lowered = before.data().iter().zip(after.data()).map(|(a, b)| a != b);
-        self.liveness.reset(lowered.collect());
     }
 }
 
