@@ -1,8 +1,8 @@
-//! maaf-train: data, representations, the training pipeline, evaluation and reports.
+//! maaf-train: representations, the training pipeline, evaluation and reports, on the
+//! data sets of `maaf-data` (re-exported as [`data`]).
 //! `docs/architecture.md` says how the modules fit and where things plug in.
 
 pub mod bench;
-pub mod data;
 mod error;
 pub mod eval;
 pub mod forward;
@@ -13,5 +13,9 @@ pub mod params;
 pub mod report;
 pub mod sweep;
 pub mod trainer;
+
+/// The data sets a run trains on (the `maaf-data` crate): the trainer's public API
+/// takes and returns its types.
+pub use maaf_data as data;
 
 pub use error::{Error, write_atomic};

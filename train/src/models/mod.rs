@@ -39,8 +39,9 @@ use crate::params::{BoundParams, ParamId, ParamStore};
 
 pub use config::{ModelConfig, ModelInit, build_model};
 pub use deform::{DeformConfig, DeformModel};
-pub use init::{InitialGaussians, PointCloud, knn_mean_sq_dist, rgb_to_sh_dc};
+pub use init::{InitialGaussians, knn_mean_sq_dist, rgb_to_sh_dc};
 pub use kplane::{KPlaneConfig, KPlaneField};
+pub use maaf_data::PointCloud;
 pub use saro::{SaroConfig, SaroModel};
 
 /// A representation bound on one tape: deforms to any time, any number of times.

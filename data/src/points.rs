@@ -11,7 +11,7 @@
 use std::path::Path;
 
 use super::error::DataError;
-use crate::models::PointCloud;
+use crate::PointCloud;
 
 /// File name of a data set's initial point cloud.
 pub const POINTS_FILE: &str = "points3d.ply";

@@ -9,11 +9,11 @@ use maaf_splat::Camera;
 use rayon::prelude::*;
 
 use super::Dataset;
-use crate::data::dnerf::Split;
-use crate::data::downsample::box_downsample;
-use crate::data::error::DataError;
-use crate::data::image::{Image, decode_rgba};
-use crate::data::median_mask::{MEDIAN_THRESHOLD, Rgb8, decode_rgb8, moving_mask, temporal_median};
+use crate::dnerf::Split;
+use crate::downsample::box_downsample;
+use crate::error::DataError;
+use crate::image::{Image, decode_rgba};
+use crate::median_mask::{MEDIAN_THRESHOLD, Rgb8, decode_rgb8, moving_mask, temporal_median};
 
 /// A coverage file (grey, first channel) at the camera's size, as `[H, W, 1]`.
 pub(super) fn read_coverage(path: &Path, camera: &Camera) -> Result<Image, DataError> {

@@ -5,8 +5,8 @@ use glam::{DMat4, DVec3, DVec4};
 use maaf_splat::Camera;
 use rand::{RngExt, SeedableRng};
 
-use crate::data::dnerf::focal_from_angle;
-use crate::data::error::DataError;
+use crate::dnerf::focal_from_angle;
+use crate::error::DataError;
 
 /// Point every camera looks at (world; z up).
 pub const TARGET: DVec3 = DVec3::new(0.0, 0.0, 0.6);

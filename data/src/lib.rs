@@ -1,4 +1,4 @@
-//! Data: the D-NeRF and Plenoptic Video loaders, multi-scale ground truth, the built-in synthetic dynamic
+//! maaf-data: the D-NeRF and Plenoptic Video loaders, multi-scale ground truth, the built-in synthetic dynamic
 //! scene generator and the data-set summary (docs/conventions.md).
 //!
 //! - [`dnerf`]: `transforms_{train,val,test}.json` parsing, OpenGL to OpenCV cameras.
@@ -12,6 +12,7 @@
 //! - [`synthetic`]: the procedural alias-prone scene behind `maaf generate`.
 //! - [`inspect`]: the summary behind `maaf inspect`.
 //! - [`points`]: the initial point cloud a data set may ship (`points3d.ply`).
+//! - [`PointCloud`]: the coloured points a representation starts from.
 
 pub mod bounds;
 pub mod dataset;
@@ -24,6 +25,7 @@ pub mod image;
 pub mod inspect;
 pub mod median_mask;
 pub mod n3dv;
+mod point_cloud;
 pub mod points;
 pub mod synthetic;
 pub mod visual_hull;
@@ -33,3 +35,4 @@ pub use dataset::{BLACK, Dataset, DatasetOptions, Format, InitialCloud, MaskSour
 pub use dnerf::{Frame, Split, SplitMeta};
 pub use error::DataError;
 pub use image::Image;
+pub use point_cloud::PointCloud;

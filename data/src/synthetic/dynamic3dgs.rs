@@ -1,6 +1,6 @@
 //! `maaf generate --rig multiview --layout dynamic3dgs`: the multi-view video of
 //! [`super::multiview`] written in the Dynamic 3D Gaussians layout that
-//! [`crate::data::dynamic3dgs`] reads (CMU Panoptic's), so its loader, the visual-hull
+//! [`crate::dynamic3dgs`] reads (CMU Panoptic's), so its loader, the visual-hull
 //! initialisation and the median masks are tested without downloaded data.
 //!
 //! Output: `ims/<c>/<j:06>.png` (straight RGBA, 8 bit), `seg/<c>/<j:06>.png` (8-bit grey
@@ -29,9 +29,9 @@ use super::render::render_layers;
 use super::rig::{arc_positions, camera_wh};
 use super::write::{GenerateSummary, image_salt, write_folder};
 use super::{build_scene, scene::Scene};
-use crate::data::dynamic3dgs::{IMAGES_DIR, MASKS_DIR, TEST_META, TRAIN_META};
-use crate::data::error::DataError;
-use crate::data::image::{Image, encode_rgba_png, write_quantised_png};
+use crate::dynamic3dgs::{IMAGES_DIR, MASKS_DIR, TEST_META, TRAIN_META};
+use crate::error::DataError;
+use crate::image::{Image, encode_rgba_png, write_quantised_png};
 
 /// The rig's `n` cameras at `width x height` (module doc: focal and principal point
 /// vary with the index mod 3).

@@ -61,7 +61,7 @@ pub fn plunge() -> Scene {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::data::synthetic::rig::arc_positions;
+    use crate::synthetic::rig::arc_positions;
 
     #[test]
     fn the_diver_closes_in_about_five_times_within_a_tenth_of_the_sequence() {

@@ -35,7 +35,7 @@ use super::median_mask::Rgb8;
 use super::n3dv::{POSES_BOUNDS, read_plenoptic};
 use super::points::{POINTS_FILE, read_points};
 use super::visual_hull::{HullOptions, HullStep, HullView, hull_cloud};
-use crate::models::PointCloud;
+use crate::PointCloud;
 
 /// White background, `[1, 1, 1]` (the default, as D-NeRF's `white_bkgd = True`).
 pub const WHITE: [f32; 3] = [1.0, 1.0, 1.0];

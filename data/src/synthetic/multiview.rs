@@ -1,5 +1,5 @@
 //! `maaf generate --rig multiview`: a multi-view video of a built-in scene in the
-//! Plenoptic Video layout that [`crate::data::n3dv`] reads, written atomically.
+//! Plenoptic Video layout that [`crate::n3dv`] reads, written atomically.
 //!
 //! Output: `poses_bounds.npy` (one row per camera, OpenCV cameras converted to LLFF's
 //! down-right-back columns, `[H, W, focal]` of the frames themselves, near/far from the
@@ -28,11 +28,11 @@ use super::render::{forward_flow, render_layers, render_rgba};
 use super::rig::{arc_positions, camera_wh};
 use super::write::{GenerateSummary, image_salt, write_folder, write_points};
 use super::{build_scene, scene::Scene, scene_bounds};
-use crate::data::bounds::Aabb;
-use crate::data::error::DataError;
-use crate::data::flow::write_flow;
-use crate::data::image::{Image, encode_rgba_png, write_quantised_png};
-use crate::data::n3dv::{POSES_BOUNDS, PoseRow, SCENE_JSON, encode_poses_bounds};
+use crate::bounds::Aabb;
+use crate::error::DataError;
+use crate::flow::write_flow;
+use crate::image::{Image, encode_rgba_png, write_quantised_png};
+use crate::n3dv::{POSES_BOUNDS, PoseRow, SCENE_JSON, encode_poses_bounds};
 
 /// What [`generate_multiview`] writes (see the module doc for the defaults).
 #[derive(Clone, Debug)]

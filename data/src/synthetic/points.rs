@@ -1,5 +1,5 @@
 //! The initial point cloud a generated data set ships (`points3d.ply`,
-//! [`crate::data::points`]): what structure from motion over the training views
+//! [`crate::points`]): what structure from motion over the training views
 //! would give with perfect matching. Surface points seen by a training camera at its
 //! time, coloured as shaded there, each with that time (the merged per-frame clouds
 //! SpacetimeGS prepares for multi-view video; D-NeRF scenes ship none, and loaders
@@ -11,7 +11,7 @@ use rand_pcg::Pcg64;
 
 use super::render::pixel_ray;
 use super::scene::Scene;
-use crate::models::PointCloud;
+use crate::PointCloud;
 
 /// Points a generated data set ships: enough for the default `init_points` (10 000)
 /// to be a subsample.
@@ -56,7 +56,7 @@ pub fn visible_points(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::data::synthetic::{build_scene, rig};
+    use crate::synthetic::{build_scene, rig};
 
     #[test]
     fn points_lie_on_the_surfaces_their_camera_saw_at_their_time() {

@@ -36,7 +36,7 @@ use rayon::prelude::*;
 use super::bounds::Aabb;
 use super::error::DataError;
 use super::median_mask::{Rgb8, decode_rgb8};
-use crate::models::PointCloud;
+use crate::PointCloud;
 
 /// One training view of a time step: camera, image and its foreground mask.
 #[derive(Clone, Debug)]

@@ -3,7 +3,7 @@
 //! Layout of the output folder:
 //! `transforms_{train,val,test,video}.json`, `{train,val,test,video}/r_NNN.png`
 //! (straight RGBA, 8 bit) and `video/flow_NNN.png` (forward flow from video frame `NNN`
-//! to `NNN + 1`, KITTI 16-bit PNG, see [`crate::data::flow`]). Everything is written into a
+//! to `NNN + 1`, KITTI 16-bit PNG, see [`crate::flow`]). Everything is written into a
 //! temporary sibling of the target and swapped in by `maaf_io::replace_dir`
 //! ([`write_folder`]), so a failure leaves nothing half-written.
 
@@ -18,11 +18,11 @@ use super::points::{GENERATED_POINTS, visible_points};
 use super::render::{forward_flow, render_rgba};
 use super::rig::{self, CAMERA_ANGLE_X};
 use super::{build_scene, scene::Scene, scene_bounds};
-use crate::data::dnerf::opengl_to_opencv;
-use crate::data::error::DataError;
-use crate::data::flow::write_flow;
-use crate::data::image::encode_rgba_png;
-use crate::data::points::{POINTS_FILE, encode_points};
+use crate::dnerf::opengl_to_opencv;
+use crate::error::DataError;
+use crate::flow::write_flow;
+use crate::image::encode_rgba_png;
+use crate::points::{POINTS_FILE, encode_points};
 
 /// Camera arrangement of the training split.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -12,7 +12,7 @@ use maaf_splat::Camera;
 use rayon::prelude::*;
 
 use super::scene::{Hit, Posed, Scene, hash01};
-use crate::data::image::Image;
+use crate::image::Image;
 
 const TILE: usize = 16;
 
@@ -253,7 +253,7 @@ pub fn trace_pixel(scene: &Scene, cam: &Camera, t: f64, x: u32, y: u32) -> Optio
 }
 
 /// Exact forward flow from time `t0` to `t1` for a fixed camera, `[H, W, 3]` (see
-/// [`crate::data::flow`]): the surface point `x_local` seen at the centre of each pixel at
+/// [`crate::flow`]): the surface point `x_local` seen at the centre of each pixel at
 /// `t0` is moved rigidly with its object, `X1 = R(t1) x_local + p(t1)`, and projected;
 /// flow = projection - pixel centre. Valid (`1`) when the ray through that projection at
 /// `t1` hits the same object at the same local point (within `1e-6`), i.e. the point is

@@ -7,10 +7,10 @@ use std::sync::Arc;
 use rayon::prelude::*;
 
 use super::{CacheKey, Dataset, View};
-use crate::data::dnerf::Split;
-use crate::data::downsample::{box_downsample, composite_premultiplied, premultiply};
-use crate::data::error::DataError;
-use crate::data::image::{Image, decode_rgba};
+use crate::dnerf::Split;
+use crate::downsample::{box_downsample, composite_premultiplied, premultiply};
+use crate::error::DataError;
+use crate::image::{Image, decode_rgba};
 
 impl Dataset {
     /// The cached image of view `index` at factor `k` as a [`View`] with its camera
