@@ -8,7 +8,7 @@ use maaf_autodiff::ops::concat;
 use maaf_autodiff::{Float, Tape, Tensor, Var};
 
 use super::residuals::{ApplyResiduals, SaroInput, saro_input};
-use crate::models::encoding::positional_encoding;
+use crate::encoding::positional_encoding;
 
 const N: usize = 7;
 const ROWS: [usize; 4] = [0, 2, 3, 6];

@@ -13,7 +13,7 @@ use maaf_splat::compositing::drawable;
 
 use super::SaroModel;
 use super::residuals::{ApplyResiduals, SaroInput, saro_input};
-use crate::models::Bound;
+use crate::Bound;
 use crate::params::BoundParams;
 
 /// Name under which SaRO provides its scale-residual regulariser

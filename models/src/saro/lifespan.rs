@@ -8,7 +8,7 @@ use maaf_autodiff::nn::MlpVars;
 use maaf_autodiff::{Float, Tape, Tensor, Var};
 
 use super::SaroModel;
-use crate::models::kplane::{FieldQuery, PlaneSample};
+use crate::kplane::{FieldQuery, PlaneSample};
 
 impl<T: Float> SaroModel<T> {
     /// Number of Gaussians (rows of the per-Gaussian parameters).
@@ -38,7 +38,7 @@ impl<T: Float> SaroModel<T> {
     }
 
     /// Field features `F(sg(x), sg(mu_t), sg(s))` \[N, C] from the six `planes` (vars on
-    /// one tape, [`crate::models::kplane::PLANE_NAMES`] order).
+    /// one tape, [`crate::kplane::PLANE_NAMES`] order).
     pub(super) fn field_features<'t>(&self, planes: &[Var<'t, T>; 6]) -> Var<'t, T> {
         let sample = PlaneSample::new(&self.field, Arc::new(self.field_query()));
         #[cfg(test)]

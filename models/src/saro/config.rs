@@ -3,7 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::models::kplane::KPlaneConfig;
+use crate::kplane::KPlaneConfig;
 
 /// Learning rates of SaRO-GS for D-NeRF (`arguments/__init__.py`, `configs/dnerf/*.json`,
 /// `SaROGaussian.training_setup` / `update_learning_rate`).
@@ -112,7 +112,7 @@ pub struct SaroConfig {
     /// Neural 3D Video ones).
     pub adaptive_after_densify: bool,
     /// Weight of L_SR (`lambda_dscale_reg` 8e-6): the one place it is set; the model
-    /// declares the `l_sr` term with it ([`crate::models::Representation::regularisers`]).
+    /// declares the `l_sr` term with it ([`crate::Representation::regularisers`]).
     pub lambda_sr: f64,
     /// Learning rates.
     pub lr: SaroLr,

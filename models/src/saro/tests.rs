@@ -3,8 +3,8 @@ use maaf_autodiff::check::{GradcheckConfig, gradcheck, tests_support::random_ten
 use maaf_autodiff::nn::Linear;
 
 use super::*;
-use crate::models::KPlaneConfig;
-use crate::models::kplane::PlaneSample;
+use crate::KPlaneConfig;
+use crate::kplane::PlaneSample;
 
 fn tiny_config() -> SaroConfig {
     SaroConfig {
@@ -124,7 +124,7 @@ fn busy_model(n: usize) -> SaroModel<f64> {
 /// Every deformed output at two times plus L_SR, flattened into one vector.
 fn all_outputs<'t>(m: &SaroModel<f64>, v: &[Var<'t, f64>]) -> Var<'t, f64> {
     let params = BoundParams::from_vars(&m.params, v);
-    crate::models::flatten_outputs(&*m.bind(&params), &[0.2, 0.75])
+    crate::flatten_outputs(&*m.bind(&params), &[0.2, 0.75])
 }
 
 #[test]

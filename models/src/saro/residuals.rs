@@ -10,14 +10,14 @@ use maaf_autodiff::op::{BackwardCtx, Op};
 use maaf_autodiff::{Float, Tensor, Var};
 use rayon::prelude::*;
 
-use crate::models::encoding::encode_row;
+use crate::encoding::encode_row;
 
 /// Rows per parallel chunk (below it, rayon's hand-off costs more than the work).
 const CHUNK_ROWS: usize = 2048;
 
 /// `h = [f[rows], PE(dt)]`: row `j` holds the features of Gaussian `rows[j]` followed
 /// by the NeRF encoding of its time offset `dt[j]` (`[d, sin(2^k d), cos(2^k d)]`, k <
-/// `freqs`: [`encode_row`], as [`crate::models::encoding::positional_encoding`] of one
+/// `freqs`: [`encode_row`], as [`crate::encoding::positional_encoding`] of one
 /// column). The encoding is a constant (SaRO-GS detaches it), so the backward
 /// only scatters `dh[:, ..C]` to the feature rows; others get zero.
 pub struct SaroInput {

@@ -194,7 +194,7 @@ fn zero_head_and_warm_up_render_the_canonical_gaussians() {
 /// Every deformed output at two times, flattened into one vector.
 pub(super) fn all_outputs<'t>(m: &DeformModel<f64>, v: &[Var<'t, f64>]) -> Var<'t, f64> {
     let params = BoundParams::from_vars(&m.params, v);
-    crate::models::flatten_outputs(&*m.bind(&params), &[0.2, 0.75])
+    crate::flatten_outputs(&*m.bind(&params), &[0.2, 0.75])
 }
 
 #[test]

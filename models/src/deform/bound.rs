@@ -9,8 +9,8 @@ use maaf_splat::GaussianVars;
 
 use super::DeformModel;
 use super::grouped::GroupMotion;
-use crate::models::Bound;
-use crate::models::encoding::positional_encoding;
+use crate::Bound;
+use crate::encoding::positional_encoding;
 use crate::params::BoundParams;
 
 /// A Deformable-3DGS model bound on a tape (see [`Bound`]).

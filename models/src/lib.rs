@@ -1,4 +1,4 @@
-//! 4D representations (docs/architecture.md): parameters in a [`ParamStore`], bound on
+//! maaf-models: 4D representations (docs/architecture.md): parameters in a [`ParamStore`], bound on
 //! a tape, plus a time t give the deformed 3D Gaussians the renderer takes.
 //!
 //! The trainer, the 3D filter and the renderer only see [`GaussianVars`]; which
@@ -27,6 +27,7 @@ pub mod deform;
 pub mod encoding;
 mod init;
 pub mod kplane;
+pub mod params;
 pub mod saro;
 
 use std::sync::Arc;
@@ -202,7 +203,7 @@ pub trait Representation<T: Float> {
 
     /// Opacity reset (3DGS `reset_opacity`), one cap per Gaussian:
     /// `o_i = min(o_i, logit(caps_i))` on the logits (a cap of 1 or more leaves the
-    /// row as it is). The trainer computes the caps ([`crate::trainer::opacity_caps`]).
+    /// row as it is). The trainer computes the caps (`maaf_train::trainer::opacity_caps`).
     /// Returns the names of the parameters it overwrote, whose optimiser
     /// moments the trainer then zeroes (3DGS `replace_tensor_to_optimizer`): stale
     /// momentum would otherwise keep pushing the reset opacities down.
