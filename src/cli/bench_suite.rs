@@ -36,10 +36,19 @@ pub struct BenchSuiteArgs {
     pub scenes: Vec<String>,
     /// Preset files (configs/*.json; repeat or comma-separate), one method each, named
     /// by the file's stem [default: none; required unless --report-only].
-    #[arg(long = "preset", value_delimiter = ',', required_unless_present = "report_only")]
+    #[arg(
+        long = "preset",
+        value_delimiter = ',',
+        required_unless_present = "report_only"
+    )]
     pub presets: Vec<PathBuf>,
     /// 3D filters, one run each.
-    #[arg(long, value_enum, value_delimiter = ',', default_value = "none,mip3d,motion")]
+    #[arg(
+        long,
+        value_enum,
+        value_delimiter = ',',
+        default_value = "none,mip3d,motion"
+    )]
     pub filters: Vec<FilterArg>,
     /// Backgrounds the RGBA images are composited on, for training and evaluation
     /// alike, one run each (black: the authors' D-NeRF runs; docs/cli.md says why it
@@ -109,7 +118,9 @@ fn scenes(data: &Path, only: &[String]) -> anyhow::Result<Vec<String>> {
         std::fs::read_dir(data).with_context(|| format!("{}: cannot read", data.display()))?;
     let mut found = Vec::new();
     for e in entries {
-        let path = e.with_context(|| format!("{}: cannot read", data.display()))?.path();
+        let path = e
+            .with_context(|| format!("{}: cannot read", data.display()))?
+            .path();
         if path.join("transforms_train.json").is_file()
             && let Some(name) = path.file_name().and_then(|n| n.to_str())
         {
@@ -128,7 +139,10 @@ fn scenes(data: &Path, only: &[String]) -> anyhow::Result<Vec<String>> {
     }
     for s in only {
         if !found.contains(s) {
-            bail!("--scenes {s}: no scene folder {s} with transforms_train.json in {}", data.display());
+            bail!(
+                "--scenes {s}: no scene folder {s} with transforms_train.json in {}",
+                data.display()
+            );
         }
     }
     Ok(found.into_iter().filter(|f| only.contains(f)).collect())
@@ -151,7 +165,10 @@ fn split_of(data: &Path, scene: &str, overrides: &[String]) -> anyhow::Result<St
     }
     let file = data.join(scene).join(format!("transforms_{split}.json"));
     if !file.is_file() {
-        bail!("{}: missing (scene {scene} is evaluated on {split})", file.display());
+        bail!(
+            "{}: missing (scene {scene} is evaluated on {split})",
+            file.display()
+        );
     }
     Ok(split)
 }
@@ -173,7 +190,10 @@ fn plan(args: &BenchSuiteArgs, out: &Path) -> anyhow::Result<SuiteSpec> {
             .and_then(|n| n.to_str())
             .ok_or_else(|| anyhow::anyhow!("--preset {}: not a file name", p.display()))?;
         if presets.iter().any(|(n, _)| n == name) {
-            bail!("--preset {}: a preset named {name} is given twice", p.display());
+            bail!(
+                "--preset {}: a preset named {name} is given twice",
+                p.display()
+            );
         }
         presets.push((name.to_string(), p));
     }
@@ -201,10 +221,11 @@ fn plan(args: &BenchSuiteArgs, out: &Path) -> anyhow::Result<SuiteSpec> {
         for (preset, _) in &presets {
             for &f in &args.filters {
                 for &bg in &args.backgrounds {
-                    let dir = out
-                        .join("runs")
-                        .join(scene)
-                        .join(format!("{preset}-{}-{}", filter_name(f), bg.name()));
+                    let dir = out.join("runs").join(scene).join(format!(
+                        "{preset}-{}-{}",
+                        filter_name(f),
+                        bg.name()
+                    ));
                     runs.push(SuiteRun {
                         scene: scene.clone(),
                         split: split.clone(),
@@ -280,7 +301,10 @@ fn write_suite(spec: &SuiteSpec, out: &Path, exe: &Path) -> anyhow::Result<()> {
             );
         }
     } else if out.exists() && std::fs::read_dir(out).map(|mut d| d.next().is_some())? {
-        bail!("{}: not empty and holds no {SPEC_FILE}; a suite is written into a new folder", out.display());
+        bail!(
+            "{}: not empty and holds no {SPEC_FILE}; a suite is written into a new folder",
+            out.display()
+        );
     }
     std::fs::create_dir_all(out.join("configs"))
         .with_context(|| format!("{}: cannot create", out.display()))?;
@@ -310,8 +334,8 @@ fn write_suite(spec: &SuiteSpec, out: &Path, exe: &Path) -> anyhow::Result<()> {
 
 fn read_spec(out: &Path) -> anyhow::Result<SuiteSpec> {
     let path = out.join(SPEC_FILE);
-    let text =
-        std::fs::read_to_string(&path).with_context(|| format!("{}: cannot read", path.display()))?;
+    let text = std::fs::read_to_string(&path)
+        .with_context(|| format!("{}: cannot read", path.display()))?;
     serde_json::from_str(&text).with_context(|| format!("{}: not a suite", path.display()))
 }
 
@@ -328,7 +352,12 @@ fn spawn(exe: &Path, args: &[String]) -> anyhow::Result<()> {
 }
 
 /// Trains (or resumes) and evaluates one run, as far as it is not done yet.
-fn run_one(spec: &SuiteSpec, out: &Path, exe: &Path, run: &SuiteRun) -> anyhow::Result<&'static str> {
+fn run_one(
+    spec: &SuiteSpec,
+    out: &Path,
+    exe: &Path,
+    run: &SuiteRun,
+) -> anyhow::Result<&'static str> {
     if run.dir.join("eval.json").is_file() {
         return Ok("skipped (evaluated)");
     }
@@ -395,6 +424,10 @@ pub fn run(args: &BenchSuiteArgs) -> anyhow::Result<()> {
     };
     let report = write_suite_report(&spec.runs, &out)?;
     print!("{}", report.table);
-    println!("report: {} ({})", report.markdown.display(), report.json.display());
+    println!(
+        "report: {} ({})",
+        report.markdown.display(),
+        report.json.display()
+    );
     Ok(())
 }

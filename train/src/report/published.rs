@@ -132,9 +132,21 @@ mod tests {
             let avg = row.average.expect("Tab. 2 prints an average");
             let n = row.scales.len() as f64;
             let mean = |f: fn(&PublishedScale) -> f64| row.scales.iter().map(f).sum::<f64>() / n;
-            assert!((mean(|s| s.psnr) - avg.psnr).abs() <= 0.01, "{}", row.method);
-            assert!((mean(|s| s.ssim) - avg.ssim).abs() <= 0.001, "{}", row.method);
-            assert!((mean(|s| s.lpips) - avg.lpips).abs() <= 0.001, "{}", row.method);
+            assert!(
+                (mean(|s| s.psnr) - avg.psnr).abs() <= 0.01,
+                "{}",
+                row.method
+            );
+            assert!(
+                (mean(|s| s.ssim) - avg.ssim).abs() <= 0.001,
+                "{}",
+                row.method
+            );
+            assert!(
+                (mean(|s| s.lpips) - avg.lpips).abs() <= 0.001,
+                "{}",
+                row.method
+            );
         }
     }
 }

@@ -298,7 +298,11 @@ pub fn tab2_table(summary: &SuiteSummary) -> String {
         t.push('\n');
     }
     for row in &summary.paper_tab2 {
-        let _ = write!(t, "| {} (published, {}) | {} |", row.method, row.source, row.scenes);
+        let _ = write!(
+            t,
+            "| {} (published, {}) | {} |",
+            row.method, row.source, row.scenes
+        );
         let avg = row.average;
         for (i, digits) in [2, 3, 3].into_iter().enumerate() {
             let pick = |p: &super::published::PublishedScale| [p.psnr, p.ssim, p.lpips][i];
@@ -530,8 +534,14 @@ mod tests {
         assert_eq!(none.scenes, 1);
         // Tab. 2's avg: the mean of 1x, 2x, 4x (32 + 34 + 36) / 3.
         let table = tab2_table(&s);
-        assert!(table.contains("| dnerf / motion / black (maaf) | 2 | 33.00 | 34.00 | 36.00 | 34.33 |"), "{table}");
-        assert!(table.contains("37.10") && table.contains("36.61"), "{table}");
+        assert!(
+            table.contains("| dnerf / motion / black (maaf) | 2 | 33.00 | 34.00 | 36.00 | 34.33 |"),
+            "{table}"
+        );
+        assert!(
+            table.contains("37.10") && table.contains("36.61"),
+            "{table}"
+        );
         assert!(released_table(&s).contains("32.28"));
     }
 
