@@ -50,7 +50,7 @@ pub struct PublishedRow {
 /// Where Tab. 2 is printed.
 const TAB2: &str = "paper Tab. 2 (tab:avg_synthetic_single_train_multi_test)";
 /// Where the released code's row is printed.
-const RELEASED: &str = "val-iisc/MAAF-4DGS (SpeeDe3DGS backbone) = paper Tab. 7 (tab:speede3dgs)";
+const RELEASED: &str = "val-iisc/MAAF-4DGS, SpeeDe3DGS backbone; paper Tab. 7 (tab:speede3dgs)";
 
 fn at(scale: f64, psnr: f64, ssim: f64, lpips: f64) -> PublishedScale {
     PublishedScale {

@@ -300,7 +300,7 @@ pub fn tab2_table(summary: &SuiteSummary) -> String {
     for row in &summary.paper_tab2 {
         let _ = write!(
             t,
-            "| {} (published, {}) | {} |",
+            "| {} [published: {}] | {} |",
             row.method, row.source, row.scenes
         );
         let avg = row.average;
@@ -342,7 +342,7 @@ pub fn released_table(summary: &SuiteSummary) -> String {
         let c = row.scales.iter().find(|p| p.scale == 4.0);
         let _ = writeln!(
             t,
-            "| {} (published, GPU, {}) | {} | {} | {} | {} | {} | {} | - |",
+            "| {} [published, GPU: {}] | {} | {} | {} | {} | {} | {} | - |",
             row.method,
             row.source,
             row.scenes,
