@@ -445,7 +445,7 @@ pub fn markdown(summary: &SuiteSummary) -> String {
         let _ = writeln!(md, "\n## Per scene: {}\n", metric.0);
         md.push_str(&per_scene_table(summary, metric));
     }
-    md.push_str("\n## Per scene: cost (training wall time, one run at a time)\n\n");
+    md.push_str("\n## Per scene: cost (training wall time as each run recorded it; the machine's load is not recorded)\n\n");
     md.push_str(&cost_table(summary));
     if !summary.missing.is_empty() {
         md.push_str("\n## Not evaluated yet\n\n");
