@@ -50,6 +50,10 @@ enum Command {
     /// Write an ablation grid as run folders plus a plain job list (jobs.txt: one
     /// train-and-eval line per point, for bash, GNU parallel or array jobs).
     Sweep(cli::sweep::SweepArgs),
+    /// The D-NeRF protocol over a folder of scenes (scene x preset x filter x
+    /// background: train, evaluate at 1/4x..4x) as a resumable job list, and one Tab.
+    /// 2-shaped report beside the published rows.
+    BenchSuite(cli::bench_suite::BenchSuiteArgs),
 }
 
 /// Stack size of the worker threads, which run the whole command (as the main
@@ -96,6 +100,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Bench(args) => cli::bench::run(&args)?,
         Command::ExportPly(args) => cli::export_ply::run(&args)?,
         Command::Sweep(args) => cli::sweep::run(&args)?,
+        Command::BenchSuite(args) => cli::bench_suite::run(&args)?,
         Command::Info => {
             println!("maaf {}", env!("CARGO_PKG_VERSION"));
             // The pool the commands run on (RAYON_NUM_THREADS, default one per core).

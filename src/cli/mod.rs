@@ -1,6 +1,7 @@
 //! Subcommand implementations of the `maaf` binary, one file per command.
 
 pub mod bench;
+pub mod bench_suite;
 pub mod cameras;
 pub mod compare;
 pub mod demo;

@@ -71,6 +71,7 @@ fn every_optional_value_shows_its_default_in_help() {
         "export-ply",
         "render-ply",
         "sweep",
+        "bench-suite",
     ];
     let mut missing = Vec::new();
     for cmd in commands {

@@ -3,6 +3,7 @@
 //! gradient check through the public API.
 
 mod bad_input;
+mod bench_suite;
 mod cli_habits;
 mod compare;
 mod config_doc;

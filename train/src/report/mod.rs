@@ -13,8 +13,10 @@
 
 pub mod charts;
 pub mod curves;
+pub mod published;
 pub mod regions;
 pub mod style;
+pub mod suite;
 pub mod temporal;
 pub mod views;
 

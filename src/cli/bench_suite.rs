@@ -1,0 +1,433 @@
+//! `maaf bench-suite`: the D-NeRF protocol over a folder of scenes. Every scene x preset
+//! x filter x background is one run (train with the preset, then `maaf eval` at
+//! 1/4x..4x on the scene's evaluation split), written as a job list like `maaf sweep`
+//! (`jobs.txt`, one `train && eval` line per run, so scenes can run on several
+//! machines) and, without `--jobs-only`, run here one at a time, skipping evaluated runs
+//! and resuming interrupted ones. Then one report ([`maaf_train::report::suite`]):
+//! the paper's Tab. 2 layout with the published rows beside maaf's.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use anyhow::{Context, bail};
+use maaf_train::report::suite::{SuiteRun, write_suite_report};
+use maaf_train::sweep::shell_quote;
+use maaf_train::trainer::TrainConfig;
+use maaf_train::write_atomic;
+use serde::{Deserialize, Serialize};
+
+use super::train::{FilterArg, SettingsArgs, config_from};
+
+/// Arguments of `maaf bench-suite`.
+#[derive(clap::Args, Debug)]
+pub struct BenchSuiteArgs {
+    /// Suite folder: suite.json, configs/, runs/SCENE/PRESET-FILTER-BACKGROUND/,
+    /// jobs.txt, report.md and report.json. Invoked again with the same options, the
+    /// suite continues where it stopped.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Folder of D-NeRF scenes: every subfolder holding transforms_train.json is a
+    /// scene [default: none; required unless --report-only].
+    #[arg(long, required_unless_present = "report_only")]
+    pub data: Option<PathBuf>,
+    /// Only these scenes (folder names, comma-separated) [default: every scene].
+    #[arg(long, value_delimiter = ',')]
+    pub scenes: Vec<String>,
+    /// Preset files (configs/*.json; repeat or comma-separate), one method each, named
+    /// by the file's stem [default: none; required unless --report-only].
+    #[arg(
+        long = "preset",
+        value_delimiter = ',',
+        required_unless_present = "report_only"
+    )]
+    pub presets: Vec<PathBuf>,
+    /// 3D filters, one run each.
+    #[arg(
+        long,
+        value_enum,
+        value_delimiter = ',',
+        default_value = "none,mip3d,motion"
+    )]
+    pub filters: Vec<FilterArg>,
+    /// Backgrounds the RGBA images are composited on, for training and evaluation
+    /// alike, one run each (black: the authors' D-NeRF runs; docs/cli.md says why it
+    /// is the default).
+    #[arg(long, value_enum, value_delimiter = ',', default_value = "black")]
+    pub backgrounds: Vec<SuiteBackground>,
+    /// Evaluation split per scene, SCENE=SPLIT (comma-separated); every other scene is
+    /// evaluated on test. Lego's test split does not match its training split, so lego
+    /// is evaluated on val as Deformable-3DGS does; a scene named here but absent from
+    /// --data is ignored.
+    #[arg(long = "split", value_delimiter = ',', default_value = "lego=val")]
+    pub splits: Vec<String>,
+    /// Iterations of every run (quick checks) [default: each preset's].
+    #[arg(long)]
+    pub iters: Option<usize>,
+    /// Extra arguments of `maaf eval` for every run, split at spaces.
+    #[arg(long, default_value = "--no-images", allow_hyphen_values = true)]
+    pub eval_args: String,
+    /// Write the run folders' configs and jobs.txt and stop (run the lines anywhere,
+    /// then `maaf bench-suite --out OUT --report-only`).
+    #[arg(long)]
+    pub jobs_only: bool,
+    /// Only write the report from the runs evaluated so far (reads OUT/suite.json).
+    #[arg(long, conflicts_with = "jobs_only")]
+    pub report_only: bool,
+}
+
+/// `--backgrounds` values.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SuiteBackground {
+    /// White (D-NeRF's `white_bkgd`, maaf's default elsewhere).
+    White,
+    /// Black (SaRO-GS's and the MAAF authors' D-NeRF runs).
+    Black,
+}
+
+impl SuiteBackground {
+    /// The spelling of `--background`.
+    fn name(self) -> &'static str {
+        match self {
+            SuiteBackground::White => "white",
+            SuiteBackground::Black => "black",
+        }
+    }
+}
+
+/// `OUT/suite.json`: what a suite was written with, so that a second invocation
+/// continues the same suite and `--report-only` finds its runs.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+struct SuiteSpec {
+    /// Scenes folder.
+    data: PathBuf,
+    /// Resolved configuration of every preset x filter, by config file name.
+    configs: Vec<(String, TrainConfig)>,
+    /// Extra `maaf eval` arguments.
+    eval_args: String,
+    /// Every run, in job order.
+    runs: Vec<SuiteRun>,
+}
+
+const SPEC_FILE: &str = "suite.json";
+
+/// The scene folders of `data` (those with transforms_train.json), sorted, or the
+/// `only` ones (each must be there).
+fn scenes(data: &Path, only: &[String]) -> anyhow::Result<Vec<String>> {
+    let entries =
+        std::fs::read_dir(data).with_context(|| format!("{}: cannot read", data.display()))?;
+    let mut found = Vec::new();
+    for e in entries {
+        let path = e
+            .with_context(|| format!("{}: cannot read", data.display()))?
+            .path();
+        if path.join("transforms_train.json").is_file()
+            && let Some(name) = path.file_name().and_then(|n| n.to_str())
+        {
+            found.push(name.to_string());
+        }
+    }
+    found.sort();
+    if found.is_empty() {
+        bail!(
+            "{}: no scene folder (a subfolder with transforms_train.json)",
+            data.display()
+        );
+    }
+    if only.is_empty() {
+        return Ok(found);
+    }
+    for s in only {
+        if !found.contains(s) {
+            bail!(
+                "--scenes {s}: no scene folder {s} with transforms_train.json in {}",
+                data.display()
+            );
+        }
+    }
+    Ok(found.into_iter().filter(|f| only.contains(f)).collect())
+}
+
+/// The split each scene is evaluated on: `--split` overrides, else test; the split's
+/// transforms file must exist.
+fn split_of(data: &Path, scene: &str, overrides: &[String]) -> anyhow::Result<String> {
+    let mut split = "test".to_string();
+    for o in overrides {
+        let Some((name, value)) = o.split_once('=') else {
+            bail!("--split {o}: expected SCENE=SPLIT, e.g. lego=val");
+        };
+        if !["test", "val", "train"].contains(&value.trim()) {
+            bail!("--split {o}: the split must be test, val or train");
+        }
+        if name.trim() == scene {
+            split = value.trim().to_string();
+        }
+    }
+    let file = data.join(scene).join(format!("transforms_{split}.json"));
+    if !file.is_file() {
+        bail!(
+            "{}: missing (scene {scene} is evaluated on {split})",
+            file.display()
+        );
+    }
+    Ok(split)
+}
+
+/// The suite the options describe: configs resolved and validated, one run per scene x
+/// preset x filter x background (scene-major, so a scene's lines are together).
+fn plan(args: &BenchSuiteArgs, out: &Path) -> anyhow::Result<SuiteSpec> {
+    let data_arg = args
+        .data
+        .as_deref()
+        .ok_or_else(|| anyhow::anyhow!("--data DIR is required (the folder of scenes)"))?;
+    let data = std::path::absolute(data_arg)
+        .with_context(|| format!("{}: cannot resolve", data_arg.display()))?;
+    let scene_names = scenes(&data, &args.scenes)?;
+    let mut presets: Vec<(String, &Path)> = Vec::new();
+    for p in &args.presets {
+        let name = p
+            .file_stem()
+            .and_then(|n| n.to_str())
+            .ok_or_else(|| anyhow::anyhow!("--preset {}: not a file name", p.display()))?;
+        if presets.iter().any(|(n, _)| n == name) {
+            bail!(
+                "--preset {}: a preset named {name} is given twice",
+                p.display()
+            );
+        }
+        presets.push((name.to_string(), p));
+    }
+    let mut configs = Vec::new();
+    for (name, file) in &presets {
+        for &f in &args.filters {
+            let settings = SettingsArgs {
+                data: None,
+                model: None,
+                filter: Some(f),
+                train_scale: None,
+                iters: args.iters,
+                batch: None,
+                seed: None,
+                config: Some(file.to_path_buf()),
+                background: None,
+            };
+            let config = config_from(&settings)?;
+            configs.push((format!("{name}-{}.json", filter_name(f)), config));
+        }
+    }
+    let mut runs = Vec::new();
+    for scene in &scene_names {
+        let split = split_of(&data, scene, &args.splits)?;
+        for (preset, _) in &presets {
+            for &f in &args.filters {
+                for &bg in &args.backgrounds {
+                    let dir = out.join("runs").join(scene).join(format!(
+                        "{preset}-{}-{}",
+                        filter_name(f),
+                        bg.name()
+                    ));
+                    runs.push(SuiteRun {
+                        scene: scene.clone(),
+                        split: split.clone(),
+                        preset: preset.clone(),
+                        filter: filter_name(f).to_string(),
+                        background: bg.name().to_string(),
+                        dir,
+                    });
+                }
+            }
+        }
+    }
+    Ok(SuiteSpec {
+        data,
+        configs,
+        eval_args: args.eval_args.clone(),
+        runs,
+    })
+}
+
+fn filter_name(f: FilterArg) -> &'static str {
+    match f {
+        FilterArg::None => "none",
+        FilterArg::Mip3d => "mip3d",
+        FilterArg::Motion => "motion",
+    }
+}
+
+/// The config file of a run.
+fn config_path(out: &Path, run: &SuiteRun) -> PathBuf {
+    out.join("configs")
+        .join(format!("{}-{}.json", run.preset, run.filter))
+}
+
+/// `maaf train` arguments of a new run.
+fn train_args(spec: &SuiteSpec, out: &Path, run: &SuiteRun) -> Vec<String> {
+    let scene = spec.data.join(&run.scene);
+    [
+        "train",
+        "--data",
+        &scene.display().to_string(),
+        "--out",
+        &run.dir.display().to_string(),
+        "--config",
+        &config_path(out, run).display().to_string(),
+        "--background",
+        &run.background,
+    ]
+    .map(String::from)
+    .to_vec()
+}
+
+/// `maaf eval` arguments of a run.
+fn eval_args(spec: &SuiteSpec, run: &SuiteRun) -> Vec<String> {
+    let mut v: Vec<String> = ["eval", "--run", &run.dir.display().to_string()]
+        .map(String::from)
+        .to_vec();
+    v.extend(["--split".to_string(), run.split.clone()]);
+    v.extend(spec.eval_args.split_whitespace().map(String::from));
+    v
+}
+
+/// Writes `suite.json` (or checks that the one there is this suite), the configs and
+/// `jobs.txt`.
+fn write_suite(spec: &SuiteSpec, out: &Path, exe: &Path) -> anyhow::Result<()> {
+    let spec_path = out.join(SPEC_FILE);
+    if spec_path.is_file() {
+        let old = read_spec(out)?;
+        if old != *spec {
+            bail!(
+                "{}: holds a suite written with other options (scenes, presets, filters, backgrounds, splits, --iters or --eval-args); give the same options or another --out",
+                spec_path.display()
+            );
+        }
+    } else if out.exists() && std::fs::read_dir(out).map(|mut d| d.next().is_some())? {
+        bail!(
+            "{}: not empty and holds no {SPEC_FILE}; a suite is written into a new folder",
+            out.display()
+        );
+    }
+    std::fs::create_dir_all(out.join("configs"))
+        .with_context(|| format!("{}: cannot create", out.display()))?;
+    for (name, config) in &spec.configs {
+        let json = serde_json::to_string_pretty(config)?;
+        write_atomic(&out.join("configs").join(name), json.as_bytes())?;
+    }
+    let q = |args: &[String]| {
+        std::iter::once(shell_quote(&exe.display().to_string()))
+            .chain(args.iter().map(|a| shell_quote(a)))
+            .collect::<Vec<_>>()
+            .join(" ")
+    };
+    let mut jobs = String::new();
+    for run in &spec.runs {
+        writeln!(
+            jobs,
+            "{} && {}",
+            q(&train_args(spec, out, run)),
+            q(&eval_args(spec, run))
+        )?;
+    }
+    write_atomic(&out.join("jobs.txt"), jobs.as_bytes())?;
+    write_atomic(&spec_path, serde_json::to_string_pretty(spec)?.as_bytes())?;
+    Ok(())
+}
+
+fn read_spec(out: &Path) -> anyhow::Result<SuiteSpec> {
+    let path = out.join(SPEC_FILE);
+    let text = std::fs::read_to_string(&path)
+        .with_context(|| format!("{}: cannot read", path.display()))?;
+    serde_json::from_str(&text).with_context(|| format!("{}: not a suite", path.display()))
+}
+
+/// Runs `exe args`, inheriting the terminal; an error names the command.
+fn spawn(exe: &Path, args: &[String]) -> anyhow::Result<()> {
+    let status = Command::new(exe)
+        .args(args)
+        .status()
+        .with_context(|| format!("cannot start {}", exe.display()))?;
+    if !status.success() {
+        bail!("maaf {} exited with {status}", args.join(" "));
+    }
+    Ok(())
+}
+
+/// Trains (or resumes) and evaluates one run, as far as it is not done yet.
+fn run_one(
+    spec: &SuiteSpec,
+    out: &Path,
+    exe: &Path,
+    run: &SuiteRun,
+) -> anyhow::Result<&'static str> {
+    if run.dir.join("eval.json").is_file() {
+        return Ok("skipped (evaluated)");
+    }
+    let what = if run.dir.join("summary.json").is_file() {
+        "evaluated"
+    } else if run.dir.join("config.json").is_file() {
+        let dir = run.dir.display().to_string();
+        spawn(exe, &["train".into(), "--resume".into(), dir])?;
+        "resumed and evaluated"
+    } else {
+        spawn(exe, &train_args(spec, out, run))?;
+        "trained and evaluated"
+    };
+    spawn(exe, &eval_args(spec, run))?;
+    Ok(what)
+}
+
+/// Runs `maaf bench-suite`.
+pub fn run(args: &BenchSuiteArgs) -> anyhow::Result<()> {
+    let out = std::path::absolute(&args.out)
+        .with_context(|| format!("{}: cannot resolve", args.out.display()))?;
+    let spec = if args.report_only {
+        read_spec(&out)?
+    } else {
+        let spec = plan(args, &out)?;
+        let exe = std::env::current_exe().context("cannot locate the maaf executable")?;
+        write_suite(&spec, &out, &exe)?;
+        println!(
+            "suite: {} runs ({} configs) in {}; jobs: {}",
+            spec.runs.len(),
+            spec.configs.len(),
+            out.display(),
+            out.join("jobs.txt").display()
+        );
+        if args.jobs_only {
+            println!(
+                "run them:  bash {0}/jobs.txt   (or one line per machine; then: maaf bench-suite --out {0} --report-only)",
+                out.display()
+            );
+            return Ok(());
+        }
+        let mut failed = Vec::new();
+        for (i, r) in spec.runs.iter().enumerate() {
+            let label = format!("[{}/{}] {} {}", i + 1, spec.runs.len(), r.scene, r.method());
+            match run_one(&spec, &out, &exe, r) {
+                Ok(what) => println!("{label}: {what}"),
+                Err(e) => {
+                    eprintln!("maaf: {label}: {e:#}");
+                    failed.push(format!("{} ({e:#})", r.dir.display()));
+                }
+            }
+        }
+        if !failed.is_empty() {
+            let report = write_suite_report(&spec.runs, &out)?;
+            bail!(
+                "{} of {} runs failed (report of the others: {}): {}",
+                failed.len(),
+                spec.runs.len(),
+                report.markdown.display(),
+                failed.join("; ")
+            );
+        }
+        spec
+    };
+    let report = write_suite_report(&spec.runs, &out)?;
+    print!("{}", report.table);
+    println!(
+        "report: {} ({})",
+        report.markdown.display(),
+        report.json.display()
+    );
+    Ok(())
+}

@@ -1,0 +1,168 @@
+//! `maaf bench-suite` as a user runs it, on a folder of two tiny generated scenes: the
+//! job list first (one line per scene x filter, the split rule applied), one line run
+//! as written, then the suite run here, which skips that run and does the others; a
+//! second invocation does nothing, one whose evaluation was removed is only
+//! evaluated, other options on the same folder are refused, and the report has a row
+//! per scene and method, each method's average and the published rows.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+use super::support::{TempDir, maaf, refused, s};
+
+fn ok(out: Output) -> String {
+    assert!(
+        out.status.success(),
+        "failed: {}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// The suite's options on `data`, `preset` and `out` (two filters' worth of runs
+/// would do, but the default three are what the suite is for).
+fn suite(data: &Path, preset: &Path, out: &Path, extra: &[&str]) -> Output {
+    let mut args = vec![
+        "bench-suite",
+        "--data",
+        s(data),
+        "--preset",
+        s(preset),
+        "--out",
+        s(out),
+        "--iters",
+        "6",
+        "--split",
+        "b=val,lego=val",
+        "--eval-args",
+        "--no-images --max-views 2",
+    ];
+    args.extend_from_slice(extra);
+    maaf(&args)
+}
+
+/// A generated scene at 192x192 (4 frames, one sample per pixel): trained at 1/4
+/// scale, its 1/4x renders (12x12) still hold the 11x11 SSIM window.
+fn scene(dir: &Path) {
+    ok(maaf(&[
+        "generate",
+        "--out",
+        s(dir),
+        "--size",
+        "192",
+        "--frames",
+        "4",
+        "--samples",
+        "1",
+    ]));
+}
+
+fn count(text: &str, needle: &str) -> usize {
+    text.matches(needle).count()
+}
+
+#[test]
+fn suite_writes_jobs_runs_them_once_and_reports_every_scene_beside_the_published_rows() {
+    let tmp = TempDir::fresh("cli_bench_suite");
+    let data = tmp.0.join("scenes");
+    std::fs::create_dir_all(&data).expect("mkdir");
+    scene(&data.join("a"));
+    scene(&data.join("b"));
+    std::fs::create_dir_all(data.join("not_a_scene")).expect("mkdir");
+    let preset = tmp.0.join("small.json");
+    std::fs::write(
+        &preset,
+        r#"{"init_points": 200, "train_scale": 0.25, "val_every": 0, "checkpoint_every": 3}"#,
+    )
+    .expect("preset");
+    let out = tmp.0.join("suite");
+
+    ok(suite(&data, &preset, &out, &["--jobs-only"]));
+    let jobs = std::fs::read_to_string(out.join("jobs.txt")).expect("jobs.txt");
+    let lines: Vec<&str> = jobs.lines().collect();
+    assert_eq!(
+        lines.len(),
+        6,
+        "2 scenes x 3 filters x 1 background: {jobs}"
+    );
+    for line in &lines {
+        assert!(line.contains(" train ") && line.contains(" && ") && line.contains(" eval "));
+        assert!(line.contains("--background black"), "{line}");
+    }
+    // The split rule: b is named (val), a is not (test); lego is absent and ignored.
+    assert_eq!(count(&jobs, "--split val"), 3, "{jobs}");
+    assert_eq!(count(&jobs, "--split test"), 3, "{jobs}");
+    assert!(lines[0].contains("runs/a/small-none-black"), "{}", lines[0]);
+    assert!(!out.join("report.md").exists());
+
+    // One line run as written, as on another machine.
+    let status = Command::new("sh")
+        .arg("-c")
+        .arg(lines[0])
+        .output()
+        .expect("sh");
+    ok(status);
+    let first = out.join("runs/a/small-none-black");
+    assert!(first.join("eval.json").is_file());
+
+    let printed = ok(suite(&data, &preset, &out, &[]));
+    assert_eq!(count(&printed, "skipped (evaluated)"), 1, "{printed}");
+    assert_eq!(count(&printed, "trained and evaluated"), 5, "{printed}");
+
+    let stamp = |p: &Path| std::fs::metadata(p.join("eval.json")).and_then(|m| m.modified());
+    let before = stamp(&first).expect("mtime");
+    let again = ok(suite(&data, &preset, &out, &[]));
+    assert_eq!(count(&again, "skipped (evaluated)"), 6, "{again}");
+    assert_eq!(stamp(&first).expect("mtime"), before);
+
+    // A trained run whose evaluation is missing is only evaluated.
+    let b_motion = out.join("runs/b/small-motion-black");
+    std::fs::remove_file(b_motion.join("eval.json")).expect("rm");
+    let third = ok(suite(&data, &preset, &out, &[]));
+    assert_eq!(
+        count(&third, "[6/6] b small / motion / black: evaluated"),
+        1,
+        "{third}"
+    );
+    assert!(b_motion.join("eval.json").is_file());
+
+    refused(
+        suite(&data, &preset, &out, &["--filters", "none"]),
+        &["suite.json", "other options"],
+    );
+
+    let md = std::fs::read_to_string(out.join("report.md")).expect("report.md");
+    for filter in ["none", "mip3d", "motion"] {
+        let method = format!("small / {filter} / black");
+        // Per-scene PSNR, SSIM and LPIPS tables: a row per scene, then the average.
+        assert_eq!(count(&md, &format!("| {method} | a | test |")), 3, "{md}");
+        assert_eq!(count(&md, &format!("| {method} | b | val |")), 3, "{md}");
+        assert!(md.contains(&format!("| {method} (maaf) | 2 |")), "{md}");
+    }
+    assert_eq!(count(&md, "**average (2 scenes)**"), 3 * 3 + 3, "{md}");
+    for published in ["36.61", "37.10", "34.50", "27.83", "32.28", "6.48", "2330"] {
+        assert!(md.contains(published), "{published} missing: {md}");
+    }
+    assert!(md.contains("published"), "{md}");
+
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).expect("json"))
+            .expect("report.json parses");
+    let methods = json["methods"].as_array().expect("methods");
+    assert_eq!(methods.len(), 3);
+    for m in methods {
+        assert_eq!(m["scenes"].as_array().expect("scenes").len(), 2);
+        assert_eq!(m["average"]["scenes"], 2);
+        let scales = m["average"]["scales"].as_array().expect("scales");
+        assert_eq!(scales.len(), 5, "1/4x .. 4x averaged: {m}");
+    }
+    assert_eq!(json["paper_tab2"].as_array().map(Vec::len), Some(2));
+    assert_eq!(json["released"].as_array().map(Vec::len), Some(2));
+    assert_eq!(json["missing"].as_array().map(Vec::len), Some(0));
+
+    // The report alone, from suite.json.
+    std::fs::remove_file(out.join("report.md")).expect("rm");
+    ok(maaf(&["bench-suite", "--out", s(&out), "--report-only"]));
+    assert!(out.join("report.md").is_file());
+}
