@@ -58,6 +58,27 @@ fn column(run: &Path, name: &str) -> Vec<f64> {
         .collect()
 }
 
+/// The README shows the program line for line (its code after the `//!` header).
+#[test]
+fn the_readme_shows_the_ten_line_program_as_it_is() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let read = |p: &str| std::fs::read_to_string(root.join(p)).expect(p);
+    let example = read("examples/custom_regulariser.rs");
+    let code: Vec<&str> = example
+        .lines()
+        .skip_while(|l| l.starts_with("//!") || l.is_empty())
+        .collect();
+    let readme = read("README.md");
+    let shown: Vec<&str> = readme
+        .lines()
+        .skip_while(|l| *l != "```rust")
+        .skip(1)
+        .take_while(|l| *l != "```")
+        .collect();
+    assert_eq!(shown, code);
+    assert!(code.len() <= 12, "{} lines", code.len());
+}
+
 #[test]
 fn a_built_in_term_named_in_a_config_is_trained_and_logged_by_plain_maaf() {
     let fx = fixture("terms_builtin");
