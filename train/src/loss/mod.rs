@@ -5,8 +5,11 @@
 //! `(1 - 0.2) L1 + 0.2 (1 - SSIM)` ([`Objective::photometric`]); a representation's
 //! own regularisers (SaRO-GS's `8e-6 L_SR`, `helper_train.py::getloss`) are added by
 //! [`Objective::for_model`] with the weights the representation declares. A new term
-//! is one `impl Term` (or a closure, [`Objective::with_fn`]) plus [`Objective::with`];
-//! the training step only calls [`Objective::evaluate`], so it never changes.
+//! is one `impl Term` (or a closure, [`Objective::with_fn`]) plus [`Objective::with`],
+//! or registered by name in a [`TermRegistry`] so that a config's `terms` names it
+//! with a weight ([`Objective::for_run`]; the built-in regularisers are in
+//! [`builtin`]); the training step only calls [`Objective::evaluate`], so it never
+//! changes.
 //!
 //! ```
 //! use maaf_autodiff::{Tape, Tensor};

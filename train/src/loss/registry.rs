@@ -60,13 +60,6 @@ impl<T: Float> Clone for TermRegistry<T> {
     }
 }
 
-impl<T: Float> Default for TermRegistry<T> {
-    /// [`TermRegistry::builtin`].
-    fn default() -> Self {
-        Self::builtin()
-    }
-}
-
 impl<T: Float> TermRegistry<T> {
     /// The built-in regularisers ([`super::builtin`]): `depth_tv`,
     /// `opacity_entropy`, `scale_anisotropy`.

@@ -64,8 +64,8 @@ pub struct Trainer {
     pub observations: ObservationTable,
     /// Densification statistics.
     pub stats: DensifyStats,
-    /// Objective (named weighted terms): the photometric loss and the model's
-    /// regularisers; push custom terms here.
+    /// Objective (named weighted terms): the photometric loss, the model's
+    /// regularisers and the terms `config.terms` names; push further terms here.
     pub objective: Objective<f32>,
     /// Iterations completed.
     pub iteration: usize,
