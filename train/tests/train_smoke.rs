@@ -724,8 +724,7 @@ fn a_run_with_its_own_term_loads_for_rendering_and_trains_only_with_the_term() {
     let loaded = load_checkpoint(&data, &model).expect("rendering needs no term");
     assert_eq!(loaded.objective.unregistered(), ["alpha_mean"]);
     let msg = train_run_with(loaded, &dir, true)
-        .err()
-        .expect("refused")
+        .expect_err("refused")
         .to_string();
     assert!(msg.contains("lacks the term `alpha_mean`"), "{msg}");
     let msg = load_checkpoint_with_terms(&data, &model, &TermRegistry::builtin())
