@@ -1,9 +1,11 @@
-//! The global allocator and its one setting.
+//! The global allocator and its one setting: every program linking `maaf` allocates
+//! through mimalloc ([`crate::cli::Maaf::run`] makes the setting; a program that
+//! trains through the library directly calls [`keep_freed_pages`] first).
 //!
 //! A training step allocates and frees tens of megabytes of tensors (activations,
 //! cotangents, images). glibc's malloc hands the freed top of the heap back to the
 //! kernel and faults it in again on the next step (about 7000 page faults per
-//! 50k-Gaussian render), so the binary allocates through mimalloc. mimalloc by default
+//! 50k-Gaussian render), so maaf allocates through mimalloc. mimalloc by default
 //! still *purges* freed memory after a delay (gives the pages back with `madvise`;
 //! `purge_delay` = 1000 ms in mimalloc v3's `options.c`), and the kernel then zeroes
 //! the same pages again when the next steps fault them in: `clear_page_erms` was 13%
@@ -21,7 +23,7 @@ static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
 const MI_OPTION_PURGE_DELAY: libmimalloc_sys::mi_option_t = 15;
 
 /// Turns mimalloc's purging of freed memory off (see the module docs); call first in
-/// `main`. An explicit `MIMALLOC_PURGE_DELAY` in the environment wins.
+/// `main` ([`crate::cli::Maaf::run`] does). An explicit `MIMALLOC_PURGE_DELAY` in the environment wins.
 #[allow(unsafe_code)]
 pub fn keep_freed_pages() {
     if std::env::var_os("MIMALLOC_PURGE_DELAY").is_some() {

@@ -3,7 +3,14 @@
 //! This facade re-exports the member crates (docs/architecture.md):
 //! [`autodiff`] (reverse-mode tape and gradient checks), [`splat`] (differentiable
 //! Gaussian rasterization), [`filter`] (Mip-Splatting and motion-aware smoothing
-//! filters) and [`train`] (data, 4D representations, training and evaluation).
+//! filters) and [`train`] (data, 4D representations, training and evaluation), and
+//! holds the whole `maaf` command line as a library ([`cli::Maaf`]): a program of a
+//! few lines gets every command plus loss terms of its own.
+//!
+//! Linking this crate makes mimalloc the process's global allocator ([`alloc`]).
+
+pub mod alloc;
+pub mod cli;
 
 pub use maaf_autodiff as autodiff;
 pub use maaf_filter as filter;

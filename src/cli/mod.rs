@@ -1,19 +1,25 @@
-//! Subcommand implementations of the `maaf` binary, one file per command.
+//! The `maaf` command line as a library: [`Maaf`] runs it (the `maaf` binary is
+//! `Maaf::new().run()`); one file per command, `command.rs` the list of them.
 
-pub mod bench;
-pub mod bench_suite;
-pub mod cameras;
-pub mod compare;
-pub mod demo;
-pub mod eval;
-pub mod export_ply;
-pub mod generate;
-pub mod inspect;
-pub mod render;
-pub mod render_ply;
-pub mod report;
-pub mod sweep;
-pub mod train;
+mod app;
+mod command;
+
+pub(crate) mod bench;
+pub(crate) mod bench_suite;
+pub(crate) mod cameras;
+pub(crate) mod compare;
+pub(crate) mod demo;
+pub(crate) mod eval;
+pub(crate) mod export_ply;
+pub(crate) mod generate;
+pub(crate) mod inspect;
+pub(crate) mod render;
+pub(crate) mod render_ply;
+pub(crate) mod report;
+pub(crate) mod sweep;
+pub(crate) mod train;
+
+pub use app::Maaf;
 
 use maaf_train::data::{BLACK, WHITE};
 

@@ -7,9 +7,12 @@ use maaf_filter::FilterKind;
 use maaf_train::data::{Dataset, DatasetOptions, Split};
 use maaf_train::eval::render::recorded_data;
 use maaf_train::eval::render_image;
+use maaf_train::loss::TermRegistry;
 use maaf_train::metrics::psnr;
 use maaf_train::models::ModelConfig;
-use maaf_train::trainer::{TrainConfig, branch_run, load_checkpoint, train_run};
+use maaf_train::trainer::{
+    TrainConfig, branch_run_with_terms, load_checkpoint, train_run_with_terms,
+};
 
 use super::Background;
 
@@ -260,8 +263,8 @@ fn resumed_data(settings: &SettingsArgs, run: &Path) -> anyhow::Result<(PathBuf,
     Ok((root, background))
 }
 
-/// Runs `maaf train`.
-pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
+/// Runs `maaf train`; `terms` are the loss terms its config may name.
+pub fn run(args: &TrainArgs, terms: &TermRegistry<f32>) -> anyhow::Result<()> {
     let settings = &args.settings;
     if let Some(data) = &settings.data
         && data.to_str().is_none()
@@ -312,8 +315,8 @@ pub fn run(args: &TrainArgs) -> anyhow::Result<()> {
         );
     }
     let mut summary = match &args.from {
-        Some(from) => branch_run(&data, config, &out, from)?,
-        None => train_run(&data, config, &out, args.resume.is_some())?,
+        Some(from) => branch_run_with_terms(&data, config, &out, from, terms)?,
+        None => train_run_with_terms(&data, config, &out, args.resume.is_some(), terms)?,
     };
     let since = summary
         .last_reset

@@ -52,11 +52,12 @@ pub fn tiny_scene(data: &Path) {
 }
 
 /// Every leaf of a JSON object as `(dotted.path, value)`: objects are walked,
-/// anything else (numbers, strings, booleans, null, arrays) is a leaf.
+/// anything else (numbers, strings, booleans, null, arrays) and an empty object (a
+/// map such as `terms`, empty by default) is a leaf.
 pub fn json_leaves(value: &serde_json::Value) -> Vec<(String, serde_json::Value)> {
     fn walk(v: &serde_json::Value, prefix: &str, out: &mut Vec<(String, serde_json::Value)>) {
         match v {
-            serde_json::Value::Object(map) => {
+            serde_json::Value::Object(map) if !map.is_empty() => {
                 for (k, child) in map {
                     let path = if prefix.is_empty() {
                         k.clone()

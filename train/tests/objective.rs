@@ -180,3 +180,51 @@ fn a_hand_built_context_names_what_it_lacks() {
     let ctx = TermCtx::new(tape.var(image(1)), &image(2));
     let _ = ctx.alpha();
 }
+
+/// A run's objective on SaRO: the photometric loss, SaRO's `l_sr`, then the config's
+/// terms in name order; a name no registry knows is listed, not added.
+#[test]
+fn a_run_objective_adds_the_config_terms_in_name_order_and_lists_unknown_ones() {
+    use maaf_train::loss::TermRegistry;
+    use maaf_train::models::{PointCloud, SaroModel};
+    let cloud = PointCloud {
+        points: vec![[0.0, 0.0, 0.0], [0.1, 0.2, 0.3]],
+        colours: vec![[0.5, 0.5, 0.5]; 2],
+        times: None,
+    };
+    let model = SaroModel::<f64>::from_point_cloud(&cloud, SaroConfig::default(), 1.0, 0);
+    let mut registry = TermRegistry::<f64>::builtin();
+    registry.register_fn("render_mean", |ctx| ctx.render.mean());
+    let terms: std::collections::BTreeMap<String, f64> = [
+        ("scale_anisotropy", 0.5),
+        ("render_mean", 2.0),
+        ("not_here", 1.0),
+    ]
+    .iter()
+    .map(|&(n, w)| (n.to_string(), w))
+    .collect();
+    let obj = Objective::for_run(0.2, &model, &terms, &registry).expect("objective");
+    assert_eq!(
+        obj.names(),
+        ["l1", "dssim", L_SR, "render_mean", "scale_anisotropy"]
+    );
+    assert_eq!(obj.terms()[3].weight(), 2.0);
+    assert_eq!(obj.unregistered(), ["not_here"]);
+
+    // The model's own regulariser is weighted in its settings, not in `terms`.
+    let clash = [(L_SR.to_string(), 1.0)].into_iter().collect();
+    let msg = Objective::for_run(0.2, &model, &clash, &registry)
+        .err()
+        .expect("refused")
+        .to_string();
+    assert!(msg.contains("`l_sr` is already a term"), "{msg}");
+
+    // A maker that renames its term is refused rather than logged under another name.
+    registry.register("renamed", |w| Box::new(Provided::new("other", w)));
+    let renamed = [("renamed".to_string(), 1.0)].into_iter().collect();
+    let msg = Objective::for_run(0.2, &model, &renamed, &registry)
+        .err()
+        .expect("refused")
+        .to_string();
+    assert!(msg.contains("returned a term named `other`"), "{msg}");
+}

@@ -697,3 +697,46 @@ fn the_motion_filter_observes_at_most_max_views_and_the_others_none() {
     assert_eq!(loaded.iteration, 1);
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// A run whose config names a program's own term: rendering loads it without the
+/// term; continuing it needs the term registered, and is refused, naming it, without.
+#[test]
+fn a_run_with_its_own_term_loads_for_rendering_and_trains_only_with_the_term() {
+    use maaf_train::loss::TermRegistry;
+    use maaf_train::trainer::{load_checkpoint_with_terms, train_run_with, train_run_with_terms};
+    let Some(data) = mutant() else { return };
+    let dir = std::env::temp_dir().join(format!("maaf_own_term_{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let mut config = tiny_config(FilterKind::None);
+    config.iterations = 2;
+    config.val_every = 0;
+    config.terms.insert("alpha_mean".into(), 0.01);
+    let mut registry = TermRegistry::builtin();
+    registry.register_fn("alpha_mean", |ctx| ctx.alpha().mean());
+    train_run_with_terms(&data, config, &dir, false, &registry).expect("trains with the term");
+    let log = std::fs::read_to_string(dir.join("log.csv")).expect("log");
+    assert!(
+        log.starts_with("iteration,l1,dssim,l_sr,alpha_mean,"),
+        "{log}"
+    );
+
+    let model = dir.join("model");
+    let loaded = load_checkpoint(&data, &model).expect("rendering needs no term");
+    assert_eq!(loaded.objective.unregistered(), ["alpha_mean"]);
+    let msg = train_run_with(loaded, &dir, true)
+        .expect_err("refused")
+        .to_string();
+    assert!(msg.contains("lacks the term `alpha_mean`"), "{msg}");
+    let msg = load_checkpoint_with_terms(&data, &model, &TermRegistry::builtin())
+        .err()
+        .expect("refused")
+        .to_string();
+    assert!(
+        msg.contains("state.json: the term `alpha_mean` is not registered"),
+        "{msg}"
+    );
+    let t = load_checkpoint_with_terms(&data, &model, &registry).expect("with the term");
+    assert!(t.objective.unregistered().is_empty());
+    assert!(t.objective.names().iter().any(|n| n == "alpha_mean"));
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -5,8 +5,11 @@
 //! `(1 - 0.2) L1 + 0.2 (1 - SSIM)` ([`Objective::photometric`]); a representation's
 //! own regularisers (SaRO-GS's `8e-6 L_SR`, `helper_train.py::getloss`) are added by
 //! [`Objective::for_model`] with the weights the representation declares. A new term
-//! is one `impl Term` (or a closure, [`Objective::with_fn`]) plus [`Objective::with`];
-//! the training step only calls [`Objective::evaluate`], so it never changes.
+//! is one `impl Term` (or a closure, [`Objective::with_fn`]) plus [`Objective::with`],
+//! or registered by name in a [`TermRegistry`] so that a config's `terms` names it
+//! with a weight ([`Objective::for_run`]; the built-in regularisers are in
+//! [`builtin`]); the training step only calls [`Objective::evaluate`], so it never
+//! changes.
 //!
 //! ```
 //! use maaf_autodiff::{Tape, Tensor};
@@ -20,14 +23,20 @@
 //! assert!(grads.param("render").is_some());
 //! ```
 
+pub mod builtin;
+mod registry;
 pub mod ssim;
 mod terms;
 
 use maaf_autodiff::{Float, Var};
 
+pub use registry::{RESERVED, TermMaker, TermRegistry, name_problem};
 pub use ssim::{Ssim, SsimOutput, ssim, ssim_map};
 pub use terms::{DSsim, FnTerm, L1, Provided, Term, TermCtx};
 
+use std::collections::BTreeMap;
+
+use crate::Error;
 use crate::models::Representation;
 
 /// SaRO-GS / 3DGS weight of D-SSIM in the photometric loss (`lambda_dssim`).
@@ -36,6 +45,8 @@ pub const LAMBDA_DSSIM: f64 = 0.2;
 /// A weighted sum of named terms (module docs).
 pub struct Objective<T: Float> {
     terms: Vec<Box<dyn Term<T>>>,
+    /// Terms a config named that no registry knew ([`Objective::for_run`]).
+    unregistered: Vec<String>,
 }
 
 impl<T: Float> Default for Objective<T> {
@@ -79,7 +90,10 @@ impl<T: Float> Evaluated<'_, T> {
 impl<T: Float> Objective<T> {
     /// An objective with no term (its total is 0).
     pub fn new() -> Self {
-        Objective { terms: Vec::new() }
+        Objective {
+            terms: Vec::new(),
+            unregistered: Vec::new(),
+        }
     }
 
     /// `(1 - lambda) L1 + lambda D-SSIM`, the 3DGS photometric loss (`lambda = 0.2`,
@@ -102,6 +116,48 @@ impl<T: Float> Objective<T> {
             out.push(Box::new(Provided::new(&name, weight)));
         }
         out
+    }
+
+    /// The objective of a run: [`Objective::for_model`] plus, in name order, one term
+    /// per entry of a config's `terms` (`name -> weight`) that `registry` knows. A
+    /// name it does not know is left out and listed by [`Objective::unregistered`]:
+    /// such an objective can stand beside a model loaded for rendering, and every
+    /// training entry point refuses it. Errors (one line) when a name is already a
+    /// term of the objective (a model's own regulariser) or the registered maker
+    /// returns a term with another name or weight.
+    pub fn for_run(
+        lambda: f64,
+        model: &dyn Representation<T>,
+        terms: &BTreeMap<String, f64>,
+        registry: &TermRegistry<T>,
+    ) -> Result<Self, Error> {
+        let mut out = Self::for_model(lambda, model);
+        for (name, &weight) in terms {
+            if out.terms.iter().any(|t| t.name() == name) {
+                return Err(Error::Input(format!(
+                    "config: terms: `{name}` is already a term of the {} objective (its own regulariser, weighted in its model settings)",
+                    model.name()
+                )));
+            }
+            match registry.make(name, weight) {
+                Some(term) if term.name() == name && term.weight() == weight => out.push(term),
+                Some(term) => {
+                    return Err(Error::Input(format!(
+                        "config: terms: `{name}`: its registered maker returned a term named `{}` with weight {} (it must keep the name it is registered under and the weight {weight} it is given)",
+                        term.name(),
+                        term.weight()
+                    )));
+                }
+                None => out.unregistered.push(name.clone()),
+            }
+        }
+        Ok(out)
+    }
+
+    /// Names a config gave this objective that no registry knew (module docs of
+    /// [`TermRegistry`]); empty for any objective that can train.
+    pub fn unregistered(&self) -> &[String] {
+        &self.unregistered
     }
 
     /// Adds a term written as a closure over the context (about as short as a term

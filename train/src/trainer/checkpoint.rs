@@ -18,6 +18,7 @@ use serde::{Deserialize, Serialize};
 use super::{DensifyStats, Liveness, Timings, TrainConfig, Trainer};
 use crate::Error;
 use crate::data::Dataset;
+use crate::loss::TermRegistry;
 use crate::models::Representation;
 use crate::params::Rows;
 
@@ -188,11 +189,31 @@ pub fn checkpoint_iteration(dir: &Path) -> Result<usize, Error> {
 }
 
 /// Restores a trainer of the built-in representation `config.model` names from a
-/// checkpoint folder written by [`save_checkpoint`], on the same data set. Errors
-/// name the file and the missing or malformed entry.
+/// checkpoint folder written by [`save_checkpoint`], on the same data set, for
+/// rendering and evaluation: a term of the run's `config.terms` that is not built in
+/// is left out of its objective ([`crate::loss::Objective::unregistered`]), and
+/// [`super::train_run_with`] refuses to train it; to continue training, load with
+/// [`load_checkpoint_with_terms`]. Errors name the file and the missing or
+/// malformed entry.
 pub fn load_checkpoint(data: &Dataset, dir: &Path) -> Result<Trainer, Error> {
     let state = read_state(dir)?;
-    let mut trainer = Trainer::new(data, state.config.clone())?;
+    let mut trainer = Trainer::from_config(data, state.config.clone(), &TermRegistry::builtin())?;
+    trainer.restore_state(dir, state, false)?;
+    Ok(trainer)
+}
+
+/// [`load_checkpoint`] with the terms of `registry`, to continue training: every
+/// term of the run's `config.terms` must be registered there (one line naming those
+/// that are not, and the checkpoint's `state.json`).
+pub fn load_checkpoint_with_terms(
+    data: &Dataset,
+    dir: &Path,
+    registry: &TermRegistry<f32>,
+) -> Result<Trainer, Error> {
+    let state = read_state(dir)?;
+    let what = dir.join("state.json").display().to_string();
+    registry.check(&state.config.terms, &what)?;
+    let mut trainer = Trainer::from_config(data, state.config.clone(), registry)?;
     trainer.restore_state(dir, state, false)?;
     Ok(trainer)
 }

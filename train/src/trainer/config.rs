@@ -1,6 +1,8 @@
 //! Training configuration (serde, every value exposed; defaults follow the SaRO-GS
 //! D-NeRF configs and the paper's protocol unless noted).
 
+use std::collections::BTreeMap;
+
 use maaf_filter::FilterConfig;
 use serde::{Deserialize, Serialize};
 
@@ -143,6 +145,11 @@ pub struct TrainConfig {
     pub hull_fraction: f64,
     /// D-SSIM weight lambda in `(1 - lambda) L1 + lambda D-SSIM`.
     pub lambda_dssim: f64,
+    /// Further loss terms by name with their weights, `{"opacity_entropy": 0.001}`:
+    /// the built-in regularisers ([`crate::loss::builtin`]) or terms the training
+    /// program registered ([`crate::loss::TermRegistry`]). Added after the
+    /// photometric loss and the model's regularisers, in name order.
+    pub terms: BTreeMap<String, f64>,
     /// Raise the evaluated SH degree by one every this many iterations (3DGS: 1000).
     pub sh_degree_every: usize,
     /// Write a checkpoint every this many iterations (and always at the end).
@@ -183,6 +190,7 @@ impl Default for TrainConfig {
             init_points: 10_000,
             hull_fraction: 0.5,
             lambda_dssim: 0.2,
+            terms: BTreeMap::new(),
             sh_degree_every: 1000,
             checkpoint_every: 5000,
             log_every: 100,
@@ -251,6 +259,18 @@ impl TrainConfig {
         count("init_points", self.init_points, 1, MAX_GAUSSIANS_CAP)?;
         in_range("hull_fraction", self.hull_fraction, 0.0, 1.0)?;
         in_range("lambda_dssim", self.lambda_dssim, 0.0, 1.0)?;
+        for (name, &weight) in &self.terms {
+            if let Some(problem) = crate::loss::name_problem(name) {
+                return Err(Error::Input(format!("config: terms: {problem}")));
+            }
+            if !(weight.is_finite() && weight >= 0.0) {
+                return Err(bad(
+                    &format!("terms.{name}"),
+                    &weight,
+                    "a finite weight >= 0",
+                ));
+            }
+        }
         count("sh_degree_every", self.sh_degree_every, 1, usize::MAX)?;
         count("checkpoint_every", self.checkpoint_every, 1, usize::MAX)?;
         count("log_every", self.log_every, 1, usize::MAX)?;
@@ -349,6 +369,12 @@ mod tests {
             ("init_points", Box::new(|c| c.init_points = 0)),
             ("hull_fraction", Box::new(|c| c.hull_fraction = 1.5)),
             ("lambda_dssim", Box::new(|c| c.lambda_dssim = 2.0)),
+            (
+                "terms.depth_tv",
+                Box::new(|c| {
+                    c.terms.insert("depth_tv".into(), f64::NAN);
+                }),
+            ),
             ("checkpoint_every", Box::new(|c| c.checkpoint_every = 0)),
             ("log_every", Box::new(|c| c.log_every = 0)),
             ("val_every", Box::new(|c| c.val_every = 150)),
@@ -391,5 +417,25 @@ mod tests {
             );
             assert!(!msg.contains('\n'), "{msg}");
         }
+    }
+
+    #[test]
+    fn a_term_name_must_be_a_log_column_of_its_own() {
+        for (name, says) in [
+            ("l1", "reserved"),
+            ("total", "reserved"),
+            ("a,b", "not a term name"),
+            ("", "not a term name"),
+        ] {
+            let mut c = TrainConfig::default();
+            c.terms.insert(name.into(), 0.1);
+            let msg = c.validate().expect_err(name).to_string();
+            assert!(msg.starts_with("config: terms: "), "{msg}");
+            assert!(msg.contains(says), "{name}: {msg}");
+        }
+        let mut c = TrainConfig::default();
+        c.terms.insert("my_term_2".into(), 0.0);
+        c.validate()
+            .expect("any registered-looking name with a weight >= 0");
     }
 }

@@ -3,8 +3,10 @@
 //! densification and filter refreshes outside the tape.
 //!
 //! A trainer is built from a config ([`Trainer::new`]: the model kind is
-//! `config.model`) or around any representation ([`Trainer::with_model`]); custom
-//! terms go into [`Trainer::objective`]. [`train_run`] runs either in a run directory.
+//! `config.model`, the extra loss terms `config.terms`; [`Trainer::with_terms`] with
+//! terms of the program's own) or around any representation ([`Trainer::with_model`]);
+//! terms can also be pushed onto [`Trainer::objective`]. [`train_run`] runs either in
+//! a run directory.
 
 mod checkpoint;
 mod config;
@@ -27,18 +29,23 @@ use maaf_splat::Camera;
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 
-pub use checkpoint::{checkpoint_iteration, load_checkpoint, save_checkpoint};
+pub use checkpoint::{
+    checkpoint_iteration, load_checkpoint, load_checkpoint_with_terms, save_checkpoint,
+};
 pub use config::{DensifyConfig, MAX_BATCH, OpacityReset, PruneConfig, TrainConfig};
 pub use densify::{DensifyPlan, DensifyStats, ViewGrad, plan as plan_densify};
 pub use prune::{keep_highest, removal_sensitivity};
 pub use reset::{Liveness, opacity_caps};
 pub use resume::{checkpoints_newest_first, load_newest, repair_run_dir, truncate_log};
-pub use run::{RunSummary, branch_run, checkpoint_dir, train_run, train_run_with};
+pub use run::{
+    RunSummary, branch_run, branch_run_with_terms, checkpoint_dir, train_run, train_run_with,
+    train_run_with_terms,
+};
 pub use timings::Timings;
 
 use crate::Error;
 use crate::data::{Dataset, View};
-use crate::loss::Objective;
+use crate::loss::{Objective, TermRegistry};
 use crate::models::{ModelInit, PointCloud, Representation, build_model};
 
 /// A trainer: the model, its optimiser, the filter and every per-Gaussian container,
@@ -57,8 +64,8 @@ pub struct Trainer {
     pub observations: ObservationTable,
     /// Densification statistics.
     pub stats: DensifyStats,
-    /// Objective (named weighted terms): the photometric loss and the model's
-    /// regularisers; push custom terms here.
+    /// Objective (named weighted terms): the photometric loss, the model's
+    /// regularisers and the terms `config.terms` names; push further terms here.
     pub objective: Objective<f32>,
     /// Iterations completed.
     pub iteration: usize,
@@ -210,24 +217,61 @@ fn random_cloud(data: &Dataset, config: &TrainConfig) -> PointCloud {
 
 impl Trainer {
     /// A new run of the representation `config.model` describes (built by
-    /// [`build_model`]). Values the data decides (SaRO's `duration`) are resolved
+    /// [`build_model`]), with the built-in terms ([`TermRegistry::builtin`]); a term
+    /// `config.terms` names that is not built in is refused ([`Trainer::with_terms`]
+    /// supplies others). Values the data decides (SaRO's `duration`) are resolved
     /// into the config, so `config.json` records them.
-    pub fn new(data: &Dataset, mut config: TrainConfig) -> Result<Self, Error> {
+    pub fn new(data: &Dataset, config: TrainConfig) -> Result<Self, Error> {
+        Self::with_terms(data, config, &TermRegistry::builtin())
+    }
+
+    /// [`Trainer::new`] with the terms of `registry`: every name in `config.terms`
+    /// must be registered there (one-line error naming those that are not).
+    pub fn with_terms(
+        data: &Dataset,
+        config: TrainConfig,
+        registry: &TermRegistry<f32>,
+    ) -> Result<Self, Error> {
+        registry.check(&config.terms, "config: terms")?;
+        Self::from_config(data, config, registry)
+    }
+
+    /// [`Trainer::with_terms`] without the check: a term no registry knows is left
+    /// out of the objective ([`Objective::unregistered`]), which is what a model
+    /// loaded for rendering needs ([`load_checkpoint`]); training refuses it.
+    fn from_config(
+        data: &Dataset,
+        mut config: TrainConfig,
+        registry: &TermRegistry<f32>,
+    ) -> Result<Self, Error> {
         config.validate()?;
         let init = model_init(data, &config)?;
         config.model.resolve(&init);
         let model = build_model(&config.model, &init);
-        Self::with_model(data, config, model)
+        Self::assemble(data, config, model, registry)
     }
 
     /// A new run of any representation: the model is used as given (its config is
     /// the caller's; `config.model` is then only recorded, not used). The filter,
     /// objective, densification, checkpoints and evaluation work unchanged. The
-    /// objective is the photometric loss plus the model's declared regularisers.
+    /// objective is the photometric loss plus the model's declared regularisers and
+    /// the built-in terms `config.terms` names (any other name is refused).
     pub fn with_model(
         data: &Dataset,
         config: TrainConfig,
         model: Box<dyn Representation<f32>>,
+    ) -> Result<Self, Error> {
+        let registry = TermRegistry::builtin();
+        registry.check(&config.terms, "config: terms")?;
+        Self::assemble(data, config, model, &registry)
+    }
+
+    /// The trainer around `model`, its objective built by [`Objective::for_run`].
+    fn assemble(
+        data: &Dataset,
+        config: TrainConfig,
+        model: Box<dyn Representation<f32>>,
+        registry: &TermRegistry<f32>,
     ) -> Result<Self, Error> {
         config.validate()?;
         let views = training_views(data, &config)?;
@@ -239,7 +283,8 @@ impl Trainer {
         // The tensors are the trainer's copy: the data set's cached one would double
         // the images' memory for the whole run.
         data.evict(crate::data::Split::Train);
-        let objective = Objective::for_model(config.lambda_dssim, model.as_ref());
+        let objective =
+            Objective::for_run(config.lambda_dssim, model.as_ref(), &config.terms, registry)?;
         let held_out = validation::held_out_views(data, config.val_views, config.train_scale)?;
         Ok(Trainer {
             adam: Adam::new(AdamConfig::default()),

@@ -10,10 +10,11 @@ use serde::{Deserialize, Serialize};
 
 use super::log::{LogLayout, RowStats};
 use super::{
-    Timings, TrainConfig, Trainer, load_checkpoint, load_newest, log_line, repair_run_dir,
-    save_checkpoint, truncate_log,
+    Timings, TrainConfig, Trainer, load_checkpoint_with_terms, load_newest, log_line,
+    repair_run_dir, save_checkpoint, truncate_log,
 };
 use crate::data::Dataset;
+use crate::loss::TermRegistry;
 use crate::{Error, write_atomic};
 
 /// What a finished run reports (also written as `RUN/summary.json`).
@@ -75,7 +76,27 @@ pub fn train_run(
     out: &Path,
     resume: bool,
 ) -> Result<RunSummary, Error> {
+    train_run_with_terms(data, config, out, resume, &TermRegistry::builtin())
+}
+
+/// [`train_run`] with the loss terms of `registry` (the built-in ones and the
+/// program's own): every term `config.terms` names must be registered there, for a
+/// new run and for a resume (the run's `config.json`), or the call fails with one
+/// line naming the missing terms before anything changes.
+pub fn train_run_with_terms(
+    data: &Dataset,
+    config: TrainConfig,
+    out: &Path,
+    resume: bool,
+    registry: &TermRegistry<f32>,
+) -> Result<RunSummary, Error> {
     let _lock = lock_run(out)?;
+    let what = if resume {
+        out.join("config.json").display().to_string()
+    } else {
+        "config: terms".to_string()
+    };
+    registry.check(&config.terms, &what)?;
     if resume {
         crate::eval::render::check_and_record_data(out, data)?;
     } else {
@@ -84,7 +105,7 @@ pub fn train_run(
     repair_run_dir(out)?;
     let budget = config.iterations;
     let found = if resume {
-        load_newest(out, |dir| load_checkpoint(data, dir))
+        load_newest(out, |dir| load_checkpoint_with_terms(data, dir, registry))
     } else {
         None
     };
@@ -96,7 +117,7 @@ pub fn train_run(
             say_resumed(&t, &dir);
             t
         }
-        None => Trainer::new(data, config)?,
+        None => Trainer::with_terms(data, config, registry)?,
     };
     run_trainer(trainer, out, resume)
 }
@@ -186,8 +207,19 @@ pub fn branch_run(
     out: &Path,
     from: &Path,
 ) -> Result<RunSummary, Error> {
+    branch_run_with_terms(data, config, out, from, &TermRegistry::builtin())
+}
+
+/// [`branch_run`] with the loss terms of `registry` ([`train_run_with_terms`]).
+pub fn branch_run_with_terms(
+    data: &Dataset,
+    config: TrainConfig,
+    out: &Path,
+    from: &Path,
+    registry: &TermRegistry<f32>,
+) -> Result<RunSummary, Error> {
     let _lock = lock_run(out)?;
-    let mut trainer = Trainer::new(data, config)?;
+    let mut trainer = Trainer::with_terms(data, config, registry)?;
     let fresh = trainer.branch_from(from)?;
     if trainer.iteration >= trainer.config.iterations {
         return Err(Error::Input(format!(
@@ -219,9 +251,17 @@ pub fn branch_run(
 /// checkpoint of `out` is restored into `trainer` ([`Trainer::restore`]), which keeps
 /// its objective and its iteration budget: build the trainer exactly as for the first
 /// session, so custom terms are re-supplied. Refuses a resume whose objective differs
-/// from the one `log.csv` was written with.
+/// from the one `log.csv` was written with, and a trainer whose objective lacks terms
+/// its config names ([`crate::loss::Objective::unregistered`]: one loaded by
+/// [`super::load_checkpoint`] for rendering).
 pub fn train_run_with(mut trainer: Trainer, out: &Path, resume: bool) -> Result<RunSummary, Error> {
     let _lock = lock_run(out)?;
+    if let Some(name) = trainer.objective.unregistered().first() {
+        return Err(Error::Input(format!(
+            "{}: the trainer's objective lacks the term `{name}` its config names (load it with load_checkpoint_with_terms)",
+            out.display()
+        )));
+    }
     repair_run_dir(out)?;
     if resume {
         let budget = trainer.config.iterations;
