@@ -55,8 +55,10 @@
 //!   p95 4-8%.
 
 mod config;
+mod curves;
 pub mod export;
 mod kernels;
+mod kde;
 mod mip;
 mod motion;
 mod observations;
@@ -68,6 +70,6 @@ pub use config::{FilterConfig, FilterError, FilterKind, MotionEstimator, Refresh
 pub use export::{AnalysisExport, EstimatorCurve, GaussianTrace};
 pub use kernels::Kernels;
 pub use mip::{Viewer, static_nu, variance_from_nu};
-pub use motion::{FALLBACK, MotionCurves};
+pub use curves::{FALLBACK, MotionCurves};
 pub use observations::{CameraTime, ObservationTable, observed_frames};
 pub use state::FilterState;

@@ -10,7 +10,7 @@
 
 use crate::config::FilterConfig;
 use crate::kernels::Kernels;
-use crate::motion::FALLBACK;
+use crate::curves::FALLBACK;
 
 /// The paper's per-Gaussian output: `x_max` and the full density `rho[d * T + s]`.
 #[derive(Clone, Debug)]
