@@ -22,7 +22,7 @@ mod validation;
 
 use maaf_autodiff::optim::{Adam, AdamConfig};
 use maaf_autodiff::{OpProfile, PerGaussian, Tensor};
-use maaf_filter::{CameraTime, FilterKind, FilterState, ObservationTable, observed_frames};
+use maaf_filter::{CameraTime, FilterRegistry, FilterState, ObservationTable, SamplingFilter};
 use maaf_splat::Camera;
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
@@ -52,6 +52,9 @@ pub struct Trainer {
     pub adam: Adam<f32>,
     /// Current 3D filter of every Gaussian.
     pub filter: FilterState,
+    /// What computes [`Self::filter`]: the config's filter by name, or a user's
+    /// ([`Trainer::set_filter`]).
+    sampling: Box<dyn SamplingFilter>,
     /// f/d observations recorded from training forward passes: the motion filter's
     /// input, at most `filter.max_views` frames; no frames for the other filters.
     pub observations: ObservationTable,
@@ -110,37 +113,6 @@ pub fn camera_extent(cameras: &[Camera]) -> f64 {
         .iter()
         .map(|cam| (cam.center() - c).length())
         .fold(0.0, f64::max)
-}
-
-/// The training views the motion filter observes (at most `filter.max_views`, by
-/// [`observed_frames`]; none for the other filters, which read no observation) and
-/// each view's frame in the observation table. Logs the table's size when capped.
-fn observed_views(views: &[View], config: &TrainConfig) -> (Vec<CameraTime>, Vec<Option<usize>>) {
-    let mut slot = vec![None; views.len()];
-    if config.filter.kind != FilterKind::Motion {
-        return (Vec::new(), slot);
-    }
-    let all: Vec<CameraTime> = views
-        .iter()
-        .enumerate()
-        .map(|(i, v)| CameraTime {
-            camera: i,
-            time: v.time as f32,
-        })
-        .collect();
-    let kept = observed_frames(&all, config.filter.max_views);
-    if kept.len() < all.len() {
-        log_line(&format!(
-            "motion filter: observing {} of {} training views (filter.max_views), {} B per Gaussian",
-            kept.len(),
-            all.len(),
-            4 * kept.len()
-        ));
-    }
-    for (frame, &v) in kept.iter().enumerate() {
-        slot[v] = Some(frame);
-    }
-    (kept.iter().map(|&v| all[v]).collect(), slot)
 }
 
 /// The training views of `data` at the config's scale, or an error naming the folder.
@@ -234,7 +206,12 @@ impl Trainer {
         let cameras: Vec<Camera> = views.iter().map(|v| v.camera.clone()).collect();
         let extent = camera_extent(&cameras);
         let n = model.num_gaussians();
-        let (observed, observed_slot) = observed_views(&views, &config);
+        let sampling = FilterRegistry::builtin()
+            .for_config(&config.filter)
+            .map_err(|e| Error::Input(e.to_string()))?;
+        let view_times: Vec<f64> = views.iter().map(|v| v.time).collect();
+        let (observed, observed_slot) =
+            refresh::observed_views(&view_times, sampling.observes(), config.filter.max_views);
         let gts = views.iter().map(|v| v.image.to_tensor()).collect();
         // The tensors are the trainer's copy: the data set's cached one would double
         // the images' memory for the whole run.
@@ -244,6 +221,7 @@ impl Trainer {
         Ok(Trainer {
             adam: Adam::new(AdamConfig::default()),
             filter: FilterState::None { rows: n },
+            sampling,
             observations: ObservationTable::for_frames(&observed, n),
             stats: DensifyStats::new(n),
             objective,
@@ -259,7 +237,7 @@ impl Trainer {
             background: data.background(),
             config,
             model,
-            view_times: views.iter().map(|v| v.time).collect(),
+            view_times,
             held_out,
             gts,
             cameras,

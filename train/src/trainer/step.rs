@@ -4,7 +4,6 @@
 use std::time::Instant;
 
 use maaf_autodiff::{Tape, Tensor};
-use maaf_filter::FilterKind;
 use maaf_splat::compositing::drawable;
 use maaf_splat::{Filter2d, RenderSettings};
 use rand::SeedableRng;
@@ -19,13 +18,13 @@ use crate::loss::Evaluated;
 
 impl Trainer {
     /// Render settings at `iteration`: the 2D Mip filter (0.1 px^2 with compensation)
-    /// whenever a 3D filter is on, as in the paper; the classic 3DGS dilation
-    /// (0.3 px^2) otherwise. SH degree grows by one every `sh_degree_every` iterations.
+    /// whenever the trainer's filter smooths ([`maaf_filter::SamplingFilter::smooths`]),
+    /// as in the paper; the classic 3DGS dilation (0.3 px^2) otherwise. SH degree grows by one every `sh_degree_every` iterations.
     pub fn render_settings(&self, iteration: usize) -> RenderSettings {
-        let filter2d = if self.config.filter.kind == FilterKind::None {
-            Filter2d::Classic
-        } else {
+        let filter2d = if self.sampling.smooths() {
             Filter2d::Mip
+        } else {
+            Filter2d::Classic
         };
         let grown = iteration / self.config.sh_degree_every.max(1);
         RenderSettings {
