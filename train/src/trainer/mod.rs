@@ -17,6 +17,7 @@ mod reset;
 mod resume;
 mod run;
 mod step;
+mod strategy;
 mod timings;
 mod validation;
 
@@ -34,6 +35,9 @@ pub use prune::{keep_highest, removal_sensitivity};
 pub use reset::{Liveness, opacity_caps};
 pub use resume::{checkpoints_newest_first, load_newest, repair_run_dir, truncate_log};
 pub use run::{RunSummary, branch_run, checkpoint_dir, train_run, train_run_with};
+pub use strategy::{
+    DefaultStrategy, SensitivityPruning, StepInfo, Strategy, for_config as strategy_for_config,
+};
 pub use timings::Timings;
 
 use crate::Error;
@@ -60,6 +64,9 @@ pub struct Trainer {
     pub observations: ObservationTable,
     /// Densification statistics.
     pub stats: DensifyStats,
+    /// The densification strategy (the config's, or a user's:
+    /// [`Trainer::set_strategy`]); `None` only while one of its hooks runs.
+    strategy: Option<Box<dyn Strategy>>,
     /// Objective (named weighted terms): the photometric loss and the model's
     /// regularisers; push custom terms here.
     pub objective: Objective<f32>,
@@ -224,6 +231,7 @@ impl Trainer {
             sampling,
             observations: ObservationTable::for_frames(&observed, n),
             stats: DensifyStats::new(n),
+            strategy: Some(strategy::for_config(&config)),
             objective,
             iteration: 0,
             skipped_steps: 0,

@@ -12,7 +12,8 @@ use rand_pcg::Pcg64;
 
 use super::ViewGrad;
 use super::refresh::centres;
-use super::{DensifyStats, Trainer, log_line, plan_densify};
+use super::strategy::StepInfo;
+use super::{Trainer, log_line};
 use crate::forward::{batch_mean, forward_bound};
 use crate::loss::Evaluated;
 
@@ -154,7 +155,11 @@ impl Trainer {
                         height: fwd.camera.height,
                     })
                     .collect();
-                self.stats.record_views(&seen, batch as f32);
+                self.strategy_after_backward(&StepInfo {
+                    iteration: it,
+                    views: &seen,
+                    loss_scale: batch as f32,
+                });
                 let opacity = self.model.canonical_ids().opacity_logits;
                 if let Some(g) = grads.param(&self.model.params().param(opacity).name) {
                     self.liveness.record(g.data(), it);
@@ -201,12 +206,13 @@ impl Trainer {
         self.iteration = it;
     }
 
-    /// What the schedule does after the gradient step of iteration `iteration`:
-    /// densification, pruning and opacity reset, then the filter refresh, when due.
+    /// What the schedule does after the gradient step of iteration `iteration`: the
+    /// densification strategy's refinement ([`super::Strategy::refine`]:
+    /// densification, pruning and opacity reset), then the filter refresh, when due.
     pub fn schedule(&mut self) {
         let it = self.iteration;
         let t4 = Instant::now();
-        let densified = self.maybe_densify(it);
+        let densified = self.strategy_refine(it);
         let t5 = Instant::now();
         self.timings.densification += (t5 - t4).as_secs_f64();
         if self
@@ -218,40 +224,6 @@ impl Trainer {
             self.refresh_filter();
         }
         self.timings.filter_refresh += t5.elapsed().as_secs_f64();
-    }
-
-    /// Densify, prune by sensitivity, reset opacity, in that order, when the schedule
-    /// says so; returns whether the set of Gaussians changed.
-    fn maybe_densify(&mut self, it: usize) -> bool {
-        let d = self.config.densify.clone();
-        let mut changed = false;
-        // Nothing at the last iteration: a run shorter than the schedule must not end
-        // on an opacity reset or an unrefined densification.
-        if it >= self.config.iterations {
-            return false;
-        }
-        if it >= d.from && it <= d.until && d.every > 0 && it.is_multiple_of(d.every) {
-            let big_screen = self.last_reset.is_some();
-            let seed = self.config.seed ^ (it as u64).wrapping_mul(0xD1B5_4A32_D192_ED03);
-            let plan = plan_densify(
-                self.model.as_ref(),
-                &self.stats,
-                &d,
-                self.extent,
-                big_screen,
-                seed,
-            );
-            self.apply_plan(&plan);
-            // 3DGS restarts the gradient statistics after every densify_and_prune.
-            self.stats = DensifyStats::new(plan.index.len());
-            changed = plan.cloned + plan.split + plan.pruned > 0;
-        }
-        changed |= self.maybe_prune(it);
-        if d.opacity_reset_every > 0 && it <= d.until && it.is_multiple_of(d.opacity_reset_every) {
-            self.reset_opacity(d.reset_opacity);
-            self.last_reset = Some(it);
-        }
-        changed
     }
 }
 
