@@ -132,12 +132,11 @@ impl Trainer {
                     .collect();
                 for (p, scale) in self.model.params_mut().iter_mut().zip(scales) {
                     if let Some(gr) = grads.param(&p.name) {
-                        self.adam.set_group(&p.name, p.lr.clone());
                         self.adam.step_rows(
                             &p.name,
                             &mut p.value,
                             gr,
-                            it - 1,
+                            p.lr.at(it - 1),
                             p.weight_decay,
                             scale.as_deref(),
                         );
