@@ -363,7 +363,7 @@ mod tests {
                 1e-3,
                 8e-7,
             );
-            plain_step(&mut q, &zero, &mut m, &mut v, t as i32, 8e-7);
+            plain_step(&mut q, &zero, &mut m, &mut v, t, 8e-7);
             plain_subnormals += m.iter().chain(&v).filter(|&&x| subnormal(x)).count();
             let mo = adam.moments("p").expect("moments");
             let stored = mo.m.data().iter().chain(mo.v.data()).chain(p.data());
