@@ -1,4 +1,5 @@
-//! Adam with per-parameter learning-rate schedules, working on tensors outside the tape.
+//! Adam working on tensors outside the tape, and the learning-rate schedules that
+//! give it each step's rate (the caller evaluates a schedule and passes the number).
 
 use std::collections::HashMap;
 
@@ -92,47 +93,30 @@ impl<T: Float> PerGaussian for Moments<T> {
     }
 }
 
-/// Adam (Kingma and Ba 2015) with bias correction and a learning-rate schedule per
-/// named parameter:
+/// Adam (Kingma and Ba 2015) with bias correction, moments per named parameter and
+/// the learning rate given at each step (a number: `LrSchedule::at` of the
+/// parameter's schedule, or anything else):
 /// `m = b1 m + (1-b1) g`, `v = b2 v + (1-b2) g^2`,
-/// `p -= lr(i) * (m / (1-b1^t)) / (sqrt(v / (1-b2^t)) + eps)`.
+/// `p -= lr * (m / (1-b1^t)) / (sqrt(v / (1-b2^t)) + eps)`.
 #[derive(Clone, Debug)]
 pub struct Adam<T: Float> {
     config: AdamConfig,
-    schedules: HashMap<String, LrSchedule>,
     state: HashMap<String, Moments<T>>,
 }
 
 impl<T: Float> Adam<T> {
-    /// An optimiser with no parameter groups yet.
+    /// An optimiser with no moments yet.
     pub fn new(config: AdamConfig) -> Self {
         Adam {
             config,
-            schedules: HashMap::new(),
             state: HashMap::new(),
         }
     }
 
-    /// Sets the schedule of parameter `name` (a group of one); chainable.
-    pub fn with_group(mut self, name: &str, schedule: LrSchedule) -> Self {
-        self.schedules.insert(name.to_string(), schedule);
-        self
-    }
-
-    /// Sets the schedule of parameter `name`.
-    pub fn set_group(&mut self, name: &str, schedule: LrSchedule) {
-        self.schedules.insert(name.to_string(), schedule);
-    }
-
-    /// The learning rate of `name` at `iteration`, or `None` for an unknown parameter.
-    pub fn lr(&self, name: &str, iteration: usize) -> Option<f64> {
-        self.schedules.get(name).map(|s| s.at(iteration))
-    }
-
-    /// One Adam update of `param` with gradient `grad`. Panics if `name` has no
-    /// schedule (every trained parameter must be in a group) or shapes differ.
-    pub fn step(&mut self, name: &str, param: &mut Tensor<T>, grad: &Tensor<T>, iteration: usize) {
-        self.step_l2(name, param, grad, iteration, 0.0);
+    /// One Adam update of `param` with gradient `grad` at learning rate `lr`; the
+    /// moments of `name` start at zero on its first step. Panics if shapes differ.
+    pub fn step(&mut self, name: &str, param: &mut Tensor<T>, grad: &Tensor<T>, lr: f64) {
+        self.step_l2(name, param, grad, lr, 0.0);
     }
 
     /// [`Adam::step`] with L2 weight decay folded into the gradient first,
@@ -143,14 +127,14 @@ impl<T: Float> Adam<T> {
         name: &str,
         param: &mut Tensor<T>,
         grad: &Tensor<T>,
-        iteration: usize,
+        lr: f64,
         weight_decay: f64,
     ) {
-        self.step_rows(name, param, grad, iteration, weight_decay, None);
+        self.step_rows(name, param, grad, lr, weight_decay, None);
     }
 
     /// [`Adam::step_l2`] with a learning rate per row: row `r` of `param` (its first
-    /// axis) moves by `lr(i) * row_scale[r] * m_hat / (sqrt(v_hat) + eps)`; the
+    /// axis) moves by `lr * row_scale[r] * m_hat / (sqrt(v_hat) + eps)`; the
     /// moments are those of plain Adam. SaRO-GS's adaptive optimisation scales the
     /// rates of short-lived Gaussians this way (`update_learning_rate` with a
     /// per-Gaussian `lr` column). `None` is a scale of 1 everywhere. Panics if
@@ -160,13 +144,10 @@ impl<T: Float> Adam<T> {
         name: &str,
         param: &mut Tensor<T>,
         grad: &Tensor<T>,
-        iteration: usize,
+        lr: f64,
         weight_decay: f64,
         row_scale: Option<&[T]>,
     ) {
-        let lr = self
-            .lr(name, iteration)
-            .unwrap_or_else(|| panic!("Adam: parameter `{name}` has no schedule"));
         assert_eq!(
             param.shape(),
             grad.shape(),
@@ -304,15 +285,14 @@ mod tests {
             beta1: 0.9,
             beta2: 0.999,
             eps: 1e-8,
-        })
-        .with_group("p", LrSchedule::Constant(0.1));
+        });
         let mut p = Tensor::from_vec(vec![1.0, -2.0], &[2]);
-        adam.step("p", &mut p, &Tensor::from_vec(vec![0.5, -4.0], &[2]), 0);
+        adam.step("p", &mut p, &Tensor::from_vec(vec![0.5, -4.0], &[2]), 0.1);
         // Step 1: m_hat = g, v_hat = g^2, so the update is lr * g / (|g| + eps).
         let want0 = 1.0 - 0.1 * 0.5 / (0.5 + 1e-8);
         let want1 = -2.0 + 0.1 * 4.0 / (4.0 + 1e-8);
         assert!((p.data()[0] - want0).abs() < 1e-15 && (p.data()[1] - want1).abs() < 1e-15);
-        adam.step("p", &mut p, &Tensor::from_vec(vec![1.0, 0.0], &[2]), 1);
+        adam.step("p", &mut p, &Tensor::from_vec(vec![1.0, 0.0], &[2]), 0.1);
         let m = 0.9 * 0.05 + 0.1 * 1.0;
         let v = 0.999 * 0.001 * 0.25 + 0.001 * 1.0;
         let (mh, vh) = (m / (1.0 - 0.81), v / (1.0 - 0.999f64.powi(2)));
@@ -348,7 +328,6 @@ mod tests {
             beta2: 0.999,
             eps: 1e-15,
         })
-        .with_group("p", LrSchedule::Constant(1e-3))
     }
 
     #[test]
@@ -359,7 +338,7 @@ mod tests {
         let (mut q, mut m, mut v) = (p.data().to_vec(), vec![0.0; n], vec![0.0; n]);
         for t in 1..=50 {
             let g: Vec<f32> = (0..n).map(|i| ((i * t) as f32 * 0.11).cos()).collect();
-            adam.step_l2("p", &mut p, &Tensor::from_vec(g.clone(), &[n]), t, 8e-7);
+            adam.step_l2("p", &mut p, &Tensor::from_vec(g.clone(), &[n]), 1e-3, 8e-7);
             plain_step(&mut q, &g, &mut m, &mut v, t as i32, 8e-7);
             assert_eq!(p.data(), &q[..], "step {t}");
         }
@@ -381,10 +360,10 @@ mod tests {
                 "p",
                 &mut p,
                 &Tensor::from_vec(zero.clone(), &[n]),
-                t - 1,
+                1e-3,
                 8e-7,
             );
-            plain_step(&mut q, &zero, &mut m, &mut v, t as i32, 8e-7);
+            plain_step(&mut q, &zero, &mut m, &mut v, t, 8e-7);
             plain_subnormals += m.iter().chain(&v).filter(|&&x| subnormal(x)).count();
             let mo = adam.moments("p").expect("moments");
             let stored = mo.m.data().iter().chain(mo.v.data()).chain(p.data());
@@ -411,21 +390,20 @@ mod tests {
         );
         let scale: Vec<f64> = (0..rows).map(|r| 1.0 + (r % 7) as f64).collect();
         let cfg = AdamConfig::default();
-        let mut all = Adam::<f64>::new(cfg.clone()).with_group("p", LrSchedule::Constant(0.01));
+        let mut all = Adam::<f64>::new(cfg.clone());
         let mut p = init.clone();
-        for i in 0..2 {
-            all.step_rows("p", &mut p, &grad, i, 0.1, Some(&scale));
+        for _ in 0..2 {
+            all.step_rows("p", &mut p, &grad, 0.01, 0.1, Some(&scale));
         }
         let half = ADAM_BLOCK / width;
         for r in [0, half - 1, half, half + 1, rows - 1] {
-            let mut one = Adam::<f64>::new(cfg.clone())
-                .with_group("q", LrSchedule::Constant(0.01 * scale[r]));
+            let mut one = Adam::<f64>::new(cfg.clone());
             let pick = |t: &Tensor<f64>| {
                 Tensor::from_vec(t.data()[width * r..width * (r + 1)].to_vec(), &[1, width])
             };
             let mut q = pick(&init);
-            for i in 0..2 {
-                one.step_l2("q", &mut q, &pick(&grad), i, 0.1);
+            for _ in 0..2 {
+                one.step_l2("q", &mut q, &pick(&grad), 0.01 * scale[r], 0.1);
             }
             for c in 0..width {
                 let (got, want) = (p.data()[width * r + c], q.data()[c]);
@@ -442,18 +420,16 @@ mod tests {
             eps: 1e-8,
         };
         let (mut a, mut b) = (Adam::<f64>::new(cfg.clone()), Adam::<f64>::new(cfg));
-        a.set_group("p", LrSchedule::Constant(0.1));
-        b.set_group("p", LrSchedule::Constant(0.1));
         let (mut p, mut q) = (
             Tensor::from_vec(vec![2.0, -1.0], &[2]),
             Tensor::from_vec(vec![2.0, -1.0], &[2]),
         );
-        for i in 0..3 {
+        for _ in 0..3 {
             let g = Tensor::from_vec(vec![0.3, 0.2], &[2]);
-            a.step_l2("p", &mut p, &g, i, 0.5);
+            a.step_l2("p", &mut p, &g, 0.1, 0.5);
             // The same update by hand: the decayed gradient through plain Adam.
             let g2 = g.zip_map(&q, |g, p| g + 0.5 * p);
-            b.step("p", &mut q, &g2, i);
+            b.step("p", &mut q, &g2, 0.1);
         }
         assert_eq!(p, q);
         let m = a.moments("p").expect("moments");
@@ -464,7 +440,7 @@ mod tests {
     fn a_row_scale_equals_plain_adam_at_the_scaled_rate_row_by_row() {
         let cfg = AdamConfig::default();
         let scale = [1.0, 0.25, 40.0];
-        let mut rows = Adam::<f64>::new(cfg.clone()).with_group("p", LrSchedule::Constant(0.01));
+        let mut rows = Adam::<f64>::new(cfg.clone());
         let mut p = Tensor::from_vec(vec![1.0, -2.0, 0.5, 0.3, -0.7, 2.0], &[3, 2]);
         let init = p.clone();
         let grads: Vec<Tensor<f64>> = (0..4)
@@ -475,18 +451,17 @@ mod tests {
                 )
             })
             .collect();
-        for (i, g) in grads.iter().enumerate() {
-            rows.step_rows("p", &mut p, g, i, 0.1, Some(&scale));
+        for g in &grads {
+            rows.step_rows("p", &mut p, g, 0.01, 0.1, Some(&scale));
         }
         for (r, &s) in scale.iter().enumerate() {
             // Each row alone through plain Adam with lr 0.01 * s.
-            let mut one =
-                Adam::<f64>::new(cfg.clone()).with_group("q", LrSchedule::Constant(0.01 * s));
+            let mut one = Adam::<f64>::new(cfg.clone());
             let pick =
                 |t: &Tensor<f64>| Tensor::from_vec(t.data()[2 * r..2 * r + 2].to_vec(), &[1, 2]);
             let mut q = pick(&init);
-            for (i, g) in grads.iter().enumerate() {
-                one.step_l2("q", &mut q, &pick(g), i, 0.1);
+            for g in &grads {
+                one.step_l2("q", &mut q, &pick(g), 0.01 * s, 0.1);
             }
             for c in 0..2 {
                 let (got, want) = (p.data()[2 * r + c], q.data()[c]);
@@ -497,13 +472,10 @@ mod tests {
             }
         }
         // A scale of 1 is plain Adam, to the bit.
-        let (mut a, mut b) = (
-            Adam::<f64>::new(cfg.clone()).with_group("p", LrSchedule::Constant(0.01)),
-            Adam::<f64>::new(cfg).with_group("p", LrSchedule::Constant(0.01)),
-        );
+        let (mut a, mut b) = (Adam::<f64>::new(cfg.clone()), Adam::<f64>::new(cfg));
         let (mut x, mut y) = (init.clone(), init);
-        a.step_rows("p", &mut x, &grads[0], 0, 0.0, Some(&[1.0; 3]));
-        b.step("p", &mut y, &grads[0], 0);
+        a.step_rows("p", &mut x, &grads[0], 0.01, 0.0, Some(&[1.0; 3]));
+        b.step("p", &mut y, &grads[0], 0.01);
         assert_eq!(x, y);
     }
 
@@ -522,12 +494,11 @@ mod tests {
 
     #[test]
     fn adam_minimises_a_quadratic() {
-        let mut adam =
-            Adam::<f32>::new(AdamConfig::default()).with_group("x", LrSchedule::Constant(0.05));
+        let mut adam = Adam::<f32>::new(AdamConfig::default());
         let mut x = Tensor::from_vec(vec![3.0f32, -2.0], &[2]);
-        for i in 0..500 {
+        for _ in 0..500 {
             let g = x.map(|v| 2.0 * (v - 1.0));
-            adam.step("x", &mut x, &g, i);
+            adam.step("x", &mut x, &g, 0.05);
         }
         assert!(
             x.data().iter().all(|v| (v - 1.0).abs() < 1e-2),

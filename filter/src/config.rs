@@ -47,6 +47,17 @@ pub enum FilterKind {
     Motion,
 }
 
+impl FilterKind {
+    /// The config name (`"none"`, `"mip3d"`, `"motion"`), as `filter.kind` spells it.
+    pub fn name(self) -> &'static str {
+        match self {
+            FilterKind::None => "none",
+            FilterKind::Mip3d => "mip3d",
+            FilterKind::Motion => "motion",
+        }
+    }
+}
+
 /// How the motion-aware filter turns a Gaussian's observations `(t_j, x_j = f_j/d_j)`
 /// into nu(t). Both are stored as the same per-bin curve ([`crate::MotionCurves`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -220,6 +231,16 @@ impl Default for FilterConfig {
 }
 
 impl FilterConfig {
+    /// The name of the filter this config selects in a [`crate::FilterRegistry`]:
+    /// `filter.kind`, except that the motion filter with the windowed maximum is
+    /// `"window_max"` (the KDE keeps `"motion"`).
+    pub fn filter_name(&self) -> &'static str {
+        match (self.kind, self.estimator) {
+            (FilterKind::Motion, MotionEstimator::WindowMax) => "window_max",
+            (kind, _) => kind.name(),
+        }
+    }
+
     /// Parses a JSON config (missing fields take their defaults, unknown fields are
     /// rejected) and validates it.
     pub fn from_json_str(text: &str) -> Result<Self, FilterError> {

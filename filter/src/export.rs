@@ -9,7 +9,7 @@ use maaf_autodiff::PerGaussian;
 use serde::{Deserialize, Serialize};
 
 use crate::config::{FilterError, MotionEstimator};
-use crate::motion::MotionCurves;
+use crate::curves::MotionCurves;
 use crate::observations::ObservationTable;
 
 /// One Gaussian's data for the figure.

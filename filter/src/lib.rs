@@ -7,6 +7,9 @@
 //!   without the `D x T` density and stored as `T + 8` bytes per Gaussian; or, with
 //!   [`MotionEstimator::WindowMax`] (ours), the windowed maximum of f/d in the same
 //!   storage.
+//! * [`SamplingFilter`]: the filter as a trait (what computes a [`FilterState`]);
+//!   built in: [`NoFilter`], [`StaticFilter`], [`MotionKdeFilter`],
+//!   [`WindowMaxFilter`], by config name from [`FilterRegistry`].
 //! * [`FilterState::variance_at`]: the per-Gaussian variance `s3d / nu^2` that the
 //!   renderer's `apply_3d_filter` adds. Nothing here touches a tape.
 //! * [`reference::algorithm1`]: the literal, slow Algorithm 1 (test oracle).
@@ -55,19 +58,26 @@
 //!   p95 4-8%.
 
 mod config;
+mod curves;
 pub mod export;
+mod kde;
 mod kernels;
 mod mip;
 mod motion;
 mod observations;
 pub mod reference;
+mod registry;
+mod sampling;
 mod state;
 mod window_max;
 
 pub use config::{FilterConfig, FilterError, FilterKind, MotionEstimator, RefreshSchedule};
+pub use curves::{FALLBACK, MotionCurves};
 pub use export::{AnalysisExport, EstimatorCurve, GaussianTrace};
 pub use kernels::Kernels;
 pub use mip::{Viewer, static_nu, variance_from_nu};
-pub use motion::{FALLBACK, MotionCurves};
+pub use motion::{MotionKdeFilter, WindowMaxFilter};
 pub use observations::{CameraTime, ObservationTable, observed_frames};
+pub use registry::{FilterConstructor, FilterRegistry};
+pub use sampling::{FilterInputs, NoFilter, SamplingFilter, StaticFilter};
 pub use state::FilterState;

@@ -9,8 +9,8 @@
 //! [`window_max`] is the same kind of oracle for our windowed-maximum estimator.
 
 use crate::config::FilterConfig;
+use crate::curves::FALLBACK;
 use crate::kernels::Kernels;
-use crate::motion::FALLBACK;
 
 /// The paper's per-Gaussian output: `x_max` and the full density `rho[d * T + s]`.
 #[derive(Clone, Debug)]

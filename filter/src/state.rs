@@ -5,7 +5,7 @@ use maaf_autodiff::PerGaussian;
 use serde::{Deserialize, Serialize};
 
 use crate::config::FilterKind;
-use crate::motion::MotionCurves;
+use crate::curves::MotionCurves;
 
 /// Current 3D filter of every Gaussian. Resized with the Gaussians through
 /// [`PerGaussian`] (clone/split copy the row, prune drops it) and recomputed on

@@ -22,7 +22,7 @@ use maaf_autodiff::PerGaussian;
 use rayon::prelude::*;
 
 use crate::config::FilterConfig;
-use crate::motion::FALLBACK;
+use crate::curves::FALLBACK;
 use crate::observations::{ObservationTable, TimeGroups};
 
 /// Each time bin `s`'s window: the groups `[a, b)` with `|g_t[s] - t_g| <= h_t`

@@ -19,12 +19,13 @@ mod reset;
 mod resume;
 mod run;
 mod step;
+mod strategy;
 mod timings;
 mod validation;
 
 use maaf_autodiff::optim::{Adam, AdamConfig};
 use maaf_autodiff::{OpProfile, PerGaussian, Tensor};
-use maaf_filter::{CameraTime, FilterKind, FilterState, ObservationTable, observed_frames};
+use maaf_filter::{CameraTime, FilterRegistry, FilterState, ObservationTable, SamplingFilter};
 use maaf_splat::Camera;
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
@@ -40,6 +41,9 @@ pub use resume::{checkpoints_newest_first, load_newest, repair_run_dir, truncate
 pub use run::{
     RunSummary, branch_run, branch_run_with_terms, checkpoint_dir, train_run, train_run_with,
     train_run_with_terms,
+};
+pub use strategy::{
+    DefaultStrategy, SensitivityPruning, StepInfo, Strategy, for_config as strategy_for_config,
 };
 pub use timings::Timings;
 
@@ -59,11 +63,17 @@ pub struct Trainer {
     pub adam: Adam<f32>,
     /// Current 3D filter of every Gaussian.
     pub filter: FilterState,
+    /// What computes [`Self::filter`]: the config's filter by name, or a user's
+    /// ([`Trainer::set_filter`]).
+    sampling: Box<dyn SamplingFilter>,
     /// f/d observations recorded from training forward passes: the motion filter's
     /// input, at most `filter.max_views` frames; no frames for the other filters.
     pub observations: ObservationTable,
     /// Densification statistics.
     pub stats: DensifyStats,
+    /// The densification strategy (the config's, or a user's:
+    /// [`Trainer::set_strategy`]); `None` only while one of its hooks runs.
+    strategy: Option<Box<dyn Strategy>>,
     /// Objective (named weighted terms): the photometric loss, the model's
     /// regularisers and the terms `config.terms` names; push further terms here.
     pub objective: Objective<f32>,
@@ -117,37 +127,6 @@ pub fn camera_extent(cameras: &[Camera]) -> f64 {
         .iter()
         .map(|cam| (cam.center() - c).length())
         .fold(0.0, f64::max)
-}
-
-/// The training views the motion filter observes (at most `filter.max_views`, by
-/// [`observed_frames`]; none for the other filters, which read no observation) and
-/// each view's frame in the observation table. Logs the table's size when capped.
-fn observed_views(views: &[View], config: &TrainConfig) -> (Vec<CameraTime>, Vec<Option<usize>>) {
-    let mut slot = vec![None; views.len()];
-    if config.filter.kind != FilterKind::Motion {
-        return (Vec::new(), slot);
-    }
-    let all: Vec<CameraTime> = views
-        .iter()
-        .enumerate()
-        .map(|(i, v)| CameraTime {
-            camera: i,
-            time: v.time as f32,
-        })
-        .collect();
-    let kept = observed_frames(&all, config.filter.max_views);
-    if kept.len() < all.len() {
-        log_line(&format!(
-            "motion filter: observing {} of {} training views (filter.max_views), {} B per Gaussian",
-            kept.len(),
-            all.len(),
-            4 * kept.len()
-        ));
-    }
-    for (frame, &v) in kept.iter().enumerate() {
-        slot[v] = Some(frame);
-    }
-    (kept.iter().map(|&v| all[v]).collect(), slot)
 }
 
 /// The training views of `data` at the config's scale, or an error naming the folder.
@@ -278,7 +257,12 @@ impl Trainer {
         let cameras: Vec<Camera> = views.iter().map(|v| v.camera.clone()).collect();
         let extent = camera_extent(&cameras);
         let n = model.num_gaussians();
-        let (observed, observed_slot) = observed_views(&views, &config);
+        let sampling = FilterRegistry::builtin()
+            .for_config(&config.filter)
+            .map_err(|e| Error::Input(e.to_string()))?;
+        let view_times: Vec<f64> = views.iter().map(|v| v.time).collect();
+        let (observed, observed_slot) =
+            refresh::observed_views(&view_times, sampling.observes(), config.filter.max_views);
         let gts = views.iter().map(|v| v.image.to_tensor()).collect();
         // The tensors are the trainer's copy: the data set's cached one would double
         // the images' memory for the whole run.
@@ -289,8 +273,10 @@ impl Trainer {
         Ok(Trainer {
             adam: Adam::new(AdamConfig::default()),
             filter: FilterState::None { rows: n },
+            sampling,
             observations: ObservationTable::for_frames(&observed, n),
             stats: DensifyStats::new(n),
+            strategy: Some(strategy::for_config(&config)),
             objective,
             iteration: 0,
             skipped_steps: 0,
@@ -304,7 +290,7 @@ impl Trainer {
             background: data.background(),
             config,
             model,
-            view_times: views.iter().map(|v| v.time).collect(),
+            view_times,
             held_out,
             gts,
             cameras,

@@ -1,8 +1,13 @@
-//! Filter refreshes, outside the tape: static nu from the canonical centres
-//! (`mip3d`), nu(t) from the recorded observations (`motion`; paper Alg. 1).
+//! Filter refreshes, outside the tape: the trainer's [`SamplingFilter`] (the
+//! config's, by name from [`FilterRegistry`](maaf_filter::FilterRegistry), or a
+//! user's) computes the filter state from the inputs the trainer supplies.
 
 use maaf_autodiff::Tensor;
-use maaf_filter::{FilterError, FilterKind, FilterState, MotionCurves, static_nu};
+use maaf_filter::{
+    CameraTime, FilterError, FilterInputs, ObservationTable, SamplingFilter, observed_frames,
+    static_nu,
+};
+use maaf_splat::Camera;
 
 use super::{Trainer, log_line};
 
@@ -14,18 +19,97 @@ pub(super) fn centres(t: &Tensor<f32>) -> Vec<[f32; 3]> {
         .collect()
 }
 
+/// The training views (by their times) a filter that `observes` reads: at most
+/// `max_views` by [`observed_frames`], none for a filter that reads no observation;
+/// and each view's frame in the observation table. Logs the table's size when capped.
+pub(super) fn observed_views(
+    view_times: &[f64],
+    observes: bool,
+    max_views: usize,
+) -> (Vec<CameraTime>, Vec<Option<usize>>) {
+    let mut slot = vec![None; view_times.len()];
+    if !observes {
+        return (Vec::new(), slot);
+    }
+    let all: Vec<CameraTime> = view_times
+        .iter()
+        .enumerate()
+        .map(|(i, &t)| CameraTime {
+            camera: i,
+            time: t as f32,
+        })
+        .collect();
+    let kept = observed_frames(&all, max_views);
+    if kept.len() < all.len() {
+        log_line(&format!(
+            "motion filter: observing {} of {} training views (filter.max_views), {} B per Gaussian",
+            kept.len(),
+            all.len(),
+            4 * kept.len()
+        ));
+    }
+    for (frame, &v) in kept.iter().enumerate() {
+        slot[v] = Some(frame);
+    }
+    (kept.iter().map(|&v| all[v]).collect(), slot)
+}
+
+/// The trainer as a filter's inputs.
+struct Inputs<'a>(&'a Trainer);
+
+impl FilterInputs for Inputs<'_> {
+    fn gaussians(&self) -> usize {
+        self.0.model.num_gaussians()
+    }
+
+    fn canonical_centres(&self) -> Vec<[f32; 3]> {
+        centres(&self.0.model.canonical().means)
+    }
+
+    fn cameras(&self) -> &[Camera] {
+        &self.0.cameras
+    }
+
+    fn observations(&self) -> &ObservationTable {
+        &self.0.observations
+    }
+}
+
 impl Trainer {
+    /// Replaces the filter by `filter` (a user's [`SamplingFilter`]; the trainer
+    /// starts with the config's). The observation table is rebuilt for it, empty
+    /// when it reads no observation, and the filter is computed again at the next
+    /// step. Call it before training (or before loading a checkpoint, whose
+    /// observations must then match).
+    pub fn set_filter(&mut self, filter: Box<dyn SamplingFilter>) {
+        let (observed, slot) = observed_views(
+            &self.view_times,
+            filter.observes(),
+            self.config.filter.max_views,
+        );
+        self.observations = ObservationTable::for_frames(&observed, self.num_gaussians());
+        self.observed = observed;
+        self.observed_slot = slot;
+        self.sampling = filter;
+        self.filter_ready = false;
+    }
+
+    /// The filter that computes [`Trainer::filter`].
+    pub fn sampling_filter(&self) -> &dyn SamplingFilter {
+        self.sampling.as_ref()
+    }
+
     /// Computes the filter if no step or checkpoint has yet (Mip-Splatting computes
-    /// it once before training): for `motion` a full observation pass over every
-    /// training (camera, time) first, with the deformed centres of each distinct
-    /// time (the field is queried once). Called by the first [`Trainer::step`];
-    /// call it before rendering a trainer that has not stepped.
+    /// it once before training): for a filter that observes, a full observation
+    /// pass over every observed training (camera, time) first, with the deformed
+    /// centres of each distinct time (the field is queried once). Called by the
+    /// first [`Trainer::step`]; call it before rendering a trainer that has not stepped.
     pub fn ensure_filter(&mut self) {
         if self.filter_ready {
             return;
         }
         self.filter_ready = true;
-        if self.config.filter.kind == FilterKind::Motion {
+        if self.sampling.observes() {
             let mut times: Vec<f32> = self.observed.iter().map(|f| f.time).collect();
             times.sort_by(f32::total_cmp);
             times.dedup();
@@ -54,31 +138,12 @@ impl Trainer {
         static_nu(&canon, &self.cameras, &self.config.filter)
     }
 
-    /// Recomputes the 3D filter: static nu from the canonical centres for `mip3d`,
-    /// nu(t) from the recorded observations for `motion`. On a failure (logged) the
-    /// previous filter stays.
+    /// Recomputes the 3D filter with the trainer's [`SamplingFilter`]. On a failure
+    /// (logged) the previous filter stays.
     pub fn refresh_filter(&mut self) {
-        let n = self.model.num_gaussians();
-        let cfg = &self.config.filter;
-        self.filter = match cfg.kind {
-            FilterKind::None => FilterState::None { rows: n },
-            FilterKind::Mip3d => match self.static_nu() {
-                Ok(nu) => FilterState::Mip3d { s3d: cfg.s3d, nu },
-                Err(e) => {
-                    log_line(&format!("filter refresh skipped: {e}"));
-                    return;
-                }
-            },
-            FilterKind::Motion => match MotionCurves::refresh(&self.observations, cfg) {
-                Ok(curves) => FilterState::Motion {
-                    s3d: cfg.s3d,
-                    curves,
-                },
-                Err(e) => {
-                    log_line(&format!("filter refresh skipped: {e}"));
-                    return;
-                }
-            },
-        };
+        match self.sampling.compute(&Inputs(self), &self.config.filter) {
+            Ok(state) => self.filter = state,
+            Err(e) => log_line(&format!("filter refresh skipped: {e}")),
+        }
     }
 }

@@ -4,7 +4,6 @@
 use std::time::Instant;
 
 use maaf_autodiff::{Tape, Tensor};
-use maaf_filter::FilterKind;
 use maaf_splat::compositing::drawable;
 use maaf_splat::{Filter2d, RenderSettings};
 use rand::SeedableRng;
@@ -13,19 +12,20 @@ use rand_pcg::Pcg64;
 
 use super::ViewGrad;
 use super::refresh::centres;
-use super::{DensifyStats, Trainer, log_line, plan_densify};
+use super::strategy::StepInfo;
+use super::{Trainer, log_line};
 use crate::forward::{batch_mean, forward_bound};
 use crate::loss::Evaluated;
 
 impl Trainer {
     /// Render settings at `iteration`: the 2D Mip filter (0.1 px^2 with compensation)
-    /// whenever a 3D filter is on, as in the paper; the classic 3DGS dilation
-    /// (0.3 px^2) otherwise. SH degree grows by one every `sh_degree_every` iterations.
+    /// whenever the trainer's filter smooths ([`maaf_filter::SamplingFilter::smooths`]),
+    /// as in the paper; the classic 3DGS dilation (0.3 px^2) otherwise. SH degree grows by one every `sh_degree_every` iterations.
     pub fn render_settings(&self, iteration: usize) -> RenderSettings {
-        let filter2d = if self.config.filter.kind == FilterKind::None {
-            Filter2d::Classic
-        } else {
+        let filter2d = if self.sampling.smooths() {
             Filter2d::Mip
+        } else {
+            Filter2d::Classic
         };
         let grown = iteration / self.config.sh_degree_every.max(1);
         RenderSettings {
@@ -132,12 +132,11 @@ impl Trainer {
                     .collect();
                 for (p, scale) in self.model.params_mut().iter_mut().zip(scales) {
                     if let Some(gr) = grads.param(&p.name) {
-                        self.adam.set_group(&p.name, p.lr.clone());
                         self.adam.step_rows(
                             &p.name,
                             &mut p.value,
                             gr,
-                            it - 1,
+                            p.lr.at(it - 1),
                             p.weight_decay,
                             scale.as_deref(),
                         );
@@ -155,7 +154,11 @@ impl Trainer {
                         height: fwd.camera.height,
                     })
                     .collect();
-                self.stats.record_views(&seen, batch as f32);
+                self.strategy_after_backward(&StepInfo {
+                    iteration: it,
+                    views: &seen,
+                    loss_scale: batch as f32,
+                });
                 let opacity = self.model.canonical_ids().opacity_logits;
                 if let Some(g) = grads.param(&self.model.params().param(opacity).name) {
                     self.liveness.record(g.data(), it);
@@ -202,12 +205,13 @@ impl Trainer {
         self.iteration = it;
     }
 
-    /// What the schedule does after the gradient step of iteration `iteration`:
-    /// densification, pruning and opacity reset, then the filter refresh, when due.
+    /// What the schedule does after the gradient step of iteration `iteration`: the
+    /// densification strategy's refinement ([`super::Strategy::refine`]:
+    /// densification, pruning and opacity reset), then the filter refresh, when due.
     pub fn schedule(&mut self) {
         let it = self.iteration;
         let t4 = Instant::now();
-        let densified = self.maybe_densify(it);
+        let densified = self.strategy_refine(it);
         let t5 = Instant::now();
         self.timings.densification += (t5 - t4).as_secs_f64();
         if self
@@ -219,40 +223,6 @@ impl Trainer {
             self.refresh_filter();
         }
         self.timings.filter_refresh += t5.elapsed().as_secs_f64();
-    }
-
-    /// Densify, prune by sensitivity, reset opacity, in that order, when the schedule
-    /// says so; returns whether the set of Gaussians changed.
-    fn maybe_densify(&mut self, it: usize) -> bool {
-        let d = self.config.densify.clone();
-        let mut changed = false;
-        // Nothing at the last iteration: a run shorter than the schedule must not end
-        // on an opacity reset or an unrefined densification.
-        if it >= self.config.iterations {
-            return false;
-        }
-        if it >= d.from && it <= d.until && d.every > 0 && it.is_multiple_of(d.every) {
-            let big_screen = self.last_reset.is_some();
-            let seed = self.config.seed ^ (it as u64).wrapping_mul(0xD1B5_4A32_D192_ED03);
-            let plan = plan_densify(
-                self.model.as_ref(),
-                &self.stats,
-                &d,
-                self.extent,
-                big_screen,
-                seed,
-            );
-            self.apply_plan(&plan);
-            // 3DGS restarts the gradient statistics after every densify_and_prune.
-            self.stats = DensifyStats::new(plan.index.len());
-            changed = plan.cloned + plan.split + plan.pruned > 0;
-        }
-        changed |= self.maybe_prune(it);
-        if d.opacity_reset_every > 0 && it <= d.until && it.is_multiple_of(d.opacity_reset_every) {
-            self.reset_opacity(d.reset_opacity);
-            self.last_reset = Some(it);
-        }
-        changed
     }
 }
 
