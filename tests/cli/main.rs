@@ -9,6 +9,7 @@ mod config_doc;
 mod e2e_gradcheck;
 mod export_eval;
 mod log_columns;
+mod moved_data;
 mod panoptic;
 mod presets;
 mod resume_faults;

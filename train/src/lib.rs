@@ -11,6 +11,7 @@ pub mod metrics;
 pub mod models;
 pub mod params;
 pub mod report;
+pub mod scene;
 pub mod sweep;
 pub mod trainer;
 
