@@ -4,7 +4,9 @@
 //! position, rotation and log-scale; Yang et al. 2024), written only against maaf's
 //! public API. It trains on the built-in scene with the motion-aware filter and a
 //! custom regulariser, checkpoints, resumes bit-identically from a checkpoint, resumes
-//! its run directory with the term re-supplied, and is evaluated at three scales.
+//! its run directory with the term re-supplied, is registered by name so that its run
+//! loads as a trained scene without the training code's trainer (rendering exactly as
+//! the trainer does), and is evaluated at three scales.
 //!
 //! Run: `cargo run --release --example custom_representation [-- OUT_DIR]`
 //! (default `target/custom_representation`; also runs as a test).
@@ -19,12 +21,13 @@ use maaf::autodiff::{Tensor, Var};
 use maaf::filter::FilterKind;
 use maaf::splat::GaussianVars;
 use maaf::train::data::synthetic::{self, GenerateOptions};
-use maaf::train::data::{Dataset, DatasetOptions};
-use maaf::train::eval::{EvalOptions, evaluate_trainer};
+use maaf::train::data::{Dataset, DatasetOptions, Split};
+use maaf::train::eval::{EvalOptions, evaluate_scene};
 use maaf::train::models::{
     Bound, CanonicalIds, ModelInit, Representation, knn_mean_sq_dist, rgb_to_sh_dc,
 };
 use maaf::train::params::{BoundParams, MlpParams, ParamId, ParamStore, Rows};
+use maaf::train::scene::{ModelRegistry, TrainedScene};
 use maaf::train::trainer::{TrainConfig, Trainer, checkpoint_dir, model_init, train_run_with};
 
 // ---- the user's representation: about 120 lines ----
@@ -287,15 +290,30 @@ fn run_in(out: &Path) -> Result<(), Box<dyn std::error::Error>> {
         return Err("the custom term is missing from log.csv".into());
     }
 
-    // 4. Evaluate like any run.
+    // 4. Register the representation by name: its run then loads as a trained scene
+    // (no trainer, no data set), which renders exactly as the trainer does.
+    let mut registry = ModelRegistry::builtin();
+    registry.register("deform-example", |config, init| {
+        let model = Deform::new(init, 32, config.iterations / 4);
+        Ok(Box::new(model) as Box<dyn Representation<f32>>)
+    });
+    let scene = TrainedScene::load(&run, &registry)?;
     let mut trainer = build(&data, &more)?;
     trainer.restore(&run.join("model"))?;
+    let camera = data.camera(Split::Test, 0, more.train_scale)?;
+    let same = scene.render(&camera, 0.5) == trainer.into_scene().render(&camera, 0.5);
+    println!("the registered run loads as a scene; renders as the trainer does: {same}");
+    if !same {
+        return Err("the loaded scene renders differently from the trainer".into());
+    }
+
+    // 5. Evaluate like any run.
     let options = EvalOptions {
         scales: vec![0.5, 1.0, 2.0],
         save_images: false,
         ..EvalOptions::default()
     };
-    let report = evaluate_trainer(&trainer, &run, &data, &options)?;
+    let report = evaluate_scene(&scene, &run, &data, &options)?;
     for s in &report.scales {
         println!("  {}x: PSNR {:.2} dB, SSIM {:.3}", s.scale, s.psnr, s.ssim);
     }

@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 use anyhow::bail;
 use maaf_train::data::{Dataset, DatasetOptions, Split, WHITE};
 use maaf_train::eval::render::recorded_data;
+use maaf_train::scene::{ModelRegistry, SceneRecord, TrainedScene};
 
 use super::Background;
 use maaf_train::eval::{EvalOptions, evaluate_run, scale_label};
@@ -72,8 +73,9 @@ impl From<SplitArg> for Split {
     }
 }
 
-/// Opens the data set of `run`: `data` if given, else the folder in `RUN/data.json`;
-/// the background from `background`, else the recorded one, else white.
+/// Opens the data set of `run`: `data` if given, else the folder in `RUN/data.json`
+/// (an error naming it and suggesting --data when it is gone); the background from
+/// `background`, else the recorded one, else white.
 pub fn open_run_data(
     run: &Path,
     data: Option<&Path>,
@@ -82,6 +84,11 @@ pub fn open_run_data(
     let recorded = recorded_data(run)?;
     let root = match (data, &recorded) {
         (Some(d), _) => d.to_path_buf(),
+        (None, Some(r)) if !r.root.is_dir() => bail!(
+            "{}: the run's data folder {} is gone; pass --data DIR with the data set's new place",
+            run.display(),
+            r.root.display()
+        ),
         (None, Some(r)) => r.root.clone(),
         (None, None) => bail!(
             "{}: no data.json records the training data; pass --data DIR",
@@ -94,6 +101,31 @@ pub fn open_run_data(
         (None, None) => WHITE,
     };
     Ok(Dataset::open(&root, DatasetOptions { background })?)
+}
+
+/// Loads the trained scene of `run` (a built-in representation) without its data
+/// set; a run saved before checkpoints recorded their cameras takes them from `data`,
+/// else from the data set [`open_run_data`] opens with `data_dir` and `background`.
+pub fn load_scene(
+    run: &Path,
+    data_dir: Option<&Path>,
+    background: Option<Background>,
+    data: Option<&Dataset>,
+) -> anyhow::Result<TrainedScene> {
+    let registry = ModelRegistry::builtin();
+    let scene = TrainedScene::load_or(run, &registry, |config| {
+        let opened;
+        let data = match data {
+            Some(d) => d,
+            None => {
+                opened = open_run_data(run, data_dir, background)
+                    .map_err(|e| maaf_train::Error::Input(e.to_string()))?;
+                &opened
+            }
+        };
+        SceneRecord::of_data(data, config)
+    })?;
+    Ok(scene)
 }
 
 /// The shared lock of `run` for a command that reads it and writes elsewhere (render,

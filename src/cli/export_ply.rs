@@ -10,10 +10,9 @@ use anyhow::bail;
 use maaf_train::eval::export::{
     check_sequence_target, export_frame, export_sequence, export_sequence_zip, is_zip_path,
 };
-use maaf_train::eval::load_run;
 
 use super::Background;
-use super::eval::{open_run_data, read_lock};
+use super::eval::{load_scene, read_lock};
 
 /// Arguments of `maaf export-ply`.
 #[derive(clap::Args, Debug)]
@@ -21,7 +20,8 @@ pub struct ExportPlyArgs {
     /// Run directory written by `maaf train`.
     #[arg(long)]
     pub run: PathBuf,
-    /// Data folder the run was trained on [default: the one in RUN/data.json].
+    /// Data folder the run was trained on, read only for a run saved before
+    /// checkpoints recorded their cameras [default: the one in RUN/data.json].
     #[arg(long)]
     pub data: Option<PathBuf>,
     /// Time of the single frame to export (writes the PLY file --out).
@@ -46,8 +46,8 @@ pub fn run(args: &ExportPlyArgs) -> anyhow::Result<()> {
         check_sequence_target(&args.out)?;
     }
     let _lock = read_lock(&args.run)?;
-    let data = open_run_data(&args.run, args.data.as_deref(), args.background)?;
-    let trainer = load_run(&args.run, &data)?;
+    let scene = load_scene(&args.run, args.data.as_deref(), args.background, None)?;
+    let range = scene.record.time_range;
     match (args.time, args.frames) {
         (Some(t), _) => {
             if !t.is_finite() {
@@ -59,23 +59,23 @@ pub fn run(args: &ExportPlyArgs) -> anyhow::Result<()> {
                     args.out.display()
                 );
             }
-            let (t0, t1) = data.time_range();
+            let (t0, t1) = range;
             if !(t0..=t1).contains(&t) {
                 eprintln!(
                     "maaf: warning: --time {t} is outside the data's time range [{t0}, {t1}]: the model extrapolates"
                 );
             }
-            let kept = export_frame(&trainer, t, &args.out)?;
+            let kept = export_frame(&scene, t, &args.out)?;
             let bytes = std::fs::metadata(&args.out).map_or(0, |m| m.len());
             println!(
                 "wrote {} ({kept} of {} Gaussians, those drawn at t = {t}; {:.2} MB)",
                 args.out.display(),
-                trainer.num_gaussians(),
+                scene.num_gaussians(),
                 bytes as f64 / 1e6
             );
         }
         (None, Some(n)) if is_zip_path(&args.out) => {
-            let bytes = export_sequence_zip(&trainer, data.time_range(), n, &args.out)?;
+            let bytes = export_sequence_zip(&scene, range, n, &args.out)?;
             println!(
                 "wrote {n} frames to {} ({:.2} MB zip)",
                 args.out.display(),
@@ -83,7 +83,7 @@ pub fn run(args: &ExportPlyArgs) -> anyhow::Result<()> {
             );
         }
         (None, Some(n)) => {
-            let paths = export_sequence(&trainer, data.time_range(), n, &args.out)?;
+            let paths = export_sequence(&scene, range, n, &args.out)?;
             let bytes: u64 = paths
                 .iter()
                 .filter_map(|p| std::fs::metadata(p).ok())

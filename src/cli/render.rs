@@ -9,11 +9,11 @@ use maaf_train::data::{Dataset, Split};
 use maaf_train::eval::camera_path::Rig;
 use maaf_train::eval::images::{save_png, to_rgb8};
 use maaf_train::eval::render::render_video;
-use maaf_train::eval::{frame_times, load_run, render_image, run_camera};
-use maaf_train::trainer::Trainer;
+use maaf_train::eval::{frame_times, run_camera};
+use maaf_train::scene::TrainedScene;
 
 use super::Background;
-use super::eval::{open_run_data, read_lock};
+use super::eval::{load_scene, open_run_data, read_lock};
 
 /// Where the camera comes from (shared by `render` and `render-video`).
 #[derive(clap::Args, Debug)]
@@ -21,7 +21,8 @@ pub struct CameraArgs {
     /// Run directory written by `maaf train`.
     #[arg(long)]
     pub run: PathBuf,
-    /// Data folder the run was trained on [default: the one in RUN/data.json].
+    /// Data folder the run was trained on, read only for --view, --path test and the
+    /// default start of an orbit or spiral [default: the one in RUN/data.json].
     #[arg(long)]
     pub data: Option<PathBuf>,
     /// A data-set view as SPLIT:INDEX, e.g. test:0 or video:0 (render: this or
@@ -39,8 +40,8 @@ pub struct CameraArgs {
     /// stretched to it [default: the camera's own size].
     #[arg(long, value_parser = parse_size)]
     pub size: Option<(u32, u32)>,
-    /// Background: white, black, or r,g,b in [0, 1] [default: the one in RUN/data.json,
-    /// else white].
+    /// Background: white, black, or r,g,b in [0, 1] [default: the one the run was
+    /// trained on].
     #[arg(long, value_parser = Background::parse)]
     pub background: Option<Background>,
 }
@@ -143,10 +144,19 @@ fn parse_view(s: &str) -> anyhow::Result<(Split, usize)> {
     Ok((split, index))
 }
 
-/// Loads the run and resolves the camera of --view or --camera (at --scale or
-/// --size), if any; also returns the view's time.
-fn setup(args: &CameraArgs) -> anyhow::Result<(Dataset, Trainer, Option<Camera>, Option<f64>)> {
-    let data = open_run_data(&args.run, args.data.as_deref(), args.background)?;
+/// A loaded run, the data set when it was needed, and the camera of --view or
+/// --camera (at --scale or --size) with the view's time.
+struct Setup {
+    scene: TrainedScene,
+    data: Option<Dataset>,
+    camera: Option<Camera>,
+    time: Option<f64>,
+}
+
+/// Loads the run's scene (on --background when given) and resolves the camera of
+/// --view or --camera, if any. The data set is opened only for --view or when
+/// `need_data` (and for a run saved before checkpoints recorded their cameras).
+fn setup(args: &CameraArgs, need_data: bool) -> anyhow::Result<Setup> {
     // Check the cheap arguments before loading the model.
     let view = args.view.as_deref().map(parse_view).transpose()?;
     let file_camera = args
@@ -154,21 +164,43 @@ fn setup(args: &CameraArgs) -> anyhow::Result<(Dataset, Trainer, Option<Camera>,
         .as_ref()
         .map(|p| Camera::from_json_file(p))
         .transpose()?;
-    let trainer = load_run(&args.run, &data)?;
-    let (camera, time) = match (view, file_camera) {
-        (Some((split, index)), _) => {
-            let cam = run_camera(&trainer, &data, split, index, args.scale)?;
+    let data = if view.is_some() || need_data {
+        Some(open_run_data(
+            &args.run,
+            args.data.as_deref(),
+            args.background,
+        )?)
+    } else {
+        None
+    };
+    let mut scene = load_scene(
+        &args.run,
+        args.data.as_deref(),
+        args.background,
+        data.as_ref(),
+    )?;
+    if let Some(b) = args.background {
+        scene.record.background = b.rgb();
+    }
+    let (camera, time) = match (view, file_camera, &data) {
+        (Some((split, index)), _, Some(data)) => {
+            let cam = run_camera(&scene, data, split, index, args.scale)?;
             let time = data.times(split).get(index).copied();
             (Some(cam), time)
         }
-        (None, Some(cam)) => (Some(cam), None),
-        (None, None) => (None, None),
+        (None, Some(cam), _) => (Some(cam), None),
+        _ => (None, None),
     };
     let camera = match (camera, args.size) {
         (Some(c), Some(size)) => Some(resized(&c, size)?),
         (c, _) => c,
     };
-    Ok((data, trainer, camera, time))
+    Ok(Setup {
+        scene,
+        data,
+        camera,
+        time,
+    })
 }
 
 /// Runs `maaf render`.
@@ -189,19 +221,23 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
         );
     }
     let _lock = read_lock(&args.camera.run)?;
-    let (data, trainer, camera, view_time) = setup(&args.camera)?;
+    let Setup {
+        scene,
+        camera,
+        time: view_time,
+        ..
+    } = setup(&args.camera, false)?;
     let Some(camera) = camera else {
         bail!("give --view SPLIT:INDEX or --camera CAM.json");
     };
     let time = args.time.or(view_time).unwrap_or(0.0);
-    let (t0, t1) = data.time_range();
+    let (t0, t1) = scene.record.time_range;
     if !(t0..=t1).contains(&time) {
         eprintln!(
             "maaf: warning: --time {time} is outside the data's time range [{t0}, {t1}]: the model extrapolates"
         );
     }
-    let settings = trainer.render_settings(trainer.iteration);
-    let image = render_image(&trainer, &camera, time, &settings);
+    let image = scene.render(&camera, time);
     save_png(&to_rgb8(&image)?, &args.out)?;
     println!(
         "rendered {}x{} at t = {time} to {}",
@@ -218,13 +254,28 @@ pub fn run_video(args: &RenderVideoArgs) -> anyhow::Result<()> {
         bail!("--frames must be at least 1");
     }
     let _lock = read_lock(&args.camera.run)?;
-    let (data, trainer, camera, _) = setup(&args.camera)?;
-    let range = data.time_range();
+    // The test views' cameras come from the data set: the path of them, and the
+    // default start of an orbit or spiral.
+    let need_data =
+        args.path == PathArg::Test || (args.camera.view.is_none() && args.camera.camera.is_none());
+    let Setup {
+        scene,
+        data,
+        camera,
+        ..
+    } = setup(&args.camera, need_data)?;
+    let range = scene.record.time_range;
+    let test_camera = |i: usize| -> anyhow::Result<Camera> {
+        let Some(data) = &data else {
+            bail!("the test views' cameras need the data set");
+        };
+        Ok(run_camera(&scene, data, Split::Test, i, args.camera.scale)?)
+    };
     let start = || -> anyhow::Result<Camera> {
         match &camera {
             Some(c) => Ok(c.clone()),
             None => {
-                let c = run_camera(&trainer, &data, Split::Test, 0, args.camera.scale)?;
+                let c = test_camera(0)?;
                 Ok(match args.camera.size {
                     Some(size) => resized(&c, size)?,
                     None => c,
@@ -244,7 +295,7 @@ pub fn run_video(args: &RenderVideoArgs) -> anyhow::Result<()> {
             along(vec![c; args.frames])?
         }
         PathArg::Orbit | PathArg::Spiral => {
-            let rig = Rig::of(&data.cameras(Split::Train, 1.0)?)?;
+            let rig = Rig::of(scene.cameras())?;
             let start = start()?;
             along(if args.path == PathArg::Orbit {
                 rig.orbit(&start, args.frames)?
@@ -256,13 +307,15 @@ pub fn run_video(args: &RenderVideoArgs) -> anyhow::Result<()> {
             if camera.is_some() {
                 bail!("--path test renders the test views' own cameras; drop --view / --camera");
             }
-            let times = data.times(Split::Test);
+            let times = data
+                .as_ref()
+                .map_or_else(Vec::new, |d| d.times(Split::Test));
             if times.is_empty() {
                 bail!("--path test: the data set has no test views");
             }
             let mut frames = Vec::with_capacity(times.len());
             for (i, t) in times.into_iter().enumerate() {
-                let c = run_camera(&trainer, &data, Split::Test, i, args.camera.scale)?;
+                let c = test_camera(i)?;
                 let c = match args.camera.size {
                     Some(size) => resized(&c, size)?,
                     None => c,
@@ -272,7 +325,7 @@ pub fn run_video(args: &RenderVideoArgs) -> anyhow::Result<()> {
             frames
         }
     };
-    let paths = render_video(&trainer, &frames, &args.out)?;
+    let paths = render_video(&scene, &frames, &args.out)?;
     let (first, last) = (&frames[0], &frames[frames.len() - 1]);
     println!(
         "rendered {} frames ({}x{}, t = {}..{}) to {} (frame_NNNN.png, video.gif)",

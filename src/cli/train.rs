@@ -6,13 +6,11 @@ use anyhow::{Context, bail};
 use maaf_filter::FilterKind;
 use maaf_train::data::{Dataset, DatasetOptions, Split};
 use maaf_train::eval::render::recorded_data;
-use maaf_train::eval::render_image;
 use maaf_train::loss::TermRegistry;
 use maaf_train::metrics::psnr;
 use maaf_train::models::ModelConfig;
-use maaf_train::trainer::{
-    TrainConfig, branch_run_with_terms, load_checkpoint, train_run_with_terms,
-};
+use maaf_train::scene::{ModelRegistry, TrainedScene};
+use maaf_train::trainer::{TrainConfig, branch_run_with_terms, train_run_with_terms};
 
 use super::Background;
 
@@ -331,13 +329,12 @@ pub fn run(args: &TrainArgs, terms: &TermRegistry<f32>) -> anyhow::Result<()> {
         summary.skipped_steps
     );
     print!("{}", summary.timings.report(summary.iterations));
-    let trainer = load_checkpoint(&data, &out.join("model"))?;
-    let scale = trainer.config.train_scale;
-    let settings = trainer.render_settings(trainer.iteration);
+    let scene = TrainedScene::load(&out, &ModelRegistry::builtin())?;
+    let scale = scene.config.train_scale;
     let mut total = 0.0;
     let views = data.views(Split::Test, scale)?;
     for v in &views {
-        let image = render_image(&trainer, &v.camera, v.time, &settings);
+        let image = scene.render(&v.camera, v.time);
         total += psnr(&image, &v.image.to_tensor())?;
     }
     if !views.is_empty() {

@@ -11,6 +11,7 @@ mod custom_terms;
 mod e2e_gradcheck;
 mod export_eval;
 mod log_columns;
+mod moved_data;
 mod panoptic;
 mod presets;
 mod resume_faults;

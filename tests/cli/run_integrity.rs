@@ -309,8 +309,8 @@ fn case_4_degenerate_cameras_and_non_finite_output_fail() {
     assert!(!png.exists());
     // Export refuses non-finite Gaussians (a model made degenerate in memory: a
     // saved one with a NaN parameter is already refused on load).
-    let data = maaf::train::data::Dataset::open(&fx.data, Default::default()).expect("data");
-    let mut t = maaf::train::trainer::load_checkpoint(&data, &nan.join("model")).expect("model");
+    let registry = maaf::train::scene::ModelRegistry::builtin();
+    let mut t = maaf::train::scene::TrainedScene::load(&nan, &registry).expect("model");
     let p = t.model.params_mut().iter_mut().next().expect("a parameter");
     p.value.data_mut()[0] = f32::NAN;
     let ply = fx.root.join("x.ply");

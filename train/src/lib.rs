@@ -10,6 +10,7 @@ pub mod forward;
 pub mod loss;
 pub mod metrics;
 pub mod report;
+pub mod scene;
 pub mod sweep;
 pub mod trainer;
 

@@ -11,7 +11,8 @@ use maaf_splat::{read_ply, render_gaussians};
 use maaf_train::data::synthetic::{self, GenerateOptions};
 use maaf_train::data::{Dataset, DatasetOptions, Split};
 use maaf_train::eval::export::{export_frame, export_sequence, export_sequence_zip};
-use maaf_train::eval::{EvalOptions, EvalReport, evaluate_trainer, load_run, render_image};
+use maaf_train::eval::{EvalOptions, EvalReport, evaluate_scene};
+use maaf_train::scene::{ModelRegistry, TrainedScene};
 use maaf_train::trainer::{TrainConfig, train_run};
 
 struct TempDir(PathBuf);
@@ -61,10 +62,10 @@ fn zip_entries(path: &Path) -> Vec<(String, Vec<u8>)> {
 /// same file when written again (fixed timestamps), and replaces an earlier zip; a
 /// non-zip file or a folder at the `.zip` path and a folder with foreign files are
 /// refused naming the path.
-fn zip_holds_the_folder_version(trainer: &maaf_train::trainer::Trainer, tmp: &Path) {
+fn zip_holds_the_folder_version(scene: &TrainedScene, tmp: &Path) {
     let (dir, zip) = (tmp.join("seq20"), tmp.join("seq20.zip"));
-    export_sequence(trainer, (0.0, 1.0), 20, &dir).expect("folder");
-    let bytes = export_sequence_zip(trainer, (0.0, 1.0), 20, &zip).expect("zip");
+    export_sequence(scene, (0.0, 1.0), 20, &dir).expect("folder");
+    let bytes = export_sequence_zip(scene, (0.0, 1.0), 20, &zip).expect("zip");
     assert_eq!(bytes, std::fs::metadata(&zip).expect("zip size").len());
     let mut want: Vec<String> = std::fs::read_dir(&dir)
         .expect("ls")
@@ -92,11 +93,11 @@ fn zip_holds_the_folder_version(trainer: &maaf_train::trainer::Trainer, tmp: &Pa
         .sum();
     eprintln!(
         "20 frames of {} Gaussians: folder {folder_bytes} bytes, zip {bytes} bytes",
-        trainer.num_gaussians()
+        scene.num_gaussians()
     );
     // Written again over the earlier archive: the same bytes, and no temporary left.
     let first = std::fs::read(&zip).expect("zip");
-    export_sequence_zip(trainer, (0.0, 1.0), 20, &zip).expect("zip again");
+    export_sequence_zip(scene, (0.0, 1.0), 20, &zip).expect("zip again");
     assert!(
         std::fs::read(&zip).expect("zip") == first,
         "zip not reproducible"
@@ -113,21 +114,21 @@ fn zip_holds_the_folder_version(trainer: &maaf_train::trainer::Trainer, tmp: &Pa
     // Refusals: one line naming the path, and the file left as it was.
     let not_zip = tmp.join("notes.zip");
     std::fs::write(&not_zip, b"my notes").expect("write");
-    let err = export_sequence_zip(trainer, (0.0, 1.0), 2, &not_zip).expect_err("refused");
+    let err = export_sequence_zip(scene, (0.0, 1.0), 2, &not_zip).expect_err("refused");
     let msg = err.to_string();
     assert!(msg.contains(&*not_zip.to_string_lossy()) && msg.contains("not a zip"));
     assert!(!msg.contains('\n'), "one line: {msg}");
     assert_eq!(std::fs::read(&not_zip).expect("read"), b"my notes");
     let folder = tmp.join("folder.zip");
     std::fs::create_dir_all(&folder).expect("mkdir");
-    let err = export_sequence_zip(trainer, (0.0, 1.0), 2, &folder).expect_err("a folder");
+    let err = export_sequence_zip(scene, (0.0, 1.0), 2, &folder).expect_err("a folder");
     assert!(err.to_string().contains("is a folder"), "{err}");
     let plain = tmp.join("plain");
     std::fs::write(&plain, b"mine").expect("write");
-    let err = export_sequence(trainer, (0.0, 1.0), 2, &plain).expect_err("a file");
+    let err = export_sequence(scene, (0.0, 1.0), 2, &plain).expect_err("a file");
     assert!(err.to_string().contains("not a folder"), "{err}");
     std::fs::write(dir.join("keep.txt"), b"mine").expect("write");
-    let err = export_sequence(trainer, (0.0, 1.0), 2, &dir).expect_err("foreign file");
+    let err = export_sequence(scene, (0.0, 1.0), 2, &dir).expect_err("foreign file");
     assert!(err.to_string().contains("keep.txt"), "{err}");
 }
 
@@ -150,15 +151,15 @@ fn export_matches_render_and_temporal_eval_fills_the_fields() {
     let data = Dataset::open(&data_dir, DatasetOptions::default()).expect("open");
     let run = tmp.0.join("run");
     train_run(&data, tiny_config(), &run, false).expect("train");
-    let trainer = load_run(&run, &data).expect("load");
+    let scene = TrainedScene::load(&run, &ModelRegistry::builtin()).expect("load");
 
     // One frame: render-ply of the export equals the run's own render at that time.
     let t = 0.37;
     let ply = tmp.0.join("frame.ply");
-    export_frame(&trainer, t, &ply).expect("export");
+    export_frame(&scene, t, &ply).expect("export");
     let g = read_ply(&ply).expect("read back");
     // Every Gaussian but those the renderer culls at t (opacity at most 1/255).
-    let opacity = &trainer.frame_at(t)[3];
+    let opacity = &scene.gaussians_at(t)[3];
     let drawn = opacity
         .data()
         .iter()
@@ -166,13 +167,13 @@ fn export_matches_render_and_temporal_eval_fills_the_fields() {
         .count();
     assert_eq!(g.len(), drawn);
     let cam = data.camera(Split::Test, 0, 0.5).expect("camera");
-    let settings = trainer.render_settings(trainer.iteration);
+    let settings = scene.render_settings();
     assert!(
         settings.sh_degree >= 1,
         "the run should render with view-dependent SH"
     );
     assert_eq!(g.sh_degree, settings.sh_degree);
-    let want = render_image(&trainer, &cam, t, &settings);
+    let want = scene.render_with(&cam, t, &settings);
     let got = render_gaussians(&g, &cam, &settings).image;
     let worst = want
         .data()
@@ -185,7 +186,7 @@ fn export_matches_render_and_temporal_eval_fills_the_fields() {
         "exported frame differs from the render by {worst}"
     );
     // Negative control: another time of the same run renders visibly differently.
-    let other = render_image(&trainer, &cam, 0.9, &settings);
+    let other = scene.render_with(&cam, 0.9, &settings);
     let moved = other
         .data()
         .iter()
@@ -196,16 +197,16 @@ fn export_matches_render_and_temporal_eval_fills_the_fields() {
 
     // A sequence: every frame, times evenly spaced over the data set's range.
     let seq = tmp.0.join("seq");
-    let paths = export_sequence(&trainer, (0.0, 1.0), 3, &seq).expect("sequence");
+    let paths = export_sequence(&scene, (0.0, 1.0), 3, &seq).expect("sequence");
     assert_eq!(paths.len(), 3);
     assert_eq!(paths[1], seq.join("frame_0001.ply"));
     let head = std::fs::read(&paths[1]).expect("frame 1 bytes");
     let head = String::from_utf8_lossy(&head[..200]);
     assert!(head.contains("\ncomment maaf time 0.5\n"), "{head}");
     let mid = read_ply(&paths[1]).expect("frame 1");
-    let direct = maaf_train::eval::export::frame_gaussians(&trainer, 0.5);
+    let direct = maaf_train::eval::export::frame_gaussians(&scene, 0.5);
     assert_eq!(mid.means, direct.means);
-    zip_holds_the_folder_version(&trainer, &tmp.0);
+    zip_holds_the_folder_version(&scene, &tmp.0);
 
     // Temporal evaluation: exact flow from the video split first, model flow second.
     let options = EvalOptions {
@@ -215,7 +216,7 @@ fn export_matches_render_and_temporal_eval_fills_the_fields() {
         temporal: true,
         ..EvalOptions::default()
     };
-    let report = evaluate_trainer(&trainer, &run, &data, &options).expect("eval");
+    let report = evaluate_scene(&scene, &run, &data, &options).expect("eval");
     let written = EvalReport::read(&run).expect("eval.json");
     for (a, b) in report.scales.iter().zip(&written.scales) {
         assert_eq!(a.flow, b.flow);

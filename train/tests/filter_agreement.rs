@@ -10,11 +10,13 @@ use maaf_filter::{FilterKind, MotionCurves};
 use maaf_train::data::{Dataset, DatasetOptions};
 use maaf_train::eval::filter_agreement::{FilterStudy, MOVING, filter_agreement};
 use maaf_train::models::{ModelConfig, SaroConfig};
+use maaf_train::scene::TrainedScene;
 use maaf_train::trainer::{TrainConfig, Trainer, camera_extent};
 
 /// A SaRO motion run on mutant at 100x100 (400 Gaussians) after `steps` iterations,
-/// dynamic from the first one when `static_iterations` is 0; `None` without the data.
-fn mutant_run(static_iterations: usize, steps: usize) -> Option<Trainer> {
+/// dynamic from the first one when `static_iterations` is 0, as the trained scene it
+/// holds; `None` without the data.
+fn mutant_run(static_iterations: usize, steps: usize) -> Option<TrainedScene> {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/dnerf/mutant");
     if !root.exists() {
         eprintln!("skipping: {} is absent", root.display());
@@ -37,22 +39,21 @@ fn mutant_run(static_iterations: usize, steps: usize) -> Option<Trainer> {
     for _ in 0..steps {
         trainer.step();
     }
-    Some(trainer)
+    Some(trainer.into_scene())
 }
 
 #[test]
 fn agreement_counts_drawn_pairs_and_never_exceeds_the_static_nu_of_a_static_model() {
-    let Some(trainer) = mutant_run(SaroConfig::default().static_iterations, 0) else {
+    let Some(scene) = mutant_run(SaroConfig::default().static_iterations, 0) else {
         return;
     };
-    let agreement = filter_agreement(&trainer).expect("a motion run");
+    let agreement = filter_agreement(&scene).expect("a motion run");
 
     // Independent count of the drawn pairs at the curves' bin times.
-    let curves =
-        MotionCurves::refresh(&trainer.observations, &trainer.config.filter).expect("curves");
+    let curves = MotionCurves::refresh(&scene.observations, &scene.config.filter).expect("curves");
     let drawn: usize = (0..curves.grid_t())
         .map(|s| {
-            let frame = trainer.frame_at(f64::from(curves.bin_time(s)));
+            let frame = scene.gaussians_at(f64::from(curves.bin_time(s)));
             frame[3]
                 .data()
                 .iter()
@@ -62,7 +63,7 @@ fn agreement_counts_drawn_pairs_and_never_exceeds_the_static_nu_of_a_static_mode
         .sum();
     assert!(drawn > 0);
     assert_eq!(agreement.pairs, drawn);
-    assert!(agreement.gaussians > 0 && agreement.gaussians <= trainer.num_gaussians());
+    assert!(agreement.gaussians > 0 && agreement.gaussians <= scene.num_gaussians());
 
     let names: Vec<&str> = agreement
         .ratios
@@ -97,18 +98,17 @@ fn agreement_counts_drawn_pairs_and_never_exceeds_the_static_nu_of_a_static_mode
 #[test]
 fn the_nu_t_chart_shows_the_least_and_the_most_moving_drawn_gaussian() {
     // A few dynamic iterations give the residual MLP something to move.
-    let Some(trainer) = mutant_run(0, 20) else {
+    let Some(scene) = mutant_run(0, 20) else {
         return;
     };
-    let curves =
-        MotionCurves::refresh(&trainer.observations, &trainer.config.filter).expect("curves");
+    let curves = MotionCurves::refresh(&scene.observations, &scene.config.filter).expect("curves");
     // The chart's Gaussians: the least and the most moving of those drawn at a
     // quarter of the bins and observed in a quarter of the frames, by an independent
     // per-Gaussian loop over the same bins.
-    let n = trainer.num_gaussians();
+    let n = scene.num_gaussians();
     let mut boxes = vec![(0usize, [f64::INFINITY; 3], [f64::NEG_INFINITY; 3]); n];
     for s in 0..curves.grid_t() {
-        let [means, _, _, opacity, _] = trainer.frame_at(f64::from(curves.bin_time(s)));
+        let [means, _, _, opacity, _] = scene.gaussians_at(f64::from(curves.bin_time(s)));
         for (k, b) in boxes.iter_mut().enumerate() {
             if opacity.data()[k] >= 1.0 / 255.0 {
                 b.0 += 1;
@@ -120,15 +120,15 @@ fn the_nu_t_chart_shows_the_least_and_the_most_moving_drawn_gaussian() {
             }
         }
     }
-    let extent = camera_extent(trainer.cameras());
-    let min_obs = (trainer.observations.num_frames() / 4).max(2);
+    let extent = camera_extent(scene.cameras());
+    let min_obs = (scene.observations.num_frames() / 4).max(2);
     let eligible: Vec<(usize, f64)> = boxes
         .iter()
         .enumerate()
         .filter(|(k, b)| {
             b.0 >= curves.grid_t() / 4
                 && curves.x_max()[*k] > 0.0
-                && trainer.observations.observations(*k).len() >= min_obs
+                && scene.observations.observations(*k).len() >= min_obs
         })
         .map(|(k, b)| {
             let diag = (0..3).map(|d| (b.2[d] - b.1[d]).powi(2)).sum::<f64>();
@@ -141,7 +141,7 @@ fn the_nu_t_chart_shows_the_least_and_the_most_moving_drawn_gaussian() {
         .fold((f64::INFINITY, 0.0f64), |(lo, hi), e| {
             (lo.min(e.1), hi.max(e.1))
         });
-    let study = FilterStudy::of(&trainer).expect("a motion run");
+    let study = FilterStudy::of(&scene).expect("a motion run");
     let export = study.analysis().expect("an export");
     assert_eq!(export.estimator, "kde");
     let [still, mobile] = &export.gaussians[..] else {

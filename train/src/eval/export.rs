@@ -30,17 +30,17 @@ use maaf_splat::sh::num_coeffs;
 use zip::write::SimpleFileOptions;
 use zip::{CompressionMethod, ZipWriter};
 
-use crate::trainer::Trainer;
+use crate::scene::TrainedScene;
 use crate::{Error, write_atomic};
 
-/// The deformed, filtered Gaussians of `trainer` at `time` as a static 3DGS scene, SH
-/// truncated to the degree the run renders with ([`Trainer::render_settings`]), less
+/// The deformed, filtered Gaussians of `scene` at `time` as a static 3DGS scene, SH
+/// truncated to the degree the run renders with ([`TrainedScene::render_settings`]), less
 /// those the renderer culls at `time` (opacity at most 1/255).
-pub fn frame_gaussians(trainer: &Trainer, time: f64) -> Gaussians {
-    let [means, scales, quats, opacity, sh] = trainer.frame_at(time);
+pub fn frame_gaussians(scene: &TrainedScene, time: f64) -> Gaussians {
+    let [means, scales, quats, opacity, sh] = scene.gaussians_at(time);
     let n = means.shape()[0];
     let stored = sh.shape()[1];
-    let degree = trainer.render_settings(trainer.iteration).sh_degree;
+    let degree = scene.render_settings().sh_degree;
     let degree = (0..=degree)
         .rev()
         .find(|&d| num_coeffs(d) <= stored)
@@ -75,8 +75,8 @@ pub fn frame_gaussians(trainer: &Trainer, time: f64) -> Gaussians {
 /// is infinite (a log-scale or opacity logit of minus or plus infinity is a scale of
 /// zero or an opacity of one, which a PLY can hold): a degenerate model exports
 /// nothing rather than a file viewers cannot draw.
-pub fn finite_frame_gaussians(trainer: &Trainer, time: f64) -> Result<Gaussians, Error> {
-    let g = frame_gaussians(trainer, time);
+pub fn finite_frame_gaussians(scene: &TrainedScene, time: f64) -> Result<Gaussians, Error> {
+    let g = frame_gaussians(scene, time);
     let fields = [
         ("centre", &g.means, true),
         ("rotation", &g.quats, true),
@@ -100,8 +100,8 @@ pub fn finite_frame_gaussians(trainer: &Trainer, time: f64) -> Result<Gaussians,
 /// Writes the frame at `time` to `out` as a binary 3DGS PLY (atomically), its time
 /// in a header comment; refuses non-finite Gaussians ([`finite_frame_gaussians`]).
 /// Returns how many Gaussians it holds (those drawn at `time`).
-pub fn export_frame(trainer: &Trainer, time: f64, out: &Path) -> Result<usize, Error> {
-    let g = finite_frame_gaussians(trainer, time)?;
+pub fn export_frame(scene: &TrainedScene, time: f64, out: &Path) -> Result<usize, Error> {
+    let g = finite_frame_gaussians(scene, time)?;
     write_atomic(out, &ply_bytes_with_comments(&g, &[time_comment(time)]))?;
     Ok(g.len())
 }
@@ -118,8 +118,8 @@ fn frame_name(i: usize) -> String {
 
 /// Frame `time` as PLY bytes with its time in a header comment (`comment maaf time
 /// T`), refused when non-finite ([`finite_frame_gaussians`]).
-fn frame_bytes(trainer: &Trainer, time: f64) -> Result<Vec<u8>, Error> {
-    let g = finite_frame_gaussians(trainer, time)?;
+fn frame_bytes(scene: &TrainedScene, time: f64) -> Result<Vec<u8>, Error> {
+    let g = finite_frame_gaussians(scene, time)?;
     Ok(ply_bytes_with_comments(&g, &[time_comment(time)]))
 }
 
@@ -191,7 +191,7 @@ fn check_zip_target(out: &Path) -> Result<(), Error> {
 /// swapped in whole. An existing file at `out`, or a folder holding other files, is refused.
 /// Returns the PLY paths.
 pub fn export_sequence(
-    trainer: &Trainer,
+    scene: &TrainedScene,
     range: (f64, f64),
     frames: usize,
     out: &Path,
@@ -205,7 +205,7 @@ pub fn export_sequence(
     std::fs::create_dir_all(&tmp).map_err(|e| Error::io(&tmp, e))?;
     let result = (|| {
         for (i, &t) in times.iter().enumerate() {
-            write_atomic(&tmp.join(frame_name(i)), &frame_bytes(trainer, t)?)?;
+            write_atomic(&tmp.join(frame_name(i)), &frame_bytes(scene, t)?)?;
         }
         Ok(())
     })();
@@ -225,7 +225,7 @@ pub fn export_sequence(
 /// folder fsync); a folder at `out`, or an existing file that is not a zip archive, is
 /// refused. Returns the archive's size in bytes.
 pub fn export_sequence_zip(
-    trainer: &Trainer,
+    scene: &TrainedScene,
     range: (f64, f64),
     frames: usize,
     out: &Path,
@@ -243,8 +243,7 @@ pub fn export_sequence_zip(
         };
         for (i, &t) in times.iter().enumerate() {
             // A refused frame fails the write, which removes the partial archive.
-            let bytes =
-                frame_bytes(trainer, t).map_err(|e| std::io::Error::other(e.to_string()))?;
+            let bytes = frame_bytes(scene, t).map_err(|e| std::io::Error::other(e.to_string()))?;
             put(&frame_name(i), &bytes)?;
         }
         zip.finish()?.flush()

@@ -21,7 +21,7 @@ use maaf_autodiff::PerGaussian;
 use maaf_filter::{AnalysisExport, FilterKind, FilterState, MotionCurves, MotionEstimator};
 use serde::{Deserialize, Serialize};
 
-use crate::trainer::{Trainer, camera_extent};
+use crate::scene::TrainedScene;
 
 /// Where `maaf eval` writes the agreement of a motion-filter run (in `RUN/eval/`).
 pub const FILTER_AGREEMENT_FILE: &str = "filter_agreement.json";
@@ -69,15 +69,15 @@ pub struct FilterAgreement {
 
 /// Measures the agreement of a motion-filter run (`None` for other filters, or when
 /// no Gaussian is drawn or observed).
-pub fn filter_agreement(trainer: &Trainer) -> Option<FilterAgreement> {
-    FilterStudy::of(trainer)?.agreement()
+pub fn filter_agreement(scene: &TrainedScene) -> Option<FilterAgreement> {
+    FilterStudy::of(scene)?.agreement()
 }
 
 /// What `maaf eval` measures of a motion run's filter, computed once: the static nu,
 /// both estimators' curves recomputed from the run's observations, and where the
 /// model draws each Gaussian at every time bin.
 pub struct FilterStudy<'a> {
-    trainer: &'a Trainer,
+    scene: &'a TrainedScene,
     /// Mip-Splatting's static nu on the canonical centres.
     nu_static: Vec<f32>,
     /// The curves of [`ESTIMATORS`], in that order.
@@ -89,14 +89,14 @@ pub struct FilterStudy<'a> {
 const ESTIMATORS: [MotionEstimator; 2] = [MotionEstimator::Kde, MotionEstimator::WindowMax];
 
 impl<'a> FilterStudy<'a> {
-    /// The study of `trainer`'s run, or `None` when it is not a motion run or its
+    /// The study of `scene`'s run, or `None` when it is not a motion run or its
     /// curves or static nu cannot be computed (nothing observed).
-    pub fn of(trainer: &'a Trainer) -> Option<Self> {
-        let cfg = &trainer.config.filter;
+    pub fn of(scene: &'a TrainedScene) -> Option<Self> {
+        let cfg = &scene.config.filter;
         if cfg.kind != FilterKind::Motion {
             return None;
         }
-        let nu_static = trainer.static_nu().ok()?;
+        let nu_static = scene.static_nu().ok()?;
         let curves: Vec<MotionCurves> = ESTIMATORS
             .iter()
             .map(|&estimator| {
@@ -104,12 +104,12 @@ impl<'a> FilterStudy<'a> {
                     estimator,
                     ..cfg.clone()
                 };
-                MotionCurves::refresh(&trainer.observations, &c).ok()
+                MotionCurves::refresh(&scene.observations, &c).ok()
             })
             .collect::<Option<_>>()?;
-        let drawn = DrawnPairs::of(trainer, &curves[0]);
+        let drawn = DrawnPairs::of(scene, &curves[0]);
         Some(FilterStudy {
-            trainer,
+            scene,
             nu_static,
             curves,
             drawn,
@@ -165,10 +165,10 @@ impl<'a> FilterStudy<'a> {
     /// the run's filter uses, the other estimator's curve, the static nu and the drawn
     /// motion. `None` when no Gaussian qualifies.
     pub fn analysis(&self) -> Option<AnalysisExport> {
-        let FilterState::Motion { curves, .. } = &self.trainer.filter else {
+        let FilterState::Motion { curves, .. } = &self.scene.filter else {
             return None;
         };
-        let table = &self.trainer.observations;
+        let table = &self.scene.observations;
         let min_obs = (table.num_frames() / 4).max(2);
         let min_bins = (self.curves[0].grid_t() / 4).max(1);
         let rows = curves.rows().min(table.rows()).min(self.nu_static.len());
@@ -192,7 +192,7 @@ impl<'a> FilterStudy<'a> {
             "most mobile"
         };
         let chosen = [(still, "static".to_string()), (mobile, label.to_string())];
-        let used = self.trainer.config.filter.estimator;
+        let used = self.scene.config.filter.estimator;
         let mut export =
             AnalysisExport::collect(table, curves, used, &chosen, Some(&self.nu_static)).ok()?;
         for (&e, c) in ESTIMATORS.iter().zip(&self.curves) {
@@ -221,13 +221,13 @@ struct DrawnPairs {
 impl DrawnPairs {
     /// Deforms the model (no render) at every time bin of `grid` and keeps the pairs
     /// whose opacity reaches [`DRAWN`], with each Gaussian's drawn-centre motion.
-    fn of(trainer: &Trainer, grid: &MotionCurves) -> Self {
+    fn of(scene: &TrainedScene, grid: &MotionCurves) -> Self {
         let n = grid.rows();
         let mut pairs = Vec::new();
         let mut bins = vec![0; n];
         let (mut lo, mut hi) = (vec![[f32::INFINITY; 3]; n], vec![[f32::NEG_INFINITY; 3]; n]);
         for s in 0..grid.grid_t() {
-            let [means, _, _, opacity, _] = trainer.frame_at(f64::from(grid.bin_time(s)));
+            let [means, _, _, opacity, _] = scene.gaussians_at(f64::from(grid.bin_time(s)));
             let centres = means.data().chunks_exact(3);
             for (k, (&o, p)) in opacity.data().iter().zip(centres).enumerate().take(n) {
                 if o < DRAWN {
@@ -242,7 +242,7 @@ impl DrawnPairs {
             }
         }
         // One camera centre has no extent: then any drawn motion counts as moving.
-        let extent = camera_extent(trainer.cameras()).max(f64::MIN_POSITIVE);
+        let extent = scene.extent().max(f64::MIN_POSITIVE);
         let motion = lo
             .iter()
             .zip(&hi)

@@ -36,10 +36,10 @@ use rayon::prelude::*;
 use crate::data::{Dataset, Image, Split};
 use crate::metrics::regions::{RegionPsnr, region_psnr};
 use crate::metrics::{ImageMetrics, error_map, image_metrics, mean_metrics};
-use crate::trainer::Trainer;
+use crate::scene::{ModelRegistry, TrainedScene};
 use crate::{Error, write_atomic};
 
-pub use render::{load_run, render_image, run_camera};
+pub use render::{load_run, load_scene_on, run_camera};
 pub use report::{
     EvalReport, PoppingResult, RegionSummary, ScaleResult, TemporalResult, scale_label, trim_float,
 };
@@ -186,7 +186,7 @@ struct ViewResult {
 /// Renders, measures and (optionally) saves the views `indices` at one scale into `dir`.
 #[allow(clippy::too_many_arguments)]
 fn evaluate_scale(
-    trainer: &Trainer,
+    scene: &TrainedScene,
     data: &Dataset,
     split: Split,
     indices: &[usize],
@@ -200,7 +200,7 @@ fn evaluate_scale(
         .map(|&i| data.view(split, i, scale.source))
         .collect::<Result<Vec<_>, _>>()
         .map_err(|e| Error::Input(e.to_string()))?;
-    let settings = trainer.render_settings(trainer.iteration);
+    let settings = scene.render_settings();
     // The model is not `Sync`: views are rendered one after the other (the renderer
     // is parallel inside), then metrics and PNG encoding run in parallel over a
     // chunk of views (bounded memory: one chunk of float images at a time).
@@ -208,7 +208,7 @@ fn evaluate_scale(
     for chunk in views.chunks(8) {
         let rendered: Vec<Tensor<f32>> = chunk
             .iter()
-            .map(|v| render_image(trainer, &v.camera, v.time, &settings))
+            .map(|v| scene.render_with(&v.camera, v.time, &settings))
             .collect();
         let masks: Vec<Option<Image>> = chunk
             .iter()
@@ -295,17 +295,17 @@ fn measure_view(
 pub const FILTER_ANALYSIS_FILE: &str = "filter_analysis.json";
 
 /// Builds the contract fields that describe the run (everything but `scales`).
-pub fn run_report(trainer: &Trainer, data: &Dataset) -> EvalReport {
-    let n = trainer.num_gaussians();
+pub fn run_report(scene: &TrainedScene, data: &Dataset) -> EvalReport {
+    let n = scene.num_gaussians();
     EvalReport {
-        model: trainer.model.label(),
-        filter: filter_name(&trainer.filter),
-        train_scale: trainer.config.train_scale,
-        iterations: trainer.iteration,
-        train_seconds: trainer.timings.total(),
+        model: scene.model.label(),
+        filter: filter_name(&scene.filter),
+        train_scale: scene.config.train_scale,
+        iterations: scene.iteration,
+        train_seconds: scene.train_seconds,
         num_gaussians: n,
-        model_bytes: trainer.model.num_scalars() as u64 * 4,
-        filter_bytes: (trainer.filter.bytes_per_gaussian() * n) as u64,
+        model_bytes: scene.model.num_scalars() as u64 * 4,
+        filter_bytes: (scene.filter.bytes_per_gaussian() * n) as u64,
         background: data.background(),
         quantized_8bit: false,
         frame_stride: 1,
@@ -322,6 +322,16 @@ fn filter_name(f: &FilterState) -> String {
     .to_string()
 }
 
+/// Evaluates the run in `run` (a built-in representation) on `data` (the data set it
+/// was trained on): [`evaluate_run_with`] and [`ModelRegistry::builtin`].
+pub fn evaluate_run(
+    run: &Path,
+    data: &Dataset,
+    options: &EvalOptions,
+) -> Result<EvalReport, Error> {
+    evaluate_run_with(run, data, options, &ModelRegistry::builtin())
+}
+
 /// Evaluates the run in `run` on `data` (the data set it was trained on) at every
 /// scale of `options` and writes `RUN/eval.json` plus `RUN/eval/<scale>x/` (renders,
 /// error maps, per-view `metrics.csv`) and, for a motion-filter run,
@@ -329,13 +339,17 @@ fn filter_name(f: &FilterState) -> String {
 /// for the report's chart) and `RUN/eval/filter_agreement.json`. Prints one progress
 /// line per scale to stderr.
 ///
+/// The model is loaded as a [`TrainedScene`] (its representation through `registry`):
+/// of the data set only the views scored are read.
+///
 /// Errors (one line, nothing written): the run being trained or evaluated by another
-/// process, no trained model in `run`, a data set that does not match the run, an
-/// impossible scale.
-pub fn evaluate_run(
+/// process, no trained model in `run`, a representation `registry` does not know, a
+/// data set that does not match the run, an impossible scale.
+pub fn evaluate_run_with(
     run: &Path,
     data: &Dataset,
     options: &EvalOptions,
+    registry: &ModelRegistry,
 ) -> Result<EvalReport, Error> {
     // The evaluation writes into the run: it holds the run's lock exclusively (no
     // trainer replaces the model it reads, no other evaluation shares its outputs)
@@ -349,14 +363,14 @@ pub fn evaluate_run(
     } else {
         None
     };
-    let trainer = load_run(run, data)?;
-    evaluate_trainer(&trainer, run, data, options)
+    let scene = load_scene_on(run, data, registry)?;
+    evaluate_scene(&scene, run, data, options)
 }
 
-/// [`evaluate_run`] for a run already loaded with [`load_run`] (saves loading it
-/// twice when the caller also renders videos).
-pub fn evaluate_trainer(
-    trainer: &Trainer,
+/// [`evaluate_run`] for a run already loaded (saves loading it twice when the caller
+/// also renders videos, or evaluates a trainer's [`crate::trainer::Trainer::into_scene`]).
+pub fn evaluate_scene(
+    scene: &TrainedScene,
     run: &Path,
     data: &Dataset,
     options: &EvalOptions,
@@ -375,8 +389,8 @@ pub fn evaluate_trainer(
         return Err(Error::Input("--frame-stride must be at least 1".into()));
     }
     let indices = strided_views(data, split, options.frame_stride, options.max_views);
-    let scales = resolve_scales(data, split, trainer.config.train_scale, &options.scales)?;
-    let mut report = run_report(trainer, data);
+    let scales = resolve_scales(data, split, scene.config.train_scale, &options.scales)?;
+    let mut report = run_report(scene, data);
     report.frame_stride = options.frame_stride;
     // LPIPS is optional: without weights every scale gets `lpips: null` and the reason.
     let lpips = Lpips::load_default().map_err(|e| e.to_string());
@@ -394,7 +408,7 @@ pub fn evaluate_trainer(
             let start = Instant::now();
             let dir = tmp_dir.join(scale_label(s.relative));
             std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
-            let views = evaluate_scale(trainer, data, split, &indices, s, options, &lpips, &dir)?;
+            let views = evaluate_scale(scene, data, split, &indices, s, options, &lpips, &dir)?;
             let per: Vec<ImageMetrics> = views.iter().map(|v| v.metrics).collect();
             let m =
                 mean_metrics(&per).ok_or_else(|| Error::Input("no views were evaluated".into()))?;
@@ -448,7 +462,7 @@ pub fn evaluate_trainer(
             if options.temporal {
                 let start = Instant::now();
                 let model = lpips.as_ref().ok();
-                let (flows, popping) = temporal::evaluate_temporal(trainer, data, s.source, model)?;
+                let (flows, popping) = temporal::evaluate_temporal(scene, data, s.source, model)?;
                 result.temporal = flows;
                 temporal::set_primary(&mut result);
                 eprintln!(
@@ -471,7 +485,7 @@ pub fn evaluate_trainer(
             }
             report.scales.push(result);
         }
-        let study = filter_agreement::FilterStudy::of(trainer);
+        let study = filter_agreement::FilterStudy::of(scene);
         if let Some(export) = study.as_ref().and_then(|s| s.analysis()) {
             write_atomic(
                 &tmp_dir.join(FILTER_ANALYSIS_FILE),

@@ -1,16 +1,16 @@
-//! Loading a trained run for evaluation and rendering it: at a test view or any
-//! camera, at any time, and as a fixed-camera video over time (PNG frames + GIF).
+//! A run's data set (its fingerprint, checked before evaluating or resuming), loading
+//! a trained run on it, test-view cameras at any scale, and a video over time (PNG
+//! frames + GIF) of a [`TrainedScene`].
 
 use std::path::{Path, PathBuf};
 
-use maaf_autodiff::Tensor;
-use maaf_splat::{Camera, RenderSettings};
+use maaf_splat::Camera;
 use serde::{Deserialize, Serialize};
 
 use super::images;
 use super::sequence::check_own_folder;
 use crate::data::{Dataset, Split, SplitMeta};
-use crate::forward::forward;
+use crate::scene::{ModelRegistry, TrainedScene, model_dir};
 use crate::trainer::{Trainer, load_checkpoint};
 use crate::{Error, write_atomic};
 
@@ -170,27 +170,14 @@ pub fn recorded_data(run: &Path) -> Result<Option<DataFingerprint>, Error> {
         .map_err(|e| Error::Input(format!("{}: {e}", path.display())))
 }
 
-/// Loads the trained model of `run` (`RUN/model/`) on `data`. One-line errors for a
-/// missing run or model and for a data set that does not match the run (different
-/// number of training views, different image size when `RUN/data.json` records it,
-/// or a training scale the images cannot be downsampled to).
+/// Loads the trained model of `run` (`RUN/model/`) into a [`Trainer`] on `data`, for
+/// what continues training it (`maaf bench`); evaluation and rendering load a
+/// [`TrainedScene`] instead. One-line errors for a missing run or model and for a
+/// data set that does not match the run (different number of training views,
+/// different image size when `RUN/data.json` records it, or a training scale the
+/// images cannot be downsampled to).
 pub fn load_run(run: &Path, data: &Dataset) -> Result<Trainer, Error> {
-    if !run.is_dir() {
-        return Err(Error::Input(format!(
-            "{}: run directory does not exist",
-            run.display()
-        )));
-    }
-    // A swap of `model/` cut short by a kill leaves the old version parked: read it.
-    let model = maaf_io::readable_dir(&run.join("model")).unwrap_or_else(|| run.join("model"));
-    if !model.join("state.json").is_file() || !model.join("tensors.safetensors").is_file() {
-        return Err(Error::Input(format!(
-            "{}: no trained model (expected {}/state.json and tensors.safetensors; train with `maaf train --out {}`)",
-            run.display(),
-            model.display(),
-            run.display()
-        )));
-    }
+    let model = model_dir(run)?;
     if let Some(rec) = recorded_data(run)? {
         rec.check(&DataFingerprint::of(data)?, run)?;
     }
@@ -209,10 +196,26 @@ pub fn load_run(run: &Path, data: &Dataset) -> Result<Trainer, Error> {
     })
 }
 
+/// Loads the trained scene of `run` for evaluation on `data`: refuses a data set
+/// other than the one `RUN/data.json` records ([`DataFingerprint::check`]), then
+/// loads `RUN/model` through `registry`, taking from `data` only what a run saved
+/// before the scene record lacks ([`TrainedScene::load_with`]).
+pub fn load_scene_on(
+    run: &Path,
+    data: &Dataset,
+    registry: &ModelRegistry,
+) -> Result<TrainedScene, Error> {
+    let dir = model_dir(run)?;
+    if let Some(rec) = recorded_data(run)? {
+        rec.check(&DataFingerprint::of(data)?, run)?;
+    }
+    TrainedScene::from_checkpoint(&dir, registry, Some(data))
+}
+
 /// Camera of view `index` of `split` at `scale` relative to the run's training scale
 /// (no ground truth is needed, so zoom-in beyond the source images is allowed).
 pub fn run_camera(
-    trainer: &Trainer,
+    scene: &TrainedScene,
     data: &Dataset,
     split: Split,
     index: usize,
@@ -226,7 +229,7 @@ pub fn run_camera(
     let source = data
         .camera(split, index, 1.0)
         .map_err(|e| Error::Input(e.to_string()))?;
-    let s = trainer.config.train_scale * scale;
+    let s = scene.config.train_scale * scale;
     let cam = source.scaled(s);
     if cam.width as u64 * cam.height as u64 > 64_000_000 {
         return Err(Error::Input(format!(
@@ -237,30 +240,6 @@ pub fn run_camera(
     Ok(cam)
 }
 
-/// Renders the run's Gaussians at `time` from `camera` (float `[H, W, 3]`), through
-/// the training pipeline ([`forward`]) with the parameters as constants.
-pub fn render_image(
-    trainer: &Trainer,
-    camera: &Camera,
-    time: f64,
-    settings: &RenderSettings,
-) -> Tensor<f32> {
-    let tape = maaf_autodiff::Tape::new();
-    let params = trainer.model.params().bind_constants(&tape);
-    let out = forward(
-        trainer.model.as_ref(),
-        &params,
-        &trainer.filter,
-        camera,
-        time,
-        settings,
-    );
-    // The binding ends the borrow of the tape before the tape is dropped.
-    #[allow(clippy::let_and_return)]
-    let image = out.render.image.value().clone();
-    image
-}
-
 /// Renders one frame per `(camera, time)` of `frames` (a fixed camera over time, a
 /// camera path, or a data set's views) into `out` as `frame_NNNN.png` plus an
 /// animated `video.gif` (10 frames per second). Returns the PNG paths. The frames are
@@ -268,7 +247,7 @@ pub fn render_image(
 /// so no frame of an earlier, longer video stays beside the new ones; an `out`
 /// holding anything but such frames is refused.
 pub fn render_video(
-    trainer: &Trainer,
+    scene: &TrainedScene,
     frames: &[(Camera, f64)],
     out: &Path,
 ) -> Result<Vec<PathBuf>, Error> {
@@ -283,14 +262,14 @@ pub fn render_video(
         std::fs::remove_dir_all(&tmp).map_err(|e| Error::io(&tmp, e))?;
     }
     std::fs::create_dir_all(&tmp).map_err(|e| Error::io(&tmp, e))?;
-    let settings = trainer.render_settings(trainer.iteration);
+    let settings = scene.render_settings();
     let names: Vec<String> = (0..frames.len())
         .map(|i| format!("frame_{i:04}.png"))
         .collect();
     let written = (|| {
         let mut rgb = Vec::with_capacity(frames.len());
         for (name, (camera, t)) in names.iter().zip(frames) {
-            let img = images::to_rgb8(&render_image(trainer, camera, *t, &settings))?;
+            let img = images::to_rgb8(&scene.render_with(camera, *t, &settings))?;
             images::save_png(&img, &tmp.join(name))?;
             rgb.push(img);
         }

@@ -14,13 +14,12 @@ use maaf_splat::Camera;
 
 use super::flow::model_flow;
 use super::popping::visible_weights;
-use super::render_image;
 use super::report::{PoppingResult, ScaleResult, TemporalResult};
 use crate::Error;
 use crate::data::{Dataset, Split};
 use crate::metrics::popping::PoppingMetrics;
 use crate::metrics::temporal::temporal_metrics;
-use crate::trainer::Trainer;
+use crate::scene::TrainedScene;
 
 /// The fixed-camera video to measure: camera, label, frame times, exact flows.
 struct Video {
@@ -66,22 +65,22 @@ fn video(data: &Dataset, source: f64) -> Result<Video, Error> {
     })
 }
 
-/// Renders the video of `trainer` at `source` scale and measures it with the exact
+/// Renders the video of `scene` at `source` scale and measures it with the exact
 /// flow (when the data set has one) and with model flow: one [`TemporalResult`] per
 /// flow, exact first, and the popping of its single Gaussians
 /// ([`super::popping::visible_weights`], [`crate::metrics::popping`]).
 pub fn evaluate_temporal(
-    trainer: &Trainer,
+    scene: &TrainedScene,
     data: &Dataset,
     source: f64,
     lpips: Option<&Lpips>,
 ) -> Result<(Vec<TemporalResult>, PoppingResult), Error> {
     let v = video(data, source)?;
-    let settings = trainer.render_settings(trainer.iteration);
+    let settings = scene.render_settings();
     let frames: Vec<Tensor<f32>> = v
         .times
         .iter()
-        .map(|&t| render_image(trainer, &v.camera, t, &settings))
+        .map(|&t| scene.render_with(&v.camera, t, &settings))
         .collect();
     // LPIPS needs frames of at least MIN_SIZE pixels; smaller scales get W-LPIPS null.
     let big_enough = (v.camera.width.min(v.camera.height) as usize) >= maaf_lpips::MIN_SIZE;
@@ -90,10 +89,10 @@ pub fn evaluate_temporal(
     let mut model = Vec::with_capacity(v.times.len() - 1);
     let pixels = v.camera.width as usize * v.camera.height as usize;
     let mut pops = PoppingMetrics::default();
-    let mut now = trainer.frame_at(v.times[0]);
+    let mut now = scene.gaussians_at(v.times[0]);
     let mut now_weights = visible_weights(&now, &v.camera, &settings);
     for &t in &v.times[1..] {
-        let next = trainer.frame_at(t);
+        let next = scene.gaussians_at(t);
         model.push(model_flow(&now, &next, &v.camera, &settings));
         let next_weights = visible_weights(&next, &v.camera, &settings);
         pops.push_step(&now_weights, &next_weights, pixels);

@@ -1,6 +1,7 @@
 //! Checkpoints: a folder holding `tensors.safetensors` (the parameter store as
 //! `param/{name}`, Adam moments, the representation's buffers, densification
-//! statistics, the liveness record, f/d observations) and
+//! statistics, the liveness record, f/d observations, the scene record
+//! [`crate::scene::SceneRecord`] as `scene/*`) and
 //! `state.json` (model name, iteration, counters, configuration, filter state, and
 //! the CRC-32 of the tensors file, checked on every load).
 //! Built under a temporary name and swapped in by [`maaf_io::replace_dir`], so a
@@ -11,34 +12,34 @@ use std::path::Path;
 
 use maaf_autodiff::Tensor;
 use maaf_autodiff::optim::Moments;
-use maaf_filter::{FilterState, ObservationTable};
-use safetensors::{Dtype, SafeTensors, tensor::TensorView};
+use maaf_filter::FilterState;
+use safetensors::{Dtype, tensor::TensorView};
 use serde::{Deserialize, Serialize};
 
+use super::checkpoint_read::{Opened, tensor};
 use super::{DensifyStats, Liveness, Timings, TrainConfig, Trainer};
 use crate::Error;
 use crate::data::Dataset;
 use crate::loss::TermRegistry;
-use crate::models::Representation;
 use crate::params::Rows;
 
 /// Non-tensor state of a run.
 #[derive(Serialize, Deserialize)]
-struct State {
+pub(crate) struct State {
     /// The representation's name: a checkpoint loads only into the same kind.
-    model: String,
-    iteration: usize,
-    skipped_steps: usize,
-    last_reset: Option<usize>,
-    num_gaussians: usize,
-    config: TrainConfig,
-    filter: FilterState,
-    timings: Timings,
-    adam_steps: HashMap<String, u64>,
+    pub(crate) model: String,
+    pub(crate) iteration: usize,
+    pub(crate) skipped_steps: usize,
+    pub(crate) last_reset: Option<usize>,
+    pub(crate) num_gaussians: usize,
+    pub(crate) config: TrainConfig,
+    pub(crate) filter: FilterState,
+    pub(crate) timings: Timings,
+    pub(crate) adam_steps: HashMap<String, u64>,
     /// CRC-32 of `tensors.safetensors` as 8 hex digits; absent in checkpoints written
     /// before it existed (loaded unchecked).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    tensors_crc32: Option<String>,
+    pub(crate) tensors_crc32: Option<String>,
 }
 
 /// Per Gaussian (u32), the last iteration with an opacity gradient
@@ -48,7 +49,7 @@ const LAST_GRAD: &str = "liveness/last_grad";
 const LOWERED: &str = "liveness/lowered";
 
 /// Prefix of the representation's buffers ([`crate::models::Representation::buffers`]).
-const BUFFER: &str = "buffer/";
+pub(super) const BUFFER: &str = "buffer/";
 
 fn bytes_of(data: &[f32]) -> Vec<u8> {
     data.iter().flat_map(|v| v.to_le_bytes()).collect()
@@ -106,6 +107,7 @@ pub fn save_checkpoint(trainer: &Trainer, dir: &Path) -> Result<(), Error> {
             .collect();
         named.push(("observations".into(), vec![n, f], obs));
     }
+    let scene = trainer.scene_record().to_tensors();
     let mut views: Vec<(String, TensorView<'_>)> = named
         .iter()
         .map(|(name, shape, bytes)| {
@@ -124,6 +126,13 @@ pub fn save_checkpoint(trainer: &Trainer, dir: &Path) -> Result<(), Error> {
         TensorView::new(Dtype::U32, vec![n], &last_grad)
             .map_err(|e| Error::Input(format!("checkpoint tensor {LAST_GRAD}: {e}")))?,
     ));
+    for (name, dtype, shape, bytes) in &scene {
+        views.push((
+            name.clone(),
+            TensorView::new(*dtype, shape.clone(), bytes)
+                .map_err(|e| Error::Input(format!("checkpoint tensor {name}: {e}")))?,
+        ));
+    }
     let blob = safetensors::serialize(views, None)
         .map_err(|e| Error::Input(format!("checkpoint serialisation: {e}")))?;
     let state = State {
@@ -158,34 +167,10 @@ pub fn save_checkpoint(trainer: &Trainer, dir: &Path) -> Result<(), Error> {
     })
 }
 
-fn tensor(st: &SafeTensors<'_>, name: &str, file: &Path) -> Result<Tensor<f32>, Error> {
-    let view = st
-        .tensor(name)
-        .map_err(|e| Error::Input(format!("{}: tensor `{name}`: {e}", file.display())))?;
-    if view.dtype() != Dtype::F32 {
-        return Err(Error::Input(format!(
-            "{}: tensor `{name}` is not f32",
-            file.display()
-        )));
-    }
-    let data: Vec<f32> = view
-        .data()
-        .chunks_exact(4)
-        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-        .collect();
-    Ok(Tensor::from_vec(data, view.shape()))
-}
-
-fn read_state(dir: &Path) -> Result<State, Error> {
-    let path = dir.join("state.json");
-    let text = std::fs::read(&path).map_err(|e| Error::io(&path, e))?;
-    serde_json::from_slice(&text).map_err(|e| Error::Input(format!("{}: {e}", path.display())))
-}
-
 /// The iteration a checkpoint folder holds (from its `state.json`), or an error
 /// naming the file when it is missing or malformed.
 pub fn checkpoint_iteration(dir: &Path) -> Result<usize, Error> {
-    read_state(dir).map(|s| s.iteration)
+    Opened::read_state(dir).map(|s| s.iteration)
 }
 
 /// Restores a trainer of the built-in representation `config.model` names from a
@@ -196,7 +181,7 @@ pub fn checkpoint_iteration(dir: &Path) -> Result<usize, Error> {
 /// [`load_checkpoint_with_terms`]. Errors name the file and the missing or
 /// malformed entry.
 pub fn load_checkpoint(data: &Dataset, dir: &Path) -> Result<Trainer, Error> {
-    let state = read_state(dir)?;
+    let state = Opened::read_state(dir)?;
     let mut trainer = Trainer::from_config(data, state.config.clone(), &TermRegistry::builtin())?;
     trainer.restore_state(dir, state, false)?;
     Ok(trainer)
@@ -210,7 +195,7 @@ pub fn load_checkpoint_with_terms(
     dir: &Path,
     registry: &TermRegistry<f32>,
 ) -> Result<Trainer, Error> {
-    let state = read_state(dir)?;
+    let state = Opened::read_state(dir)?;
     let what = dir.join("state.json").display().to_string();
     registry.check(&state.config.terms, &what)?;
     let mut trainer = Trainer::from_config(data, state.config.clone(), registry)?;
@@ -226,7 +211,7 @@ impl Trainer {
     /// trainer's objective is kept, so custom terms are re-supplied by building the
     /// trainer the same way as the first time.
     pub fn restore(&mut self, dir: &Path) -> Result<(), Error> {
-        let state = read_state(dir)?;
+        let state = Opened::read_state(dir)?;
         self.restore_state(dir, state, false).map(drop)
     }
 
@@ -240,7 +225,7 @@ impl Trainer {
     /// returned. Refused when the representation, the filter kind or the training
     /// scale differ: the restored filter state and observations belong to those.
     pub fn branch_from(&mut self, dir: &Path) -> Result<Vec<String>, Error> {
-        let state = read_state(dir)?;
+        let state = Opened::read_state(dir)?;
         let (ours, theirs) = (&self.config, &state.config);
         if ours.filter.kind != theirs.filter.kind || ours.train_scale != theirs.train_scale {
             return Err(Error::Input(format!(
@@ -272,21 +257,11 @@ impl Trainer {
                 self.model.name()
             )));
         }
-        let blob_path = dir.join("tensors.safetensors");
-        let blob = std::fs::read(&blob_path).map_err(|e| Error::io(&blob_path, e))?;
-        if let Some(stored) = &state.tensors_crc32 {
-            let computed = format!("{:08x}", crc32fast::hash(&blob));
-            if *stored != computed {
-                return Err(Error::Input(format!(
-                    "{}: damaged: its CRC-32 is {computed}, state.json recorded {stored}",
-                    blob_path.display()
-                )));
-            }
-        }
-        let st = SafeTensors::deserialize(&blob)
-            .map_err(|e| Error::Input(format!("{}: {e}", blob_path.display())))?;
+        let opened = Opened::with_state(dir, state)?;
+        let st = opened.tensors()?;
+        let blob_path = &opened.blob_path;
         // A branch's shared parameters that the checkpoint lacks keep their values.
-        let mut kept: HashMap<String, Tensor<f32>> = self
+        let kept: HashMap<String, Tensor<f32>> = self
             .model
             .params()
             .iter()
@@ -296,40 +271,19 @@ impl Trainer {
             .collect();
         let mut fresh: Vec<String> = kept.keys().cloned().collect();
         fresh.sort_unstable();
-        self.model
-            .params_mut()
-            .load(|name| match kept.remove(name) {
-                Some(value) => Ok(value),
-                None => {
-                    tensor(&st, &format!("param/{name}"), &blob_path).map_err(|e| e.to_string())
-                }
-            })
-            .map_err(|e| Error::Input(format!("{}: {e}", blob_path.display())))?;
-        if let Some((name, index, value)) = self.first_non_finite_param() {
-            return Err(Error::Input(format!(
-                "{}: parameter `{name}` is {value} at flat index {index}: the run diverged, this model cannot be used",
-                blob_path.display()
-            )));
-        }
-        let n = state.num_gaussians;
-        if self.model.num_gaussians() != n {
-            return Err(Error::Input(format!(
-                "{}: {} Gaussians in the parameters, state.json says {n}",
-                dir.display(),
-                self.model.num_gaussians(),
-            )));
-        }
+        opened.load_model(self.model.as_mut(), dir, kept)?;
+        let n = opened.state.num_gaussians;
         for name in self.model.params().names() {
-            if let Some(&steps) = state.adam_steps.get(&name) {
-                let m = tensor(&st, &format!("adam_m/{name}"), &blob_path)?;
-                let v = tensor(&st, &format!("adam_v/{name}"), &blob_path)?;
+            if let Some(&steps) = opened.state.adam_steps.get(&name) {
+                let m = tensor(&st, &format!("adam_m/{name}"), blob_path)?;
+                let v = tensor(&st, &format!("adam_v/{name}"), blob_path)?;
                 self.adam.set_moments(&name, Moments { m, v, steps });
             }
         }
         self.stats = DensifyStats {
-            grad_accum: tensor(&st, "stats/grad_accum", &blob_path)?.into_vec(),
-            denom: tensor(&st, "stats/denom", &blob_path)?.into_vec(),
-            max_radii: tensor(&st, "stats/max_radii", &blob_path)?.into_vec(),
+            grad_accum: tensor(&st, "stats/grad_accum", blob_path)?.into_vec(),
+            denom: tensor(&st, "stats/denom", blob_path)?.into_vec(),
+            max_radii: tensor(&st, "stats/max_radii", blob_path)?.into_vec(),
         };
         self.liveness = if st.names().contains(&LAST_GRAD) {
             let last_grad = st
@@ -342,7 +296,7 @@ impl Trainer {
                         blob_path.display()
                     ))
                 })?;
-            let lowered = tensor(&st, LOWERED, &blob_path)?;
+            let lowered = tensor(&st, LOWERED, blob_path)?;
             if lowered.shape() != [n] {
                 return Err(Error::Input(format!(
                     "{}: tensor `{LOWERED}` has shape {:?}, expected [{n}]",
@@ -359,63 +313,14 @@ impl Trainer {
                 lowered: lowered.data().iter().map(|&l| l != 0.0).collect(),
             }
         } else {
-            Liveness::alive_at(n, state.iteration)
+            Liveness::alive_at(n, opened.state.iteration)
         };
-        let f = self.observations.num_frames();
-        // Only the motion filter reads observations (older runs saved them for every
-        // filter: ignored).
-        if f > 0 {
-            let obs = tensor(&st, "observations", &blob_path)?;
-            self.observations = ObservationTable::new(self.observations.times().to_vec(), n);
-            // A run saved before `filter.max_views` holds every training view: its
-            // observed views' columns are read.
-            let views = self.observed_slot.len();
-            let columns: Vec<usize> = if obs.shape() == [n, f] {
-                (0..f).collect()
-            } else if obs.shape() == [n, views] {
-                self.observed.iter().map(|o| o.camera).collect()
-            } else {
-                return Err(Error::Input(format!(
-                    "{}: observations have shape {:?}, expected [{n}, {f}] (a different data set, or another filter.max_views?)",
-                    blob_path.display(),
-                    obs.shape()
-                )));
-            };
-            let width = obs.shape()[1];
-            for i in 0..n {
-                let row = &obs.data()[i * width..(i + 1) * width];
-                for (slot, &c) in self.observations.row_mut(i).iter_mut().zip(&columns) {
-                    *slot = row[c];
-                }
-            }
-        }
+        self.observations = opened.observations(&self.observed, self.observed_slot.len())?;
+        drop(st);
+        let state = opened.state;
         self.filter = state.filter;
         self.filter_ready = true;
         self.iteration = state.iteration;
-        // The stage (e.g. SaRO-GS's static warm-up) follows the iteration; without this a
-        // loaded run would render its canonical, undeformed Gaussians.
-        // Buffers before the stage, so a stage switch that would build one (GroupFlow's
-        // fit past `group_flow.at`) finds it saved instead of fitting it again, and
-        // after it: `set_iteration` may recompute a buffer (SaRO's adaptive scale) from
-        // the parameters, which have moved since the run computed the saved one.
-        let mut buffers: Vec<&str> = st
-            .names()
-            .into_iter()
-            .filter_map(|k| k.strip_prefix(BUFFER))
-            .collect();
-        buffers.sort_unstable();
-        let load_buffers = |model: &mut dyn Representation<f32>| -> Result<(), Error> {
-            for name in &buffers {
-                let value = tensor(&st, &format!("{BUFFER}{name}"), &blob_path)?;
-                model
-                    .load_buffer(name, value)
-                    .map_err(|e| Error::Input(format!("{}: {e}", blob_path.display())))?;
-            }
-            Ok(())
-        };
-        load_buffers(self.model.as_mut())?;
-        self.model.set_iteration(state.iteration);
-        load_buffers(self.model.as_mut())?;
         self.skipped_steps = state.skipped_steps;
         self.last_reset = state.last_reset;
         self.timings = state.timings;

@@ -11,10 +11,7 @@ impl Trainer {
     /// The first parameter value that is not finite, as (parameter name, flat index,
     /// value).
     pub fn first_non_finite_param(&self) -> Option<(String, usize, f32)> {
-        self.model.params().named_tensors().find_map(|(name, t)| {
-            t.first_non_finite()
-                .map(|i| (name.to_string(), i, t.data()[i]))
-        })
+        super::checkpoint_read::first_non_finite(self.model.as_ref())
     }
 
     /// `Err` when the run has diverged at its current iteration: a non-finite

@@ -9,6 +9,7 @@
 //! a run directory.
 
 mod checkpoint;
+mod checkpoint_read;
 mod config;
 mod densify;
 mod health;
@@ -33,9 +34,11 @@ use rand_pcg::Pcg64;
 pub use checkpoint::{
     checkpoint_iteration, load_checkpoint, load_checkpoint_with_terms, save_checkpoint,
 };
+pub(crate) use checkpoint_read::Opened;
 pub use config::{DensifyConfig, MAX_BATCH, OpacityReset, PruneConfig, TrainConfig};
 pub use densify::{DensifyPlan, DensifyStats, ViewGrad, plan as plan_densify};
 pub use prune::{keep_highest, removal_sensitivity};
+pub(crate) use refresh::observed_views;
 pub use reset::{Liveness, opacity_caps};
 pub use resume::{checkpoints_newest_first, load_newest, repair_run_dir, truncate_log};
 pub use run::{
@@ -51,6 +54,7 @@ use crate::Error;
 use crate::data::{Dataset, View};
 use crate::loss::{Objective, TermRegistry};
 use crate::models::{ModelInit, PointCloud, Representation, build_model};
+use crate::scene::{SceneRecord, TrainedScene};
 
 /// A trainer: the model, its optimiser, the filter and every per-Gaussian container,
 /// resized in lock-step by [`PerGaussian::select_rows`].
@@ -88,6 +92,13 @@ pub struct Trainer {
     /// Per Gaussian, the last iteration with an opacity gradient and whether the last
     /// reset lowered it: the dead-Gaussian counts of the run's summary.
     pub liveness: Liveness,
+    /// Bounds of the point cloud the representation was built from
+    /// ([`PointCloud::bounds`] of [`ModelInit::cloud`]), saved with every checkpoint
+    /// ([`SceneRecord::init_box`]) so that the run's model is rebuilt without its data
+    /// set. [`Trainer::new`] sets it; [`Trainer::with_model`] starts from the data
+    /// set's scene bounds: set it when the model was built from a [`ModelInit`] whose
+    /// box it uses beyond its parameters.
+    pub init_box: ([f64; 3], [f64; 3]),
     /// Wall time per phase.
     pub timings: Timings,
     /// Wall time per tape op, summed over steps, when set to `Some` (off by default:
@@ -111,6 +122,8 @@ pub struct Trainer {
     observed_slot: Vec<Option<usize>>,
     extent: f64,
     background: [f32; 3],
+    /// `(min, max)` of the data set's time stamps (the scene record's).
+    time_range: (f64, f64),
 }
 
 /// Radius of the sphere around the mean camera centre that holds every camera,
@@ -227,7 +240,9 @@ impl Trainer {
         let init = model_init(data, &config)?;
         config.model.resolve(&init);
         let model = build_model(&config.model, &init);
-        Self::assemble(data, config, model, registry)
+        let mut trainer = Self::assemble(data, config, model, registry)?;
+        trainer.init_box = init.cloud.bounds();
+        Ok(trainer)
     }
 
     /// A new run of any representation: the model is used as given (its config is
@@ -262,7 +277,16 @@ impl Trainer {
             .map_err(|e| Error::Input(e.to_string()))?;
         let view_times: Vec<f64> = views.iter().map(|v| v.time).collect();
         let (observed, observed_slot) =
-            refresh::observed_views(&view_times, sampling.observes(), config.filter.max_views);
+            observed_views(&view_times, sampling.observes(), config.filter.max_views);
+        if observed.len() < views.len() && sampling.observes() {
+            log_line(&format!(
+                "motion filter: observing {} of {} training views (filter.max_views), {} B per Gaussian",
+                observed.len(),
+                views.len(),
+                4 * observed.len()
+            ));
+        }
+        let bounds = data.scene_bounds();
         let gts = views.iter().map(|v| v.image.to_tensor()).collect();
         // The tensors are the trainer's copy: the data set's cached one would double
         // the images' memory for the whole run.
@@ -283,6 +307,8 @@ impl Trainer {
             last_skip: None,
             last_reset: None,
             liveness: Liveness::new(n),
+            init_box: (bounds.min.to_array(), bounds.max.to_array()),
+            time_range: data.time_range(),
             timings: Timings::default(),
             op_profile: None,
             last_terms: Vec::new(),
@@ -342,6 +368,35 @@ impl Trainer {
     /// `[means, scales, quats, opacity, sh]`: what the renderer draws.
     pub fn frame_at(&self, time: f64) -> [Tensor<f32>; 5] {
         crate::forward::gaussians_at(self.model.as_ref(), &self.filter, time)
+    }
+
+    /// What a checkpoint of this run records besides the model
+    /// ([`SceneRecord`]): the training cameras and times, the initial cloud's box,
+    /// the data set's time range and background.
+    pub fn scene_record(&self) -> SceneRecord {
+        SceneRecord {
+            cameras: self.cameras.clone(),
+            times: self.view_times.clone(),
+            init_box: self.init_box,
+            time_range: self.time_range,
+            background: self.background,
+        }
+    }
+
+    /// The trained scene this trainer holds: its model, filter state and
+    /// observations, configuration, iteration and scene record, as
+    /// [`TrainedScene::load`] reads them from a checkpoint of it.
+    pub fn into_scene(self) -> TrainedScene {
+        let record = self.scene_record();
+        TrainedScene {
+            train_seconds: self.timings.total(),
+            model: self.model,
+            filter: self.filter,
+            observations: self.observations,
+            config: self.config,
+            iteration: self.iteration,
+            record,
+        }
     }
 
     /// Applies a densification plan to the model, its Adam moments, the filter state,

@@ -3,10 +3,7 @@
 //! user's) computes the filter state from the inputs the trainer supplies.
 
 use maaf_autodiff::Tensor;
-use maaf_filter::{
-    CameraTime, FilterError, FilterInputs, ObservationTable, SamplingFilter, observed_frames,
-    static_nu,
-};
+use maaf_filter::{CameraTime, FilterInputs, ObservationTable, SamplingFilter, observed_frames};
 use maaf_splat::Camera;
 
 use super::{Trainer, log_line};
@@ -21,8 +18,8 @@ pub(super) fn centres(t: &Tensor<f32>) -> Vec<[f32; 3]> {
 
 /// The training views (by their times) a filter that `observes` reads: at most
 /// `max_views` by [`observed_frames`], none for a filter that reads no observation;
-/// and each view's frame in the observation table. Logs the table's size when capped.
-pub(super) fn observed_views(
+/// and each view's frame in the observation table.
+pub(crate) fn observed_views(
     view_times: &[f64],
     observes: bool,
     max_views: usize,
@@ -40,14 +37,6 @@ pub(super) fn observed_views(
         })
         .collect();
     let kept = observed_frames(&all, max_views);
-    if kept.len() < all.len() {
-        log_line(&format!(
-            "motion filter: observing {} of {} training views (filter.max_views), {} B per Gaussian",
-            kept.len(),
-            all.len(),
-            4 * kept.len()
-        ));
-    }
     for (frame, &v) in kept.iter().enumerate() {
         slot[v] = Some(frame);
     }
@@ -129,13 +118,6 @@ impl Trainer {
             }
         }
         self.refresh_filter();
-    }
-
-    /// Mip-Splatting's static nu (paper Eq. 2) of the canonical centres from the
-    /// training cameras: what the `mip3d` filter uses.
-    pub(crate) fn static_nu(&self) -> Result<Vec<f32>, FilterError> {
-        let canon = centres(&self.model.canonical().means);
-        static_nu(&canon, &self.cameras, &self.config.filter)
     }
 
     /// Recomputes the 3D filter with the trainer's [`SamplingFilter`]. On a failure

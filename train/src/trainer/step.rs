@@ -4,8 +4,8 @@
 use std::time::Instant;
 
 use maaf_autodiff::{Tape, Tensor};
+use maaf_splat::RenderSettings;
 use maaf_splat::compositing::drawable;
-use maaf_splat::{Filter2d, RenderSettings};
 use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_pcg::Pcg64;
@@ -18,22 +18,16 @@ use crate::forward::{batch_mean, forward_bound};
 use crate::loss::Evaluated;
 
 impl Trainer {
-    /// Render settings at `iteration`: the 2D Mip filter (0.1 px^2 with compensation)
-    /// whenever the trainer's filter smooths ([`maaf_filter::SamplingFilter::smooths`]),
-    /// as in the paper; the classic 3DGS dilation (0.3 px^2) otherwise. SH degree grows by one every `sh_degree_every` iterations.
+    /// Render settings at `iteration` ([`crate::scene::render_settings`], the 2D filter
+    /// chosen by whether the trainer's filter smooths,
+    /// [`maaf_filter::SamplingFilter::smooths`]).
     pub fn render_settings(&self, iteration: usize) -> RenderSettings {
-        let filter2d = if self.sampling.smooths() {
-            Filter2d::Mip
-        } else {
-            Filter2d::Classic
-        };
-        let grown = iteration / self.config.sh_degree_every.max(1);
-        RenderSettings {
-            background: self.background.map(f64::from),
-            filter2d,
-            sh_degree: grown.min(self.config.model.sh_degree()),
-            ..RenderSettings::default()
-        }
+        crate::scene::render_settings(
+            &self.config,
+            self.background,
+            iteration,
+            self.sampling.smooths(),
+        )
     }
 
     /// Entry `k` (1-based) of the sequence of training views: views are visited in a
