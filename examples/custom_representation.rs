@@ -6,7 +6,8 @@
 //! custom regulariser, checkpoints, resumes bit-identically from a checkpoint, resumes
 //! its run directory with the term re-supplied, is registered by name so that its run
 //! loads as a trained scene without the training code's trainer (rendering exactly as
-//! the trainer does), and is evaluated at three scales.
+//! the trainer does), and is evaluated at three scales; the same registration in
+//! `maaf::cli::Maaf` lets `maaf eval` and `export-ply` load the run.
 //!
 //! Run: `cargo run --release --example custom_representation [-- OUT_DIR]`
 //! (default `target/custom_representation`; also runs as a test).
@@ -18,6 +19,7 @@ use maaf::autodiff::ops::concat;
 use maaf::autodiff::optim::LrSchedule;
 use maaf::autodiff::scalar::logit;
 use maaf::autodiff::{Tensor, Var};
+use maaf::cli::Maaf;
 use maaf::filter::FilterKind;
 use maaf::splat::GaussianVars;
 use maaf::train::data::synthetic::{self, GenerateOptions};
@@ -318,6 +320,46 @@ fn run_in(out: &Path) -> Result<(), Box<dyn std::error::Error>> {
         println!("  {}x: PSNR {:.2} dB, SSIM {:.3}", s.scale, s.psnr, s.ssim);
     }
     ensure_finite(&run)?;
+
+    // 6. The same registration gives the whole command line (`maaf::cli::Maaf`):
+    // `eval` and `export-ply` load the run by its representation's name, which plain
+    // `maaf` does not know.
+    let cli = Maaf::new().representation("deform-example", |config, init| {
+        let model = Deform::new(init, 32, config.iterations / 4);
+        Ok(Box::new(model) as Box<dyn Representation<f32>>)
+    });
+    let run_arg = run.display().to_string();
+    let ply = out.join("frame.ply").display().to_string();
+    let data_arg = data_dir.display().to_string();
+    let eval = [
+        "maaf",
+        "eval",
+        "--run",
+        &run_arg,
+        "--data",
+        &data_arg,
+        "--scales",
+        "1",
+        "--no-images",
+    ];
+    cli.run_args(eval)?;
+    cli.run_args([
+        "maaf",
+        "export-ply",
+        "--run",
+        &run_arg,
+        "--time",
+        "0.5",
+        "--out",
+        &ply,
+    ])?;
+    ensure_finite(&run)?;
+    match Maaf::new().run_args(eval) {
+        Err(e) if e.to_string().contains("deform-example") => {
+            println!("plain maaf refuses the run: {e}")
+        }
+        other => return Err(format!("plain maaf should refuse the run: {other:?}").into()),
+    }
     Ok(())
 }
 

@@ -4,6 +4,9 @@
 use clap::Parser;
 use maaf_autodiff::Var;
 use maaf_train::loss::{Term, TermCtx, TermRegistry};
+use maaf_train::models::{ModelInit, Representation};
+use maaf_train::scene::ModelRegistry;
+use maaf_train::trainer::TrainConfig;
 
 use super::command::{self, Cli};
 use crate::alloc;
@@ -36,6 +39,7 @@ const WORKER_STACK: usize = 8 << 20;
 /// The other commands (eval, render, export-ply, ...) read such runs without them.
 pub struct Maaf {
     terms: TermRegistry<f32>,
+    models: ModelRegistry,
 }
 
 impl Default for Maaf {
@@ -50,6 +54,7 @@ impl Maaf {
     pub fn new() -> Self {
         Maaf {
             terms: TermRegistry::builtin(),
+            models: ModelRegistry::builtin(),
         }
     }
 
@@ -76,6 +81,23 @@ impl Maaf {
         self
     }
 
+    /// Registers the loader of a representation of one's own under `name` (its
+    /// [`Representation::name`], recorded in every checkpoint), so that `eval`,
+    /// `render`, `render-video`, `export-ply` and the test PSNR after `train` load its
+    /// runs as a [`maaf_train::scene::TrainedScene`]. The loader builds the model
+    /// (empty parameters of the right names; the checkpoint fills them) from the run's
+    /// config and initial values, as `examples/custom_representation.rs` does.
+    pub fn representation<F>(mut self, name: &str, loader: F) -> Self
+    where
+        F: Fn(&TrainConfig, &ModelInit) -> Result<Box<dyn Representation<f32>>, String>
+            + Send
+            + Sync
+            + 'static,
+    {
+        self.models.register(name, loader);
+        self
+    }
+
     /// Parses the process's arguments and runs the command, as the `maaf` binary
     /// does: mimalloc keeps freed pages ([`alloc::keep_freed_pages`]), the command
     /// runs on a worker of the rayon pool (`RAYON_NUM_THREADS` threads, default one
@@ -89,17 +111,32 @@ impl Maaf {
     /// join when they wake.
     pub fn run(self) {
         alloc::keep_freed_pages();
-        let cli = Cli::parse();
-        let result = match rayon::ThreadPoolBuilder::new()
+        if let Err(e) = self.execute(Cli::parse()) {
+            eprintln!("maaf: error: {e:#}");
+            std::process::exit(1);
+        }
+    }
+
+    /// Runs the command line `args` (the first item is the program name, as in
+    /// `std::env::args`) on a worker pool as [`Maaf::run`] does, and returns its error
+    /// instead of printing it and exiting: for a program that runs maaf commands
+    /// itself, or a test. `--help` and argument errors come back as errors too.
+    pub fn run_args<I, S>(&self, args: I) -> anyhow::Result<()>
+    where
+        I: IntoIterator<Item = S>,
+        S: Into<std::ffi::OsString> + Clone,
+    {
+        self.execute(Cli::try_parse_from(args)?)
+    }
+
+    /// Runs a parsed command on a worker of a new rayon pool.
+    fn execute(&self, cli: Cli) -> anyhow::Result<()> {
+        match rayon::ThreadPoolBuilder::new()
             .stack_size(WORKER_STACK)
             .build()
         {
-            Ok(pool) => pool.install(|| command::run(cli, &self.terms)),
+            Ok(pool) => pool.install(|| command::run(cli, &self.terms, &self.models)),
             Err(e) => Err(anyhow::anyhow!("cannot start the worker threads: {e}")),
-        };
-        if let Err(e) = result {
-            eprintln!("maaf: error: {e:#}");
-            std::process::exit(1);
         }
     }
 }

@@ -2,6 +2,7 @@
 
 use clap::{Parser, Subcommand};
 use maaf_train::loss::TermRegistry;
+use maaf_train::scene::ModelRegistry;
 
 use crate::cli;
 
@@ -57,21 +58,25 @@ enum Command {
 }
 
 /// Runs the parsed command; `terms` are the loss terms `maaf train` can name.
-pub(super) fn run(cli: Cli, terms: &TermRegistry<f32>) -> anyhow::Result<()> {
+pub(super) fn run(
+    cli: Cli,
+    terms: &TermRegistry<f32>,
+    models: &ModelRegistry,
+) -> anyhow::Result<()> {
     match cli.command {
         Command::Demo(args) => cli::demo::run(&args)?,
         Command::Generate(args) => cli::generate::run(&args)?,
         Command::Inspect(args) => cli::inspect::run(&args)?,
-        Command::Train(args) => cli::train::run(&args, terms)?,
+        Command::Train(args) => cli::train::run(&args, terms, models)?,
         Command::RenderPly(args) => cli::render_ply::run(&args)?,
-        Command::Eval(args) => cli::eval::run(&args)?,
-        Command::Render(args) => cli::render::run(&args)?,
-        Command::RenderVideo(args) => cli::render::run_video(&args)?,
+        Command::Eval(args) => cli::eval::run(&args, models)?,
+        Command::Render(args) => cli::render::run(&args, models)?,
+        Command::RenderVideo(args) => cli::render::run_video(&args, models)?,
         Command::Cameras(args) => cli::cameras::run(&args)?,
         Command::Report(args) => cli::report::run(&args)?,
         Command::Compare(args) => cli::compare::run(&args)?,
         Command::Bench(args) => cli::bench::run(&args)?,
-        Command::ExportPly(args) => cli::export_ply::run(&args)?,
+        Command::ExportPly(args) => cli::export_ply::run(&args, models)?,
         Command::Sweep(args) => cli::sweep::run(&args)?,
         Command::BenchSuite(args) => cli::bench_suite::run(&args)?,
         Command::Info => {

@@ -9,7 +9,7 @@ use maaf_train::eval::render::recorded_data;
 use maaf_train::scene::{ModelRegistry, SceneRecord, TrainedScene};
 
 use super::Background;
-use maaf_train::eval::{EvalOptions, evaluate_run, scale_label};
+use maaf_train::eval::{EvalOptions, evaluate_run_with, scale_label};
 
 /// [`maaf_train::eval::DEFAULT_SCALES`] as `--scales` takes them (comma-separated), so `--help` shows
 /// a default that can be typed back.
@@ -103,17 +103,17 @@ pub fn open_run_data(
     Ok(Dataset::open(&root, DatasetOptions { background })?)
 }
 
-/// Loads the trained scene of `run` (a built-in representation) without its data
-/// set; a run saved before checkpoints recorded their cameras takes them from `data`,
+/// Loads the trained scene of `run` (a representation `models` knows) without its
+/// data set; a run saved before checkpoints recorded their cameras takes them from `data`,
 /// else from the data set [`open_run_data`] opens with `data_dir` and `background`.
 pub fn load_scene(
     run: &Path,
     data_dir: Option<&Path>,
     background: Option<Background>,
     data: Option<&Dataset>,
+    models: &ModelRegistry,
 ) -> anyhow::Result<TrainedScene> {
-    let registry = ModelRegistry::builtin();
-    let scene = TrainedScene::load_or(run, &registry, |config| {
+    let scene = TrainedScene::load_or(run, models, |config| {
         let opened;
         let data = match data {
             Some(d) => d,
@@ -140,7 +140,7 @@ pub fn read_lock(run: &Path) -> anyhow::Result<Option<maaf_io::RunLock>> {
 }
 
 /// Runs `maaf eval`.
-pub fn run(args: &EvalArgs) -> anyhow::Result<()> {
+pub fn run(args: &EvalArgs, models: &ModelRegistry) -> anyhow::Result<()> {
     let data = open_run_data(&args.run, args.data.as_deref(), args.background)?;
     let options = EvalOptions {
         scales: args.scales.clone(),
@@ -150,7 +150,7 @@ pub fn run(args: &EvalArgs) -> anyhow::Result<()> {
         save_images: !args.no_images,
         temporal: args.temporal,
     };
-    let report = evaluate_run(&args.run, &data, &options)?;
+    let report = evaluate_run_with(&args.run, &data, &options, models)?;
     println!(
         "{} / {} at training scale {}: {} Gaussians, {:.1} MB (+{:.1} MB filter)",
         report.model,

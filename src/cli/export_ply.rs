@@ -11,6 +11,8 @@ use maaf_train::eval::export::{
     check_sequence_target, export_frame, export_sequence, export_sequence_zip, is_zip_path,
 };
 
+use maaf_train::scene::ModelRegistry;
+
 use super::Background;
 use super::eval::{load_scene, read_lock};
 
@@ -41,12 +43,18 @@ pub struct ExportPlyArgs {
 }
 
 /// Runs `maaf export-ply`.
-pub fn run(args: &ExportPlyArgs) -> anyhow::Result<()> {
+pub fn run(args: &ExportPlyArgs, models: &ModelRegistry) -> anyhow::Result<()> {
     if args.frames.is_some() {
         check_sequence_target(&args.out)?;
     }
     let _lock = read_lock(&args.run)?;
-    let scene = load_scene(&args.run, args.data.as_deref(), args.background, None)?;
+    let scene = load_scene(
+        &args.run,
+        args.data.as_deref(),
+        args.background,
+        None,
+        models,
+    )?;
     let range = scene.record.time_range;
     match (args.time, args.frames) {
         (Some(t), _) => {

@@ -14,6 +14,7 @@ use maaf_train::scene::TrainedScene;
 
 use super::Background;
 use super::eval::{load_scene, open_run_data, read_lock};
+use maaf_train::scene::ModelRegistry;
 
 /// Where the camera comes from (shared by `render` and `render-video`).
 #[derive(clap::Args, Debug)]
@@ -156,7 +157,7 @@ struct Setup {
 /// Loads the run's scene (on --background when given) and resolves the camera of
 /// --view or --camera, if any. The data set is opened only for --view or when
 /// `need_data` (and for a run saved before checkpoints recorded their cameras).
-fn setup(args: &CameraArgs, need_data: bool) -> anyhow::Result<Setup> {
+fn setup(args: &CameraArgs, need_data: bool, models: &ModelRegistry) -> anyhow::Result<Setup> {
     // Check the cheap arguments before loading the model.
     let view = args.view.as_deref().map(parse_view).transpose()?;
     let file_camera = args
@@ -178,6 +179,7 @@ fn setup(args: &CameraArgs, need_data: bool) -> anyhow::Result<Setup> {
         args.data.as_deref(),
         args.background,
         data.as_ref(),
+        models,
     )?;
     if let Some(b) = args.background {
         scene.record.background = b.rgb();
@@ -204,7 +206,7 @@ fn setup(args: &CameraArgs, need_data: bool) -> anyhow::Result<Setup> {
 }
 
 /// Runs `maaf render`.
-pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
+pub fn run(args: &RenderArgs, models: &ModelRegistry) -> anyhow::Result<()> {
     if let Some(t) = args.time
         && !t.is_finite()
     {
@@ -226,7 +228,7 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
         camera,
         time: view_time,
         ..
-    } = setup(&args.camera, false)?;
+    } = setup(&args.camera, false, models)?;
     let Some(camera) = camera else {
         bail!("give --view SPLIT:INDEX or --camera CAM.json");
     };
@@ -249,7 +251,7 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
 }
 
 /// Runs `maaf render-video`.
-pub fn run_video(args: &RenderVideoArgs) -> anyhow::Result<()> {
+pub fn run_video(args: &RenderVideoArgs, models: &ModelRegistry) -> anyhow::Result<()> {
     if args.frames == 0 {
         bail!("--frames must be at least 1");
     }
@@ -263,7 +265,7 @@ pub fn run_video(args: &RenderVideoArgs) -> anyhow::Result<()> {
         data,
         camera,
         ..
-    } = setup(&args.camera, need_data)?;
+    } = setup(&args.camera, need_data, models)?;
     let range = scene.record.time_range;
     let test_camera = |i: usize| -> anyhow::Result<Camera> {
         let Some(data) = &data else {

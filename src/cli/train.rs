@@ -262,7 +262,11 @@ fn resumed_data(settings: &SettingsArgs, run: &Path) -> anyhow::Result<(PathBuf,
 }
 
 /// Runs `maaf train`; `terms` are the loss terms its config may name.
-pub fn run(args: &TrainArgs, terms: &TermRegistry<f32>) -> anyhow::Result<()> {
+pub fn run(
+    args: &TrainArgs,
+    terms: &TermRegistry<f32>,
+    models: &ModelRegistry,
+) -> anyhow::Result<()> {
     let settings = &args.settings;
     if let Some(data) = &settings.data
         && data.to_str().is_none()
@@ -329,7 +333,7 @@ pub fn run(args: &TrainArgs, terms: &TermRegistry<f32>) -> anyhow::Result<()> {
         summary.skipped_steps
     );
     print!("{}", summary.timings.report(summary.iterations));
-    let scene = TrainedScene::load(&out, &ModelRegistry::builtin())?;
+    let scene = TrainedScene::load(&out, models)?;
     let scale = scene.config.train_scale;
     let mut total = 0.0;
     let views = data.views(Split::Test, scale)?;
