@@ -11,6 +11,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use anyhow::{Context, bail};
+use maaf_filter::FilterKind;
 use maaf_train::report::suite::{SuiteRun, write_suite_report};
 use maaf_train::sweep::shell_quote;
 use maaf_train::trainer::TrainConfig;
@@ -212,7 +213,10 @@ fn plan(args: &BenchSuiteArgs, out: &Path) -> anyhow::Result<SuiteSpec> {
                 background: None,
             };
             let config = config_from(&settings)?;
-            configs.push((format!("{name}-{}.json", filter_name(f)), config));
+            configs.push((
+                format!("{name}-{}.json", FilterKind::from(f).name()),
+                config,
+            ));
         }
     }
     let mut runs = Vec::new();
@@ -223,14 +227,14 @@ fn plan(args: &BenchSuiteArgs, out: &Path) -> anyhow::Result<SuiteSpec> {
                 for &bg in &args.backgrounds {
                     let dir = out.join("runs").join(scene).join(format!(
                         "{preset}-{}-{}",
-                        filter_name(f),
+                        FilterKind::from(f).name(),
                         bg.name()
                     ));
                     runs.push(SuiteRun {
                         scene: scene.clone(),
                         split: split.clone(),
                         preset: preset.clone(),
-                        filter: filter_name(f).to_string(),
+                        filter: FilterKind::from(f).name().to_string(),
                         background: bg.name().to_string(),
                         dir,
                     });
@@ -244,14 +248,6 @@ fn plan(args: &BenchSuiteArgs, out: &Path) -> anyhow::Result<SuiteSpec> {
         eval_args: args.eval_args.clone(),
         runs,
     })
-}
-
-fn filter_name(f: FilterArg) -> &'static str {
-    match f {
-        FilterArg::None => "none",
-        FilterArg::Mip3d => "mip3d",
-        FilterArg::Motion => "motion",
-    }
 }
 
 /// The config file of a run.

@@ -26,7 +26,7 @@ use crate::Error;
 use crate::data::Dataset;
 use crate::forward::{forward, gaussians_at};
 use crate::models::Representation;
-use crate::trainer::{Opened, TrainConfig, camera_extent, observed_views};
+use crate::trainer::{Opened, TrainConfig, camera_extent, centres, observed_views};
 
 /// A trained run's model and everything needed to render it (see the module
 /// documentation).
@@ -245,12 +245,7 @@ impl TrainedScene {
     /// Mip-Splatting's static nu (paper Eq. 2) of the canonical centres from the
     /// training cameras, with the run's filter settings.
     pub fn static_nu(&self) -> Result<Vec<f32>, FilterError> {
-        let means = self.model.canonical().means;
-        let centres: Vec<[f32; 3]> = means
-            .data()
-            .chunks_exact(3)
-            .map(|c| [c[0], c[1], c[2]])
-            .collect();
+        let centres = centres(&self.model.canonical().means);
         static_nu(&centres, &self.record.cameras, &self.config.filter)
     }
 }

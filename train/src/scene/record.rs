@@ -13,7 +13,7 @@ use safetensors::{Dtype, SafeTensors};
 use crate::Error;
 use crate::data::{Dataset, Split};
 use crate::models::{ModelInit, PointCloud};
-use crate::trainer::{TrainConfig, camera_extent, model_init};
+use crate::trainer::{TrainConfig, bytes_of, camera_extent, model_init};
 
 const CAMERAS: &str = "scene/cameras";
 const VIEWS: &str = "scene/views";
@@ -140,10 +140,7 @@ impl SceneRecord {
                 BACKGROUND.into(),
                 Dtype::F32,
                 vec![3],
-                self.background
-                    .iter()
-                    .flat_map(|v| v.to_le_bytes())
-                    .collect(),
+                bytes_of(&self.background),
             ),
         ]
     }

@@ -51,7 +51,7 @@ const LOWERED: &str = "liveness/lowered";
 /// Prefix of the representation's buffers ([`crate::models::Representation::buffers`]).
 pub(super) const BUFFER: &str = "buffer/";
 
-fn bytes_of(data: &[f32]) -> Vec<u8> {
+pub(crate) fn bytes_of(data: &[f32]) -> Vec<u8> {
     data.iter().flat_map(|v| v.to_le_bytes()).collect()
 }
 

@@ -31,6 +31,7 @@ use maaf_splat::Camera;
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 
+pub(crate) use checkpoint::bytes_of;
 pub use checkpoint::{
     checkpoint_iteration, load_checkpoint, load_checkpoint_with_terms, save_checkpoint,
 };
@@ -38,7 +39,7 @@ pub(crate) use checkpoint_read::Opened;
 pub use config::{DensifyConfig, MAX_BATCH, OpacityReset, PruneConfig, TrainConfig};
 pub use densify::{DensifyPlan, DensifyStats, ViewGrad, plan as plan_densify};
 pub use prune::{keep_highest, removal_sensitivity};
-pub(crate) use refresh::observed_views;
+pub(crate) use refresh::{centres, observed_views};
 pub use reset::{Liveness, opacity_caps};
 pub use resume::{checkpoints_newest_first, load_newest, repair_run_dir, truncate_log};
 pub use run::{

@@ -9,7 +9,7 @@ use maaf_splat::Camera;
 use super::{Trainer, log_line};
 
 /// Rows of an `[N, 3]` tensor as points (the observation table's input).
-pub(super) fn centres(t: &Tensor<f32>) -> Vec<[f32; 3]> {
+pub(crate) fn centres(t: &Tensor<f32>) -> Vec<[f32; 3]> {
     t.data()
         .chunks_exact(3)
         .map(|c| [c[0], c[1], c[2]])
