@@ -9,6 +9,7 @@ pub mod eval;
 pub mod forward;
 pub mod loss;
 pub mod metrics;
+mod plugins;
 pub mod report;
 pub mod scene;
 pub mod sweep;
@@ -25,3 +26,4 @@ pub use maaf_models as models;
 pub use maaf_models::params;
 
 pub use error::{Error, write_atomic};
+pub use plugins::Plugins;

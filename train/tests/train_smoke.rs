@@ -43,7 +43,7 @@ fn tiny_config_of(kind: &str, filter: FilterKind) -> TrainConfig {
     c.densify.from = 20;
     c.densify.every = 20;
     c.densify.opacity_reset_every = 0;
-    *c.model.warm_up_mut() = 20;
+    *c.model.warm_up_mut().expect("a built-in model") = 20;
     c
 }
 
