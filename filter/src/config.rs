@@ -305,10 +305,10 @@ impl FilterConfig {
     /// bad value never surfaces mid-training.
     pub fn validate(&self) -> Result<(), FilterError> {
         let bad = |field: &'static str, message: String| FilterError::Config { field, message };
-        if let FilterKind::Custom(name) = &self.kind {
-            if let Some(problem) = name_problem(name) {
-                return Err(bad("kind", problem));
-            }
+        if let FilterKind::Custom(name) = &self.kind
+            && let Some(problem) = name_problem(name)
+        {
+            return Err(bad("kind", problem));
         }
         let positive = [
             ("s3d", self.s3d),
@@ -451,6 +451,16 @@ mod tests {
             edit(&mut cfg);
             let err = cfg.validate().expect_err(field).to_string();
             assert!(err.contains(&format!("`{field}`")), "{field}: {err}");
+        }
+    }
+
+    #[test]
+    fn a_custom_kind_is_a_name_and_window_max_is_the_estimators() {
+        let cfg = FilterConfig::from_json_str(r#"{"kind": "median"}"#).expect("custom");
+        assert_eq!((cfg.kind.name(), cfg.filter_name()), ("median", "median"));
+        for bad in [r#"{"kind": "window_max"}"#, r#"{"kind": "a b"}"#] {
+            let err = FilterConfig::from_json_str(bad).expect_err(bad).to_string();
+            assert!(err.contains("field `kind`"), "{err}");
         }
     }
 

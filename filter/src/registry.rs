@@ -33,10 +33,14 @@ impl FilterRegistry {
         let mut r = FilterRegistry {
             entries: Vec::new(),
         };
-        r.entries.push(("none".into(), Arc::new(|_| Box::new(NoFilter))));
-        r.entries.push(("mip3d".into(), Arc::new(|_| Box::new(StaticFilter))));
-        r.entries.push(("motion".into(), Arc::new(|_| Box::new(MotionKdeFilter))));
-        r.entries.push(("window_max".into(), Arc::new(|_| Box::new(WindowMaxFilter))));
+        r.entries
+            .push(("none".into(), Arc::new(|_| Box::new(NoFilter))));
+        r.entries
+            .push(("mip3d".into(), Arc::new(|_| Box::new(StaticFilter))));
+        r.entries
+            .push(("motion".into(), Arc::new(|_| Box::new(MotionKdeFilter))));
+        r.entries
+            .push(("window_max".into(), Arc::new(|_| Box::new(WindowMaxFilter))));
         r
     }
 
@@ -132,7 +136,10 @@ mod tests {
             .build("nope", &FilterConfig::default())
             .err()
             .expect("unknown name");
-        assert!(err.to_string().contains("filter `nope` is not registered"), "{err}");
+        assert!(
+            err.to_string().contains("filter `nope` is not registered"),
+            "{err}"
+        );
         assert!(reg.register("mip3d", |_| Box::new(NoFilter)).is_err());
         reg.register("mine", |_| Box::new(NoFilter))
             .expect("new name");

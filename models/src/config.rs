@@ -251,7 +251,10 @@ mod tests {
         let c: ModelConfig = serde_json::from_str(text).expect("custom");
         assert_eq!(c.kind(), "nerf");
         let options = c.options().expect("options");
-        assert_eq!((options.len(), &options["width"]), (2, &serde_json::json!(8)));
+        assert_eq!(
+            (options.len(), &options["width"]),
+            (2, &serde_json::json!(8))
+        );
         assert!(!options.contains_key("kind"));
         let back: serde_json::Value = serde_json::to_value(&c).expect("json");
         let want: serde_json::Value = serde_json::from_str(text).expect("json");

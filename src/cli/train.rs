@@ -4,9 +4,9 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use maaf_filter::FilterKind;
+use maaf_train::Plugins;
 use maaf_train::data::{Dataset, DatasetOptions, Split};
 use maaf_train::eval::render::recorded_data;
-use maaf_train::Plugins;
 use maaf_train::metrics::psnr;
 use maaf_train::models::ModelConfig;
 use maaf_train::scene::TrainedScene;

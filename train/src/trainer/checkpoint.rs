@@ -345,9 +345,8 @@ impl Trainer {
         if !branch {
             self.config = state.config;
         }
-        self.load_strategy_state(&state.strategy).map_err(|e| {
-            Error::Input(format!("{}: {e}", dir.join("state.json").display()))
-        })?;
+        self.load_strategy_state(&state.strategy)
+            .map_err(|e| Error::Input(format!("{}: {e}", dir.join("state.json").display())))?;
         Ok(fresh)
     }
 }

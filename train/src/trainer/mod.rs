@@ -57,8 +57,8 @@ pub use timings::Timings;
 use crate::data::{Dataset, View};
 use crate::loss::{Objective, TermRegistry};
 use crate::models::{ModelInit, PointCloud, Representation};
-use crate::{Error, Plugins};
 use crate::scene::{SceneRecord, TrainedScene};
+use crate::{Error, Plugins};
 
 /// A trainer: the model, its optimiser, the filter and every per-Gaussian container,
 /// resized in lock-step by [`PerGaussian::select_rows`].
@@ -247,7 +247,11 @@ impl Trainer {
     /// [`Trainer::with_plugins`] without the check of the terms: a term no registry
     /// knows is left out of the objective ([`Objective::unregistered`]), which is what
     /// a model loaded for rendering needs ([`load_checkpoint`]); training refuses it.
-    fn from_config(data: &Dataset, mut config: TrainConfig, plugins: &Plugins) -> Result<Self, Error> {
+    fn from_config(
+        data: &Dataset,
+        mut config: TrainConfig,
+        plugins: &Plugins,
+    ) -> Result<Self, Error> {
         config.validate()?;
         let init = model_init(data, &config)?;
         config.model.resolve(&init);

@@ -194,7 +194,9 @@ impl StrategyRegistry {
             makers: BTreeMap::new(),
         };
         let _ = r.register("default", |_| Ok(Box::new(DefaultStrategy)));
-        let _ = r.register("sensitivity", |_| Ok(Box::new(SensitivityPruning::default())));
+        let _ = r.register("sensitivity", |_| {
+            Ok(Box::new(SensitivityPruning::default()))
+        });
         r
     }
 
@@ -298,5 +300,44 @@ impl Trainer {
             }
             None => false,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_config_names_a_strategy_and_an_unregistered_one_is_refused() {
+        let mut config = TrainConfig::default();
+        assert_eq!(StrategyRegistry::name_for(&config), "default");
+        config.prune.every = 100;
+        assert_eq!(StrategyRegistry::name_for(&config), "sensitivity");
+        let mut reg = StrategyRegistry::builtin();
+        assert_eq!(reg.build(&config).expect("built in").name(), "sensitivity");
+        config.densify.strategy = Some("mine".into());
+        let err = reg
+            .build(&config)
+            .err()
+            .expect("not registered")
+            .to_string();
+        assert!(
+            err.contains("`mine` is not registered") && err.contains("default, sensitivity"),
+            "{err}"
+        );
+        reg.register("mine", |_| Ok(Box::new(DefaultStrategy)))
+            .expect("new name");
+        assert!(reg.build(&config).is_ok());
+        assert!(
+            reg.register("mine", |_| Ok(Box::new(DefaultStrategy)))
+                .is_err()
+        );
+        assert!(
+            reg.register("no name", |_| Ok(Box::new(DefaultStrategy)))
+                .is_err()
+        );
+        // Old configs (no key) read as before; the key is written as null.
+        let json = serde_json::to_value(TrainConfig::default()).expect("json");
+        assert!(json["densify"]["strategy"].is_null());
     }
 }
