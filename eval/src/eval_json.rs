@@ -144,7 +144,7 @@ impl ScaleResult {
 #[serde(deny_unknown_fields)]
 pub struct TemporalResult {
     /// `exact` (data set flow files) or `model` (rendered Gaussian motion,
-    /// [`crate::eval::flow::model_flow`]).
+    /// [`crate::flow::model_flow`]).
     pub flow: String,
     /// Which camera the video was rendered from: `video 0` (the data set's fixed-camera
     /// video split) or `test 0` (the first test camera, when there is no video split).

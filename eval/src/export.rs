@@ -1,7 +1,7 @@
 //! `maaf export-ply`: a trained dynamic run as standard 3DGS PLY frames.
 //!
 //! A frame at time `t` is what the renderer draws at `t`
-//! ([`crate::forward::gaussians_at`]: deformed, with the 3D filter folded into scale
+//! ([`maaf_scene::forward::gaussians_at`]: deformed, with the 3D filter folded into scale
 //! and opacity as Mip-Splatting's fused export does, `s' = sqrt(s^2 + var)`,
 //! `o' = o sqrt(prod s^2 / prod(s^2 + var))`), stored in the Inria parameterisation
 //! (`log s'`, `logit o'`, SH up to the degree the run renders with), so that any 3DGS
@@ -30,8 +30,8 @@ use maaf_splat::sh::num_coeffs;
 use zip::write::SimpleFileOptions;
 use zip::{CompressionMethod, ZipWriter};
 
-use crate::scene::TrainedScene;
 use crate::{Error, write_atomic};
+use maaf_scene::TrainedScene;
 
 /// The deformed, filtered Gaussians of `scene` at `time` as a static 3DGS scene, SH
 /// truncated to the degree the run renders with ([`TrainedScene::render_settings`]), less

@@ -21,7 +21,7 @@ use maaf_autodiff::PerGaussian;
 use maaf_filter::{AnalysisExport, FilterKind, FilterState, MotionCurves, MotionEstimator};
 use serde::{Deserialize, Serialize};
 
-use crate::scene::TrainedScene;
+use maaf_scene::TrainedScene;
 
 /// Where `maaf eval` writes the agreement of a motion-filter run (in `RUN/eval/`).
 pub const FILTER_AGREEMENT_FILE: &str = "filter_agreement.json";

@@ -13,7 +13,7 @@
 //! division makes a single opaque translating Gaussian give its exact displacement,
 //! which the renderer's per-Gaussian opacity cap of 0.99 would otherwise shrink.
 //!
-//! Channel 2 (validity) has the meaning of the exact flow's ([`crate::data::flow`]): 1
+//! Channel 2 (validity) has the meaning of the exact flow's ([`maaf_data::flow`]): 1
 //! when the surface seen at `p` in frame `t` is still visible in frame `t + 1`. It is
 //! a forward depth-consistency test. With camera-space depths `z_k` of the centres,
 //! the renderer's alpha-weighted depth `D(p) = sum_k w_k(p) z_k` and the composited
@@ -91,7 +91,7 @@ pub fn depth_changes(camera: &Camera, now: &Tensor<f32>, next: &Tensor<f32>) -> 
 /// Model flow `[H, W, 3]` (see the module doc: displacement in channels 0 and 1,
 /// depth-consistency validity in channel 2) of the Gaussians `now` at time `t` and
 /// `next` at `t + 1` (each `[means, scales, quats, opacity, sh]` as
-/// [`crate::forward::gaussians_at`] returns them, the same rows in the same order),
+/// [`maaf_scene::forward::gaussians_at`] returns them, the same rows in the same order),
 /// seen from `camera` with the colour render's `settings` (2D filter, near plane,
 /// cutoff).
 ///

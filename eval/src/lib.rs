@@ -1,3 +1,7 @@
+//! maaf-eval: evaluation of a trained run, its image and temporal metrics
+//! ([`metrics`]) and reports ([`report`]), working on a
+//! [`maaf_scene::TrainedScene`] and never on the trainer.
+//!
 //! Multi-scale evaluation of a trained run (docs/conventions.md).
 //!
 //! [`evaluate_run`] renders every view of a split at each evaluation scale, computes
@@ -15,10 +19,12 @@
 //! `RUN/eval/` only when complete, then `eval.json` is written atomically.
 
 pub mod camera_path;
+pub mod eval_json;
 pub mod export;
 pub mod filter_agreement;
 pub mod flow;
 pub mod images;
+pub mod metrics;
 pub mod popping;
 pub mod render;
 pub mod report;
@@ -29,20 +35,20 @@ use std::path::Path;
 use std::time::Instant;
 
 use maaf_autodiff::Tensor;
+use maaf_data::{Dataset, Image, Split};
 use maaf_filter::FilterState;
 use maaf_lpips::Lpips;
+use maaf_scene::{ModelRegistry, TrainedScene};
 use rayon::prelude::*;
 
-use crate::data::{Dataset, Image, Split};
 use crate::metrics::regions::{RegionPsnr, region_psnr};
 use crate::metrics::{ImageMetrics, error_map, image_metrics, mean_metrics};
-use crate::scene::{ModelRegistry, TrainedScene};
-use crate::{Error, write_atomic};
 
-pub use render::{load_run, load_scene_on, run_camera};
-pub use report::{
+pub use eval_json::{
     EvalReport, PoppingResult, RegionSummary, ScaleResult, TemporalResult, scale_label, trim_float,
 };
+pub use maaf_scene::{Error, write_atomic};
+pub use render::{load_scene_on, run_camera};
 pub use sequence::frame_times;
 
 /// The paper's evaluation scales relative to the training scale: 1/4x, 1/2x (zoom-out),
@@ -233,7 +239,7 @@ fn evaluate_scale(
 /// Metrics of one rendered view (LPIPS when the model loaded), plus its PNGs when
 /// asked (render, error map and ground truth, for the report's pictures).
 fn measure_view(
-    v: &crate::data::View,
+    v: &maaf_data::View,
     image: &Tensor<f32>,
     mask: Option<&Image>,
     scale: &ResolvedScale,
@@ -358,7 +364,7 @@ pub fn evaluate_run_with(
         let doing = format!("evaluated (pid {})", std::process::id());
         let lock =
             maaf_io::RunLock::exclusive(run, &doing).map_err(|e| Error::Input(e.to_string()))?;
-        crate::trainer::repair_run_dir(run)?;
+        maaf_scene::repair_run_dir(run)?;
         Some(lock)
     } else {
         None
@@ -368,7 +374,7 @@ pub fn evaluate_run_with(
 }
 
 /// [`evaluate_run`] for a run already loaded (saves loading it twice when the caller
-/// also renders videos, or evaluates a trainer's [`crate::trainer::Trainer::into_scene`]).
+/// also renders videos, or evaluates a trainer's `maaf_train::trainer::Trainer::into_scene`).
 pub fn evaluate_scene(
     scene: &TrainedScene,
     run: &Path,
@@ -439,7 +445,7 @@ pub fn evaluate_scene(
                 .map(|v| v.lpips.clone())
                 .collect::<Result<Vec<f64>, String>>()
             {
-                Ok(values) => result.lpips = Some(report::mean(values.into_iter())),
+                Ok(values) => result.lpips = Some(eval_json::mean(values.into_iter())),
                 Err(reason) => result.lpips_note = Some(reason),
             }
             result.regions = RegionSummary::of(views.iter().filter_map(|v| v.regions));

@@ -4,19 +4,21 @@
 //!
 //! Images are `[H, W, C]` tensors with values on [0, 1] (data range 1). The SSIM here
 //! is the *evaluation* convention of scikit-image, which crops the border, and differs
-//! from the training loss ([`crate::loss::ssim()`], zero-padded over the full map).
+//! from the training loss (`maaf_train::loss::ssim`, zero-padded over the full map; both take their
+//! window from [`ssim_window`]).
 //! Both are pinned: this one against scikit-image 0.26 values stored in
-//! `train/tests/fixtures/metric_fixtures.txt`.
+//! `eval/tests/fixtures/metric_fixtures.txt`.
 
 pub mod popping;
 pub mod regions;
+pub mod ssim_window;
 pub mod temporal;
 
 use std::fmt;
 
 use maaf_autodiff::{Float, Tensor};
 
-use crate::loss::ssim::{SSIM_C1, SSIM_C2, SSIM_SIGMA, SSIM_WINDOW, blur_same, gaussian_taps};
+use ssim_window::{SSIM_C1, SSIM_C2, SSIM_SIGMA, SSIM_WINDOW, blur_same, gaussian_taps};
 
 /// Why a metric could not be computed.
 #[derive(Clone, Debug, PartialEq, Eq)]

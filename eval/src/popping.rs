@@ -15,7 +15,7 @@ use maaf_splat::sh::SH_C0;
 use maaf_splat::{Camera, GaussianVars, RenderSettings, render};
 
 /// Visible weight `W_k` (pixels) of every Gaussian of `frame` (`[means, scales, quats,
-/// opacity, sh]` as [`crate::forward::gaussians_at`] returns them) seen from `camera`
+/// opacity, sh]` as [`maaf_scene::forward::gaussians_at`] returns them) seen from `camera`
 /// with the colour render's `settings`; 0 for a Gaussian that draws no pixel.
 pub fn visible_weights(
     frame: &[Tensor<f32>; 5],

@@ -1,21 +1,20 @@
 //! A run's data set (its fingerprint, checked before evaluating or resuming), loading
-//! a trained run on it, test-view cameras at any scale, and a video over time (PNG
+//! a trained scene on it, test-view cameras at any scale, and a video over time (PNG
 //! frames + GIF) of a [`TrainedScene`].
 
 use std::path::{Path, PathBuf};
 
+use maaf_data::{Dataset, Split, SplitMeta};
+use maaf_scene::{ModelRegistry, TrainedScene, model_dir};
 use maaf_splat::Camera;
 use serde::{Deserialize, Serialize};
 
 use super::images;
 use super::sequence::check_own_folder;
-use crate::data::{Dataset, Split, SplitMeta};
-use crate::scene::{ModelRegistry, TrainedScene, model_dir};
-use crate::trainer::{Trainer, load_checkpoint};
 use crate::{Error, write_atomic};
 
 /// What a run was trained on, written as `RUN/data.json` by [`record_data`] when the
-/// run starts; [`load_run`] and a resumed training refuse a data set that differs.
+/// run starts; `maaf_train::load_run`, evaluation and a resumed training refuse a data set that differs.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct DataFingerprint {
     /// Data folder, absolute (the default data of `train --resume`, `eval`, `render`;
@@ -135,7 +134,7 @@ impl DataFingerprint {
 
 /// Writes `RUN/data.json` (the data set's [`DataFingerprint`]), so a resumed training
 /// and later evaluations can refuse a different data set. A run records it when it
-/// starts ([`crate::trainer::train_run`]).
+/// starts (`maaf_train::trainer::train_run`).
 pub fn record_data(run: &Path, data: &Dataset) -> Result<(), Error> {
     let fp = DataFingerprint::of(data)?;
     let json =
@@ -168,32 +167,6 @@ pub fn recorded_data(run: &Path) -> Result<Option<DataFingerprint>, Error> {
     serde_json::from_str(&text)
         .map(Some)
         .map_err(|e| Error::Input(format!("{}: {e}", path.display())))
-}
-
-/// Loads the trained model of `run` (`RUN/model/`) into a [`Trainer`] on `data`, for
-/// what continues training it (`maaf bench`); evaluation and rendering load a
-/// [`TrainedScene`] instead. One-line errors for a missing run or model and for a
-/// data set that does not match the run (different number of training views,
-/// different image size when `RUN/data.json` records it, or a training scale the
-/// images cannot be downsampled to).
-pub fn load_run(run: &Path, data: &Dataset) -> Result<Trainer, Error> {
-    let model = model_dir(run)?;
-    if let Some(rec) = recorded_data(run)? {
-        rec.check(&DataFingerprint::of(data)?, run)?;
-    }
-    load_checkpoint(data, &model).map_err(|e| {
-        let msg = e.to_string();
-        if msg.contains("different data set") {
-            Error::Input(format!(
-                "{}: does not match the run {} (it was trained on a different number of training views; this data set has {})",
-                data.root().display(),
-                run.display(),
-                data.len(Split::Train)
-            ))
-        } else {
-            Error::Input(format!("{}: cannot load the model: {msg}", run.display()))
-        }
-    })
 }
 
 /// Loads the trained scene of `run` for evaluation on `data`: refuses a data set

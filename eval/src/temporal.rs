@@ -9,17 +9,17 @@
 //! [`crate::metrics::temporal::temporal_metrics`].
 
 use maaf_autodiff::Tensor;
+use maaf_data::{Dataset, Split};
 use maaf_lpips::Lpips;
+use maaf_scene::TrainedScene;
 use maaf_splat::Camera;
 
+use super::eval_json::{PoppingResult, ScaleResult, TemporalResult};
 use super::flow::model_flow;
 use super::popping::visible_weights;
-use super::report::{PoppingResult, ScaleResult, TemporalResult};
 use crate::Error;
-use crate::data::{Dataset, Split};
 use crate::metrics::popping::PoppingMetrics;
 use crate::metrics::temporal::temporal_metrics;
-use crate::scene::TrainedScene;
 
 /// The fixed-camera video to measure: camera, label, frame times, exact flows.
 struct Video {
@@ -31,7 +31,7 @@ struct Video {
 
 /// The video at `source` scale (relative to the source images).
 fn video(data: &Dataset, source: f64) -> Result<Video, Error> {
-    let input = |e: crate::data::DataError| Error::Input(e.to_string());
+    let input = |e: maaf_data::DataError| Error::Input(e.to_string());
     if data.len(Split::Video) >= 2 {
         let times = data.times(Split::Video);
         let mut exact = Vec::with_capacity(times.len() - 1);

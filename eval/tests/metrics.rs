@@ -2,7 +2,7 @@
 //! `fixtures/make_metric_fixtures.py`; no Python at test time).
 
 use maaf_autodiff::Tensor;
-use maaf_train::metrics::{
+use maaf_eval::metrics::{
     ImageMetrics, MetricError, error_map, image_metrics, mean_metrics, psnr, ssim,
 };
 

@@ -3,10 +3,10 @@
 
 use std::path::{Path, PathBuf};
 
+use maaf_eval::report::write_report;
+use maaf_eval::write_atomic;
+use maaf_eval::{EvalReport, ScaleResult};
 use maaf_filter::{AnalysisExport, EstimatorCurve, GaussianTrace};
-use maaf_train::eval::{EvalReport, ScaleResult};
-use maaf_train::report::write_report;
-use maaf_train::write_atomic;
 
 fn fake_run(dir: &Path, filter: &str, psnr_at: impl Fn(f64) -> f64, seconds: f64) {
     std::fs::create_dir_all(dir.join("eval")).expect("mkdir");

@@ -3,14 +3,14 @@
 //! of the built-in generator, and bad input.
 
 use maaf_autodiff::Tensor;
+use maaf_data::WHITE;
+use maaf_data::downsample::{composite_premultiplied, premultiply};
+use maaf_data::synthetic::build_scene;
+use maaf_data::synthetic::render::{forward_flow, render_rgba};
+use maaf_data::synthetic::rig::{camera_at, video_position};
+use maaf_eval::metrics::ssim;
+use maaf_eval::metrics::temporal::{TemporalError, temporal_metrics, warp_error, warp_forward};
 use maaf_lpips::Lpips;
-use maaf_train::data::WHITE;
-use maaf_train::data::downsample::{composite_premultiplied, premultiply};
-use maaf_train::data::synthetic::build_scene;
-use maaf_train::data::synthetic::render::{forward_flow, render_rgba};
-use maaf_train::data::synthetic::rig::{camera_at, video_position};
-use maaf_train::metrics::ssim;
-use maaf_train::metrics::temporal::{TemporalError, temporal_metrics, warp_error, warp_forward};
 
 /// A deterministic pseudo-random value on [0, 1] for integer coordinates (a hash), so
 /// that content entering the image is unrelated to what was there.

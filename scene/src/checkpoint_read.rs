@@ -1,32 +1,66 @@
-//! Reading a checkpoint folder written by [`super::save_checkpoint`]: its state, the
+//! Reading a checkpoint folder written by `maaf_train::trainer::save_checkpoint`: its state, the
 //! tensors file checked against the recorded CRC-32, the representation's parameters
 //! and buffers, the f/d observations and the scene record. The one reader behind
-//! both [`super::Trainer::restore`] and [`crate::scene::TrainedScene::load`], so a
+//! both `maaf_train::trainer::Trainer::restore` and [`crate::TrainedScene::load`], so a
 //! trained scene holds exactly the model and filter state a trainer restores.
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use maaf_autodiff::Tensor;
-use maaf_filter::{CameraTime, ObservationTable};
+use maaf_filter::{CameraTime, FilterState, ObservationTable};
+use maaf_models::Representation;
 use safetensors::{Dtype, SafeTensors};
+use serde::{Deserialize, Serialize};
 
-use super::checkpoint::{BUFFER, State};
-use crate::Error;
-use crate::models::Representation;
-use crate::scene::SceneRecord;
+use crate::{Error, SceneRecord, Timings, TrainConfig};
+
+/// Non-tensor state of a run.
+#[derive(Serialize, Deserialize)]
+pub struct State {
+    /// The representation's name: a checkpoint loads only into the same kind.
+    pub model: String,
+    /// Iterations completed.
+    pub iteration: usize,
+    /// Steps skipped because a value or gradient was not finite.
+    pub skipped_steps: usize,
+    /// Iteration of the last opacity reset.
+    pub last_reset: Option<usize>,
+    /// Number of Gaussians (rows of every per-Gaussian tensor).
+    pub num_gaussians: usize,
+    /// The run's configuration.
+    pub config: TrainConfig,
+    /// The 3D filter of every Gaussian.
+    pub filter: FilterState,
+    /// Wall time per training phase.
+    pub timings: Timings,
+    /// Adam steps taken per parameter.
+    pub adam_steps: HashMap<String, u64>,
+    /// CRC-32 of `tensors.safetensors` as 8 hex digits; absent in checkpoints written
+    /// before it existed (loaded unchecked).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tensors_crc32: Option<String>,
+}
+
+/// Prefix of the representation's buffers ([`Representation::buffers`]).
+pub const BUFFER: &str = "buffer/";
+
+/// `data` as little-endian bytes (a safetensors f32 payload).
+pub fn bytes_of(data: &[f32]) -> Vec<u8> {
+    data.iter().flat_map(|v| v.to_le_bytes()).collect()
+}
 
 /// A checkpoint folder opened for loading.
-pub(crate) struct Opened {
+pub struct Opened {
     /// Its `state.json`.
-    pub(crate) state: State,
+    pub state: State,
     blob: Vec<u8>,
     /// Its `tensors.safetensors`, for messages.
-    pub(crate) blob_path: PathBuf,
+    pub blob_path: PathBuf,
 }
 
 /// The f32 tensor `name` of `st`, or an error naming `file` and the tensor.
-pub(crate) fn tensor(st: &SafeTensors<'_>, name: &str, file: &Path) -> Result<Tensor<f32>, Error> {
+pub fn tensor(st: &SafeTensors<'_>, name: &str, file: &Path) -> Result<Tensor<f32>, Error> {
     let view = st
         .tensor(name)
         .map_err(|e| Error::Input(format!("{}: tensor `{name}`: {e}", file.display())))?;
@@ -46,7 +80,7 @@ pub(crate) fn tensor(st: &SafeTensors<'_>, name: &str, file: &Path) -> Result<Te
 
 /// The first parameter value of `model` that is not finite, as (parameter name, flat
 /// index, value).
-pub(crate) fn first_non_finite(model: &dyn Representation<f32>) -> Option<(String, usize, f32)> {
+pub fn first_non_finite(model: &dyn Representation<f32>) -> Option<(String, usize, f32)> {
     model.params().named_tensors().find_map(|(name, t)| {
         t.first_non_finite()
             .map(|i| (name.to_string(), i, t.data()[i]))
@@ -55,7 +89,7 @@ pub(crate) fn first_non_finite(model: &dyn Representation<f32>) -> Option<(Strin
 
 impl Opened {
     /// `DIR/state.json`, or an error naming the file.
-    pub(crate) fn read_state(dir: &Path) -> Result<State, Error> {
+    pub fn read_state(dir: &Path) -> Result<State, Error> {
         let path = dir.join("state.json");
         let text = std::fs::read(&path).map_err(|e| Error::io(&path, e))?;
         serde_json::from_slice(&text).map_err(|e| Error::Input(format!("{}: {e}", path.display())))
@@ -63,7 +97,7 @@ impl Opened {
 
     /// Opens `dir` with its state already read: reads the tensors file and refuses it
     /// when its CRC-32 is not the recorded one (a damaged file).
-    pub(crate) fn with_state(dir: &Path, state: State) -> Result<Self, Error> {
+    pub fn with_state(dir: &Path, state: State) -> Result<Self, Error> {
         let blob_path = dir.join("tensors.safetensors");
         let blob = std::fs::read(&blob_path).map_err(|e| Error::io(&blob_path, e))?;
         if let Some(stored) = &state.tensors_crc32 {
@@ -83,12 +117,12 @@ impl Opened {
     }
 
     /// Opens the checkpoint folder `dir` ([`Self::read_state`], [`Self::with_state`]).
-    pub(crate) fn open(dir: &Path) -> Result<Self, Error> {
+    pub fn open(dir: &Path) -> Result<Self, Error> {
         Self::with_state(dir, Self::read_state(dir)?)
     }
 
     /// The tensors file's contents.
-    pub(crate) fn tensors(&self) -> Result<SafeTensors<'_>, Error> {
+    pub fn tensors(&self) -> Result<SafeTensors<'_>, Error> {
         SafeTensors::deserialize(&self.blob)
             .map_err(|e| Error::Input(format!("{}: {e}", self.blob_path.display())))
     }
@@ -97,7 +131,7 @@ impl Opened {
     /// it): every parameter (any Gaussian count; one named in `kept` keeps that value
     /// instead, for a branch), refusing non-finite values and a Gaussian count other
     /// than the state's, then the buffers around `set_iteration(iteration)`.
-    pub(crate) fn load_model(
+    pub fn load_model(
         &self,
         model: &mut dyn Representation<f32>,
         dir: &Path,
@@ -157,7 +191,7 @@ impl Opened {
     /// reads observations; older runs saved them for every filter: ignored). A run
     /// saved before `filter.max_views` holds every training view: its observed views'
     /// columns are read.
-    pub(crate) fn observations(
+    pub fn observations(
         &self,
         observed: &[CameraTime],
         views: usize,
@@ -192,7 +226,7 @@ impl Opened {
     }
 
     /// The checkpoint's [`SceneRecord`], `None` for one written before it existed.
-    pub(crate) fn scene_record(&self) -> Result<Option<SceneRecord>, Error> {
+    pub fn scene_record(&self) -> Result<Option<SceneRecord>, Error> {
         SceneRecord::from_tensors(&self.tensors()?, &self.blob_path)
     }
 }

@@ -6,8 +6,9 @@ use std::collections::BTreeMap;
 use maaf_filter::FilterConfig;
 use serde::{Deserialize, Serialize};
 
+use maaf_models::ModelConfig;
+
 use crate::Error;
-use crate::models::ModelConfig;
 
 /// Densification schedule and thresholds (3DGS `densify_and_prune`, SaRO-GS D-NeRF
 /// config: from 500 to 15 000 every 100, gradient threshold 2e-4, opacity reset every
@@ -91,7 +92,7 @@ pub enum OpacityReset {
 /// does for deformable Gaussians: from iteration 6000 every 3000, 80 % of the
 /// Gaussians while densification runs, 30 % after it). Off by default (`every` = 0):
 /// turning it on changes the model a run ends with, so it is a choice, not a default.
-/// The score is [`crate::trainer::Trainer::sensitivity_scores`].
+/// The score is `maaf_train::trainer::Trainer::sensitivity_scores`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct PruneConfig {
@@ -140,14 +141,14 @@ pub struct TrainConfig {
     pub init_points: usize,
     /// Share of `init_points` placed on the visual hulls of the foreground masks when
     /// the data set has masks and no point cloud (the Panoptic layout), in [0, 1]; the
-    /// rest are random static points ([`crate::data::visual_hull`]). 0 starts the
+    /// rest are random static points ([`maaf_data::visual_hull`]). 0 starts the
     /// movers from random points too.
     pub hull_fraction: f64,
     /// D-SSIM weight lambda in `(1 - lambda) L1 + lambda D-SSIM`.
     pub lambda_dssim: f64,
     /// Further loss terms by name with their weights, `{"opacity_entropy": 0.001}`:
-    /// the built-in regularisers ([`crate::loss::builtin`]) or terms the training
-    /// program registered ([`crate::loss::TermRegistry`]). Added after the
+    /// the built-in regularisers (`maaf_train::loss::builtin`) or terms the training
+    /// program registered (`maaf_train::loss::TermRegistry`). Added after the
     /// photometric loss and the model's regularisers, in name order.
     pub terms: BTreeMap<String, f64>,
     /// Raise the evaluated SH degree by one every this many iterations (3DGS: 1000).
@@ -260,7 +261,7 @@ impl TrainConfig {
         in_range("hull_fraction", self.hull_fraction, 0.0, 1.0)?;
         in_range("lambda_dssim", self.lambda_dssim, 0.0, 1.0)?;
         for (name, &weight) in &self.terms {
-            if let Some(problem) = crate::loss::name_problem(name) {
+            if let Some(problem) = crate::name_problem(name) {
                 return Err(Error::Input(format!("config: terms: {problem}")));
             }
             if !(weight.is_finite() && weight >= 0.0) {

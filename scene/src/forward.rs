@@ -1,5 +1,6 @@
 //! One forward pass of the pipeline (docs/architecture.md): deform at t, fold the 3D
-//! filter in, render; then, for training, the objective on that render.
+//! filter in, render; then, for training, the objective on that render
+//! (`maaf_train::loss::ForwardTerms`, the trainer's side of the same pass).
 //!
 //! This is the only place the pipeline is written: `Trainer::step`, evaluation
 //! rendering and the end-to-end gradient check all call [`forward`], so the check
@@ -19,9 +20,8 @@ use maaf_autodiff::{Float, Tensor, Var};
 use maaf_filter::{FilterKind, FilterState};
 use maaf_splat::{Camera, GaussianVars, RenderOutput, RenderSettings, SplatFloat, apply_3d_filter};
 
-use crate::loss::{Evaluated, Objective, TermCtx};
-use crate::models::{Bound, Representation};
-use crate::params::BoundParams;
+use maaf_models::params::BoundParams;
+use maaf_models::{Bound, Representation};
 
 /// What one forward pass at (camera, time) produced.
 pub struct Forward<'t, T: Float> {
@@ -157,48 +157,5 @@ pub fn forward_bound<'t, T: SplatFloat>(
         time,
         deform_seconds: (t1 - t0).as_secs_f64(),
         render_seconds: t1.elapsed().as_secs_f64(),
-    }
-}
-
-/// The objective of a batch of views: the mean of their totals, so the gradient is
-/// the mean of the views' gradients (SaRO-GS `set_batch_gradient`); one view is its
-/// own total, unchanged.
-///
-/// # Panics
-/// If `totals` is empty.
-pub fn batch_mean<'t, T: Float>(totals: &[Var<'t, T>]) -> Var<'t, T> {
-    match totals {
-        [] => panic!("batch_mean: no views"),
-        [one] => *one,
-        [first, rest @ ..] => {
-            let sum = rest.iter().fold(*first, |acc, &v| acc + v);
-            sum.scale(1.0 / totals.len() as f64)
-        }
-    }
-}
-
-impl<'t, T: Float> Forward<'t, T> {
-    /// The context a loss term sees: render, alpha, depth, the ground truth `gt`
-    /// (recorded as a constant), the deformed Gaussians, camera, time, `iteration`
-    /// (0-based) and the regularisers by name.
-    pub fn term_ctx(&self, gt: &Tensor<T>, iteration: usize) -> TermCtx<'t, T> {
-        let mut ctx = TermCtx::new(self.render.image, gt)
-            .at_iteration(iteration)
-            .with_render(self.render.alpha, self.render.depth)
-            .with_scene(self.deformed, self.camera.clone(), self.time);
-        for (name, value) in &self.regularisers {
-            ctx.insert(name, *value);
-        }
-        ctx
-    }
-
-    /// The objective on this render against `gt` at `iteration` (0-based).
-    pub fn objective(
-        &self,
-        objective: &Objective<T>,
-        gt: &Tensor<T>,
-        iteration: usize,
-    ) -> Evaluated<'t, T> {
-        objective.evaluate(&self.term_ctx(gt, iteration))
     }
 }

@@ -1,14 +1,30 @@
-//! A trained scene as a value: the representation, the filter state it renders with
+//! maaf-scene: what a trained run is and how to read it, without the trainer. The
+//! run's configuration ([`TrainConfig`]), the checkpoint reader ([`checkpoint_read`],
+//! the one reader behind the trainer's restore and [`TrainedScene::load`]), what a
+//! run starts from ([`model_init`]), the pipeline of one forward pass ([`forward`]),
+//! and the trained scene as a value.
+//!
+//! A trained scene: the representation, the filter state it renders with
 //! (the motion-aware nu(t) included) and its observations, the run's configuration
 //! and iteration (SH degree, 2D filter), and the [`SceneRecord`] (training cameras,
 //! background, time range). [`TrainedScene::load`] reads `RUN/model` without the
 //! data set, rebuilding the representation through a [`ModelRegistry`];
 //! [`TrainedScene::render`] draws any camera at any time through the training
 //! pipeline ([`crate::forward::forward`]). Evaluation, rendering and export work on
-//! this type; a trainer becomes one with [`crate::trainer::Trainer::into_scene`].
+//! this type; a trainer becomes one with `maaf_train::trainer::Trainer::into_scene`.
+//! `docs/architecture.md` says where this crate sits.
 
+pub mod checkpoint_read;
+pub mod config;
+mod error;
+pub mod forward;
+mod init;
+mod observed;
 mod record;
 mod registry;
+mod run_dir;
+mod term_name;
+mod timings;
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -19,14 +35,21 @@ use maaf_filter::{
 };
 use maaf_splat::{Camera, Filter2d, RenderSettings};
 
-pub use record::SceneRecord;
+pub use checkpoint_read::Opened;
+pub use config::{DensifyConfig, MAX_BATCH, OpacityReset, PruneConfig, TrainConfig};
+pub use error::{Error, write_atomic};
+pub use init::{camera_extent, model_init, training_views};
+pub use observed::{centres, observed_views};
+pub use record::{RawTensor, SceneRecord};
 pub use registry::{ModelLoader, ModelRegistry};
+pub use run_dir::repair_run_dir;
+pub use term_name::{RESERVED, name_problem};
+pub use timings::Timings;
 
-use crate::Error;
-use crate::data::Dataset;
+use maaf_data::Dataset;
+use maaf_models::Representation;
+
 use crate::forward::{forward, gaussians_at};
-use crate::models::Representation;
-use crate::trainer::{Opened, TrainConfig, camera_extent, centres, observed_views};
 
 /// A trained run's model and everything needed to render it (see the module
 /// documentation).
@@ -42,7 +65,7 @@ pub struct TrainedScene {
     pub config: TrainConfig,
     /// Iterations the model was trained for.
     pub iteration: usize,
-    /// Training wall time, seconds ([`crate::trainer::Timings::total`]).
+    /// Training wall time, seconds ([`Timings::total`]).
     pub train_seconds: f64,
     /// Training cameras and times, initial cloud box, time range, background.
     pub record: SceneRecord,

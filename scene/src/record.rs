@@ -7,13 +7,13 @@
 
 use std::path::Path;
 
+use maaf_data::{Dataset, Split};
+use maaf_models::{ModelInit, PointCloud};
 use maaf_splat::Camera;
 use safetensors::{Dtype, SafeTensors};
 
-use crate::Error;
-use crate::data::{Dataset, Split};
-use crate::models::{ModelInit, PointCloud};
-use crate::trainer::{TrainConfig, bytes_of, camera_extent, model_init};
+use crate::checkpoint_read::bytes_of;
+use crate::{Error, TrainConfig, camera_extent, model_init};
 
 const CAMERAS: &str = "scene/cameras";
 const VIEWS: &str = "scene/views";
@@ -43,7 +43,7 @@ pub struct SceneRecord {
 }
 
 /// One named tensor to save: name, element type, shape, little-endian bytes.
-pub(crate) type RawTensor = (String, Dtype, Vec<usize>, Vec<u8>);
+pub type RawTensor = (String, Dtype, Vec<usize>, Vec<u8>);
 
 fn f64_bytes(values: impl IntoIterator<Item = f64>) -> Vec<u8> {
     values.into_iter().flat_map(f64::to_le_bytes).collect()
@@ -54,7 +54,7 @@ impl SceneRecord {
     /// checkpoints predate the record. Rebuilds the initial cloud ([`model_init`]) for
     /// its box, as training did.
     pub fn of_data(data: &Dataset, config: &TrainConfig) -> Result<Self, Error> {
-        let input = |e: crate::data::DataError| Error::Input(e.to_string());
+        let input = |e: maaf_data::DataError| Error::Input(e.to_string());
         let cameras = data
             .cameras(Split::Train, config.train_scale)
             .map_err(input)?;
@@ -94,7 +94,7 @@ impl SceneRecord {
     }
 
     /// The record as checkpoint tensors (the views' cameras stored once each).
-    pub(crate) fn to_tensors(&self) -> Vec<RawTensor> {
+    pub fn to_tensors(&self) -> Vec<RawTensor> {
         let mut distinct: Vec<&Camera> = Vec::new();
         let mut views = Vec::with_capacity(2 * self.times.len());
         for (cam, &t) in self.cameras.iter().zip(&self.times) {
@@ -147,7 +147,7 @@ impl SceneRecord {
 
     /// The record in a checkpoint's tensors, `None` when it has none (written before
     /// the record existed). Errors name the file and the malformed tensor.
-    pub(crate) fn from_tensors(st: &SafeTensors<'_>, file: &Path) -> Result<Option<Self>, Error> {
+    pub fn from_tensors(st: &SafeTensors<'_>, file: &Path) -> Result<Option<Self>, Error> {
         if st.tensor(VIEWS).is_err() {
             return Ok(None);
         }

@@ -8,8 +8,9 @@
 
 use std::collections::BTreeMap;
 
-use crate::models::{ModelInit, Representation, build_model};
-use crate::trainer::TrainConfig;
+use maaf_models::{ModelInit, Representation, build_model};
+
+use crate::TrainConfig;
 
 /// Builds an untrained representation of a run from its configuration and initial
 /// cloud, the same way it was built for training (its parameters are then replaced by
@@ -33,7 +34,7 @@ impl ModelRegistry {
 
     /// The built-in representations, `saro` and `deform`, both built by
     /// [`build_model`] from the run's `config.model` (resolved as
-    /// [`crate::trainer::Trainer::new`] resolves it).
+    /// `maaf_train::trainer::Trainer::new` resolves it).
     pub fn builtin() -> Self {
         let mut r = Self::empty();
         for name in ["saro", "deform"] {

@@ -1,11 +1,22 @@
-//! The separable Gaussian window of SSIM: its taps and the zero-padded "same" blur
-//! (self-adjoint, so the SSIM backward reuses it as its own transpose).
+//! The separable Gaussian window of SSIM, shared by the evaluation metric
+//! ([`super::ssim`]) and the training loss (`maaf_train::loss::ssim`): its size,
+//! sigma and constants, its taps and the zero-padded "same" blur (self-adjoint, so
+//! the SSIM backward reuses it as its own transpose).
 
 use maaf_autodiff::Float;
 use rayon::prelude::*;
 
 /// Image rows per rayon task of each blur pass (an 800-wide RGB row is 2400 values).
 const ROWS_PER_TASK: usize = 8;
+
+/// Side of the SSIM window (11 taps).
+pub const SSIM_WINDOW: usize = 11;
+/// Standard deviation of the SSIM Gaussian window, in pixels.
+pub const SSIM_SIGMA: f64 = 1.5;
+/// `C1 = (K1 L)^2` with `K1 = 0.01` and data range `L = 1` (Wang et al. 2004).
+pub const SSIM_C1: f64 = 0.01 * 0.01;
+/// `C2 = (K2 L)^2` with `K2 = 0.03` and data range `L = 1` (Wang et al. 2004).
+pub const SSIM_C2: f64 = 0.03 * 0.03;
 
 /// Normalised 1D Gaussian taps `w_k = exp(-(k - r)^2 / (2 sigma^2)) / sum`,
 /// `k = 0..size`, `r = size / 2` (the 3DGS `gaussian(window_size, sigma)`; the same as

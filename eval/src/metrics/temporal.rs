@@ -2,11 +2,11 @@
 //! Stability Metrics"): W-Temporal Error, W-SSIM and W-LPIPS of frames warped along
 //! the forward flow.
 //!
-//! Flow convention ([`crate::data::flow`], as the built-in generator writes it): for
+//! Flow convention ([`maaf_data::flow`], as the built-in generator writes it): for
 //! the pixel `(x, y)` of frame `t`, whose centre is `(x + 0.5, y + 0.5)`, the flow
 //! `(dx, dy)` points to where the same surface point is in frame `t + 1`; channel 2 is
 //! 1 when that point is visible in frame `t + 1`. The exact flow of the built-in scene
-//! and model flow ([`crate::eval::flow`], a depth-consistency test) share this meaning,
+//! and model flow ([`crate::flow`], a depth-consistency test) share this meaning,
 //! so [`warp_forward`] treats their invalid pixels alike (frame `t` is kept there).
 
 use maaf_autodiff::{Float, Tensor};

@@ -14,9 +14,9 @@ use plotters::style::{FontStyle, register_font};
 use super::style::{line, marker, method, method_colour, series_style, with_legend};
 use super::{ReportRun, scale_header};
 use crate::Error;
-use crate::eval::images::save_png;
+use crate::images::save_png;
 
-/// DejaVu Sans (Bitstream Vera licence, see `train/assets/DejaVuSans-LICENSE.txt`).
+/// DejaVu Sans (Bitstream Vera licence, see `eval/assets/DejaVuSans-LICENSE.txt`).
 static FONT: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
 
 /// Font family name the charts use.
@@ -152,7 +152,7 @@ pub fn quality_vs_scale(runs: &[ReportRun], path: &Path) -> Result<(), Error> {
 /// ([`crate::metrics::regions`]) against the render scale, one line per run: what the
 /// report's by-region table shows, for data with moving masks.
 pub fn quality_by_region(runs: &[ReportRun], path: &Path) -> Result<(), Error> {
-    type Pick = fn(&crate::eval::RegionSummary) -> Option<f64>;
+    type Pick = fn(&crate::RegionSummary) -> Option<f64>;
     let regions: [(&str, Pick); 3] = [
         ("moving pixels", |g| g.moving),
         ("static pixels", |g| g.static_),
@@ -179,7 +179,7 @@ fn scale_panel(
     title: &str,
     y_desc: &str,
     decimals: usize,
-    metric: &dyn Fn(&crate::eval::ScaleResult) -> Option<f64>,
+    metric: &dyn Fn(&crate::ScaleResult) -> Option<f64>,
 ) -> Result<(), String> {
     let scales = super::all_scales(runs);
     let keys: Vec<f64> = scales.iter().map(|s| s.log2()).collect();

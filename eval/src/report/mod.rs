@@ -8,7 +8,7 @@
 //! of one test view at every evaluated scale ([`views`]). Each method keeps one colour
 //! in every chart ([`style`]).
 //!
-//! Inputs are run directories holding `eval.json` (from [`crate::eval::evaluate_run`])
+//! Inputs are run directories holding `eval.json` (from [`crate::evaluate_run`])
 //! and, for motion-filter runs, `eval/filter_analysis.json`. No data set is needed.
 
 pub mod charts;
@@ -25,8 +25,8 @@ use std::path::{Path, PathBuf};
 
 use maaf_filter::AnalysisExport;
 
-use crate::eval::{EvalReport, FILTER_ANALYSIS_FILE, trim_float};
 use crate::{Error, write_atomic};
+use crate::{EvalReport, FILTER_ANALYSIS_FILE, trim_float};
 
 /// One evaluated run as the report shows it.
 #[derive(Clone, Debug)]
@@ -43,7 +43,7 @@ pub struct ReportRun {
 
 impl ReportRun {
     /// Its evaluation at render scale `s`, if it was evaluated there.
-    pub fn at_scale(&self, s: f64) -> Option<&crate::eval::ScaleResult> {
+    pub fn at_scale(&self, s: f64) -> Option<&crate::ScaleResult> {
         self.eval.scales.iter().find(|x| (x.scale - s).abs() < 1e-9)
     }
 
@@ -53,7 +53,7 @@ impl ReportRun {
         label: &str,
         model: &str,
         filter: &str,
-        scales: Vec<crate::eval::ScaleResult>,
+        scales: Vec<crate::ScaleResult>,
     ) -> Self {
         ReportRun {
             label: label.into(),

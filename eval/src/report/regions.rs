@@ -42,7 +42,7 @@ pub fn region_table(runs: &[ReportRun], scales: &[f64]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::eval::{RegionSummary, ScaleResult};
+    use crate::{RegionSummary, ScaleResult};
 
     fn run(label: &str, regions: Option<RegionSummary>) -> ReportRun {
         let mut s = ScaleResult::new(1.0, (8, 6), 20.0, 0.5);

@@ -16,7 +16,7 @@ use serde::{Deserialize, Serialize};
 
 use super::published::{PublishedRow, paper_tab2, released};
 use super::scale_header;
-use crate::eval::EvalReport;
+use crate::EvalReport;
 use crate::{Error, write_atomic};
 
 /// The scales of Tab. 2 (relative to the training scale), whose mean is its "Avg.".
@@ -486,7 +486,7 @@ pub fn write_suite_report(runs: &[SuiteRun], out: &Path) -> Result<SuiteOutput, 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::eval::ScaleResult;
+    use crate::ScaleResult;
 
     fn run(scene: &str, filter: &str) -> SuiteRun {
         SuiteRun {

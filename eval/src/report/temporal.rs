@@ -11,7 +11,7 @@ use super::charts::{e2s, padded_range, save_chart, text};
 use super::style::{line, series_style, with_legend};
 use super::{ReportRun, scale_header};
 use crate::Error;
-use crate::eval::TemporalResult;
+use crate::TemporalResult;
 
 /// One line of the chart: run index (for its style) and `(t, E_warp)` points.
 type Series = (usize, Vec<(f64, f64)>);

@@ -10,8 +10,8 @@ use plotters::prelude::*;
 
 use super::charts::{e2s, save_chart, text};
 use super::{ReportRun, scale_header};
-use crate::eval::images::{ERROR_MAP_MAX, ramp};
-use crate::eval::scale_label;
+use crate::images::{ERROR_MAP_MAX, ramp};
+use crate::scale_label;
 use crate::{Error, write_atomic};
 
 /// The colour bar of the error maps, in the report folder.
@@ -189,7 +189,7 @@ mod tests {
             }
         }
         std::fs::write(a.join("gt_003.png"), b"gt").expect("gt");
-        let scale = crate::eval::ScaleResult::new(1.0, (8, 6), 20.0, 0.5);
+        let scale = crate::ScaleResult::new(1.0, (8, 6), 20.0, 0.5);
         let mut runs = vec![
             ReportRun::for_test("A", "saro", "none", vec![scale.clone()]),
             ReportRun::for_test("B", "saro", "motion", vec![scale]),
