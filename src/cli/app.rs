@@ -3,10 +3,10 @@
 
 use clap::Parser;
 use maaf_autodiff::Var;
+use maaf_scene::ModelRegistry;
+use maaf_scene::TrainConfig;
 use maaf_train::loss::{Term, TermCtx, TermRegistry};
 use maaf_train::models::{ModelInit, Representation};
-use maaf_train::scene::ModelRegistry;
-use maaf_train::trainer::TrainConfig;
 
 use super::command::{self, Cli};
 use crate::alloc;
@@ -84,7 +84,7 @@ impl Maaf {
     /// Registers the loader of a representation of one's own under `name` (its
     /// [`Representation::name`], recorded in every checkpoint), so that `eval`,
     /// `render`, `render-video`, `export-ply` and the test PSNR after `train` load its
-    /// runs as a [`maaf_train::scene::TrainedScene`]. The loader builds the model
+    /// runs as a [`maaf_scene::TrainedScene`]. The loader builds the model
     /// (empty parameters of the right names; the checkpoint fills them) from the run's
     /// config and initial values, as `examples/custom_representation.rs` does.
     pub fn representation<F>(mut self, name: &str, loader: F) -> Self

@@ -1,8 +1,8 @@
 //! The command line: every subcommand and its dispatch (docs/cli.md).
 
 use clap::{Parser, Subcommand};
+use maaf_scene::ModelRegistry;
 use maaf_train::loss::TermRegistry;
-use maaf_train::scene::ModelRegistry;
 
 use crate::cli;
 

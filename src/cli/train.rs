@@ -3,14 +3,15 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
+use maaf_eval::metrics::psnr;
+use maaf_eval::render::recorded_data;
 use maaf_filter::FilterKind;
+use maaf_scene::TrainConfig;
+use maaf_scene::{ModelRegistry, TrainedScene};
 use maaf_train::data::{Dataset, DatasetOptions, Split};
-use maaf_train::eval::render::recorded_data;
 use maaf_train::loss::TermRegistry;
-use maaf_train::metrics::psnr;
 use maaf_train::models::ModelConfig;
-use maaf_train::scene::{ModelRegistry, TrainedScene};
-use maaf_train::trainer::{TrainConfig, branch_run_with_terms, train_run_with_terms};
+use maaf_train::trainer::{branch_run_with_terms, train_run_with_terms};
 
 use super::Background;
 

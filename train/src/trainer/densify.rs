@@ -6,7 +6,7 @@ use maaf_autodiff::{PerGaussian, Tensor};
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
 
-use super::config::DensifyConfig;
+use super::DensifyConfig;
 use crate::models::Representation;
 
 /// One view's part of [`DensifyStats::record_views`]: the cotangent of its screen

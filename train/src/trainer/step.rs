@@ -11,11 +11,11 @@ use rand::seq::SliceRandom;
 use rand_pcg::Pcg64;
 
 use super::ViewGrad;
-use super::refresh::centres;
 use super::strategy::StepInfo;
 use super::{Trainer, log_line};
-use crate::forward::{batch_mean, forward_bound};
-use crate::loss::Evaluated;
+use crate::forward::forward_bound;
+use crate::loss::{Evaluated, ForwardTerms, batch_mean};
+use crate::scene::centres;
 
 impl Trainer {
     /// Render settings at `iteration` ([`crate::scene::render_settings`], the 2D filter

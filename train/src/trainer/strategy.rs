@@ -16,8 +16,7 @@
 //! trainer's [`DensifyStats`] (gsplat's `state`, held by the caller and checkpointed
 //! with the run); state of its own is not checkpointed.
 
-use super::config::TrainConfig;
-use super::{DensifyStats, Trainer, ViewGrad, plan_densify};
+use super::{DensifyStats, TrainConfig, Trainer, ViewGrad, plan_densify};
 
 /// What a strategy sees of one gradient step (gsplat's `info`).
 pub struct StepInfo<'a> {
