@@ -48,7 +48,7 @@ const LAST_GRAD: &str = "liveness/last_grad";
 /// Per Gaussian, 1 where the last opacity reset lowered the opacity, else 0.
 const LOWERED: &str = "liveness/lowered";
 
-/// Prefix of the representation's buffers ([`crate::models::Representation::buffers`]).
+/// Prefix of the representation's buffers ([`crate::models::TrainingHooks::buffers`]).
 pub(super) const BUFFER: &str = "buffer/";
 
 pub(crate) fn bytes_of(data: &[f32]) -> Vec<u8> {
@@ -80,7 +80,8 @@ pub fn save_checkpoint(trainer: &Trainer, dir: &Path) -> Result<(), Error> {
             adam_steps.insert(name.to_string(), m.steps);
         }
     }
-    for (name, value) in trainer.model.buffers() {
+    let buffers = trainer.model.hooks().map_or_else(Vec::new, |h| h.buffers());
+    for (name, value) in buffers {
         named.push((
             format!("{BUFFER}{name}"),
             value.shape().to_vec(),

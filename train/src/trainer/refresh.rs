@@ -2,7 +2,7 @@
 //! config's, by name from [`FilterRegistry`](maaf_filter::FilterRegistry), or a
 //! user's) computes the filter state from the inputs the trainer supplies.
 
-use maaf_autodiff::Tensor;
+use maaf_autodiff::{PerGaussian, Tensor};
 use maaf_filter::{CameraTime, FilterInputs, ObservationTable, SamplingFilter, observed_frames};
 use maaf_splat::Camera;
 
@@ -48,11 +48,11 @@ struct Inputs<'a>(&'a Trainer);
 
 impl FilterInputs for Inputs<'_> {
     fn gaussians(&self) -> usize {
-        self.0.model.num_gaussians()
+        self.0.model.rows()
     }
 
     fn canonical_centres(&self) -> Vec<[f32; 3]> {
-        centres(&self.0.model.canonical().means)
+        centres(&self.0.canonical().means)
     }
 
     fn cameras(&self) -> &[Camera] {
