@@ -1,6 +1,6 @@
 use glam::{DQuat, DVec3};
-use maaf_autodiff::{PerGaussian, Tape};
 use maaf_autodiff::check::{GradcheckConfig, gradcheck, tests_support::random_tensor};
+use maaf_autodiff::{PerGaussian, Tape};
 
 use super::group_flow::GroupFlow;
 use super::tests::{all_outputs, busy_model, tiny_config};

@@ -1,6 +1,6 @@
-use maaf_autodiff::{PerGaussian, Var};
 use maaf_autodiff::check::{GradcheckConfig, gradcheck, tests_support::random_tensor};
 use maaf_autodiff::nn::Linear;
+use maaf_autodiff::{PerGaussian, Var};
 
 use super::*;
 use crate::KPlaneConfig;
