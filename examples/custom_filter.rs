@@ -135,7 +135,6 @@ fn run_in(out: &Path) -> Result<(), Box<dyn std::error::Error>> {
     }
     // The median never exceeds the maximum: compare both at the current centres.
     let centres: Vec<[f32; 3]> = trainer
-        .model
         .canonical()
         .means
         .data()

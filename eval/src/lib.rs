@@ -310,7 +310,7 @@ pub fn run_report(scene: &TrainedScene, data: &Dataset) -> EvalReport {
         iterations: scene.iteration,
         train_seconds: scene.train_seconds,
         num_gaussians: n,
-        model_bytes: scene.model.num_scalars() as u64 * 4,
+        model_bytes: scene.num_scalars() as u64 * 4,
         filter_bytes: (scene.filter.bytes_per_gaussian() * n) as u64,
         background: data.background(),
         quantized_8bit: false,

@@ -7,7 +7,7 @@
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-use maaf_autodiff::Tensor;
+use maaf_autodiff::{PerGaussian, Tensor};
 use maaf_filter::{CameraTime, FilterState, ObservationTable};
 use maaf_models::Representation;
 use safetensors::{Dtype, SafeTensors};
@@ -42,7 +42,7 @@ pub struct State {
     pub tensors_crc32: Option<String>,
 }
 
-/// Prefix of the representation's buffers ([`Representation::buffers`]).
+/// Prefix of the representation's buffers ([`maaf_models::TrainingHooks::buffers`]).
 pub const BUFFER: &str = "buffer/";
 
 /// `data` as little-endian bytes (a safetensors f32 payload).
@@ -153,11 +153,11 @@ impl Opened {
             )));
         }
         let n = self.state.num_gaussians;
-        if model.num_gaussians() != n {
+        if model.rows() != n {
             return Err(Error::Input(format!(
                 "{}: {} Gaussians in the parameters, state.json says {n}",
                 dir.display(),
-                model.num_gaussians(),
+                model.rows(),
             )));
         }
         // The stage (e.g. SaRO-GS's static warm-up) follows the iteration; without this a
@@ -175,9 +175,12 @@ impl Opened {
         let load_buffers = |model: &mut dyn Representation<f32>| -> Result<(), Error> {
             for name in &buffers {
                 let value = tensor(&st, &format!("{BUFFER}{name}"), file)?;
-                model
-                    .load_buffer(name, value)
-                    .map_err(|e| Error::Input(format!("{}: {e}", file.display())))?;
+                let model_name = model.name().to_string();
+                match model.hooks_mut() {
+                    Some(hooks) => hooks.load_buffer(name, value),
+                    None => Err(format!("{model_name} has no buffer `{name}`")),
+                }
+                .map_err(|e| Error::Input(format!("{}: {e}", file.display())))?;
             }
             Ok(())
         };

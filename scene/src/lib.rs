@@ -29,7 +29,7 @@ mod timings;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-use maaf_autodiff::Tensor;
+use maaf_autodiff::{PerGaussian, Tensor};
 use maaf_filter::{
     FilterError, FilterKind, FilterRegistry, FilterState, ObservationTable, static_nu,
 };
@@ -204,7 +204,14 @@ impl TrainedScene {
 
     /// Number of Gaussians.
     pub fn num_gaussians(&self) -> usize {
-        self.model.num_gaussians()
+        self.model.rows()
+    }
+
+    /// Number of stored model scalars: the parameters plus the state the model keeps
+    /// outside its store ([`TrainingHooks::state_scalars`](crate::models::TrainingHooks::state_scalars), e.g. GroupFlow's tables).
+    pub fn num_scalars(&self) -> usize {
+        let extra = self.model.hooks().map_or(0, |h| h.state_scalars());
+        self.model.params().num_scalars() + extra
     }
 
     /// The settings the run renders with ([`render_settings`] at its iteration, on
@@ -268,7 +275,8 @@ impl TrainedScene {
     /// Mip-Splatting's static nu (paper Eq. 2) of the canonical centres from the
     /// training cameras, with the run's filter settings.
     pub fn static_nu(&self) -> Result<Vec<f32>, FilterError> {
-        let centres = centres(&self.model.canonical().means);
+        let ids = self.model.canonical_ids();
+        let centres = centres(&self.model.params().canonical(ids).means);
         static_nu(&centres, &self.record.cameras, &self.config.filter)
     }
 }

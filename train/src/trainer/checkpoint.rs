@@ -52,7 +52,8 @@ pub fn save_checkpoint(trainer: &Trainer, dir: &Path) -> Result<(), Error> {
             adam_steps.insert(name.to_string(), m.steps);
         }
     }
-    for (name, value) in trainer.model.buffers() {
+    let buffers = trainer.model.hooks().map_or_else(Vec::new, |h| h.buffers());
+    for (name, value) in buffers {
         named.push((
             format!("{BUFFER}{name}"),
             value.shape().to_vec(),

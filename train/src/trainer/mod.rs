@@ -50,7 +50,7 @@ pub use strategy::{
 use crate::Error;
 use crate::data::Dataset;
 use crate::loss::{Objective, TermRegistry};
-use crate::models::{Representation, build_model};
+use crate::models::{Canonical, Representation, build_model};
 use crate::scene::{SceneRecord, TrainedScene, observed_views, training_views};
 
 /// A trainer: the model, its optimiser, the filter and every per-Gaussian container,
@@ -187,7 +187,7 @@ impl Trainer {
         let views = training_views(data, &config)?;
         let cameras: Vec<Camera> = views.iter().map(|v| v.camera.clone()).collect();
         let extent = camera_extent(&cameras);
-        let n = model.num_gaussians();
+        let n = model.rows();
         let sampling = FilterRegistry::builtin()
             .for_config(&config.filter)
             .map_err(|e| Error::Input(e.to_string()))?;
@@ -244,7 +244,17 @@ impl Trainer {
 
     /// Number of Gaussians.
     pub fn num_gaussians(&self) -> usize {
-        self.model.num_gaussians()
+        self.model.rows()
+    }
+
+    /// The model's canonical Gaussians, activated ([`ParamStore::canonical`] of its
+    /// [`CanonicalIds`]): what densification, the opacity reset, a strategy and the
+    /// filters read.
+    ///
+    /// [`ParamStore::canonical`]: crate::params::ParamStore::canonical
+    /// [`CanonicalIds`]: crate::models::CanonicalIds
+    pub fn canonical(&self) -> Canonical<f32> {
+        self.model.params().canonical(self.model.canonical_ids())
     }
 
     /// About how many bytes a training step of this model holds at `gaussians`
@@ -319,12 +329,14 @@ impl Trainer {
     /// the observations, the statistics and the liveness record with one index list (each row's statistics
     /// travel with it; a densification then restarts them, a pruning keeps them).
     pub fn apply_plan(&mut self, plan: &DensifyPlan) {
-        let n_old = self.model.num_gaussians();
+        let n_old = self.model.rows();
         let names = self.model.params().per_gaussian_names();
         self.model.select_rows(&plan.index);
         if !plan.new_rows.is_empty() {
             let k = plan.new_rows.len();
-            self.model.set_rows(
+            let ids = self.model.canonical_ids();
+            self.model.params_mut().set_canonical_rows(
+                ids,
                 &plan.new_rows,
                 &Tensor::from_vec(plan.new_means.clone(), &[k, 3]),
                 &Tensor::from_vec(plan.new_scales.clone(), &[k, 3]),

@@ -2,6 +2,7 @@
 //! config's, by name from [`FilterRegistry`](maaf_filter::FilterRegistry), or a
 //! user's) computes the filter state from the inputs the trainer supplies.
 
+use maaf_autodiff::PerGaussian;
 use maaf_filter::{FilterInputs, ObservationTable, SamplingFilter};
 use maaf_splat::Camera;
 
@@ -13,11 +14,11 @@ struct Inputs<'a>(&'a Trainer);
 
 impl FilterInputs for Inputs<'_> {
     fn gaussians(&self) -> usize {
-        self.0.model.num_gaussians()
+        self.0.model.rows()
     }
 
     fn canonical_centres(&self) -> Vec<[f32; 3]> {
-        centres(&self.0.model.canonical().means)
+        centres(&self.0.canonical().means)
     }
 
     fn cameras(&self) -> &[Camera] {

@@ -118,11 +118,12 @@ impl Trainer {
         match grads {
             Ok(grads) => {
                 let densifying = it <= self.config.densify.until;
+                let hooks = self.model.hooks();
                 let scales: Vec<_> = self
                     .model
                     .params()
                     .iter()
-                    .map(|p| self.model.lr_row_scale(&p.name, densifying))
+                    .map(|p| hooks.and_then(|h| h.lr_row_scale(&p.name, densifying)))
                     .collect();
                 for (p, scale) in self.model.params_mut().iter_mut().zip(scales) {
                     if let Some(gr) = grads.param(&p.name) {
