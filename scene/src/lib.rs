@@ -276,7 +276,7 @@ impl TrainedScene {
     /// training cameras, with the run's filter settings.
     pub fn static_nu(&self) -> Result<Vec<f32>, FilterError> {
         let ids = self.model.canonical_ids();
-        let centres = centres(&self.model.params().canonical(ids).means);
+        let centres = centres(self.model.params().value(ids.means));
         static_nu(&centres, &self.record.cameras, &self.config.filter)
     }
 }

@@ -18,7 +18,8 @@ impl FilterInputs for Inputs<'_> {
     }
 
     fn canonical_centres(&self) -> Vec<[f32; 3]> {
-        centres(&self.0.canonical().means)
+        let model = &self.0.model;
+        centres(model.params().value(model.canonical_ids().means))
     }
 
     fn cameras(&self) -> &[Camera] {

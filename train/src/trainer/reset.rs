@@ -142,7 +142,7 @@ impl Trainer {
         let ids = self.model.canonical_ids();
         let opacity = ids.opacity_logits;
         let before = self.model.params().value(opacity).clone();
-        let scales = self.canonical().scales;
+        let scales = self.model.params().value(ids.log_scales).map(f32::exp);
         let caps = opacity_caps(mode, &self.filter, &scales, 0.01);
         let store = self.model.params_mut();
         let reset = store.cap_opacity(ids, &caps);
