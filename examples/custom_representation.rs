@@ -154,6 +154,10 @@ impl<'t> Bound<'t, f32> for DeformBound<'t> {
     }
 }
 
+/// Modelling only: the five required methods and the stage switch. Densification, the
+/// opacity reset and checkpoints work on the store through `canonical_ids`; the
+/// optional `TrainingHooks` (state outside the store, per-Gaussian learning-rate
+/// scales, temporal pruning) are not needed.
 impl Representation<f32> for Deform {
     fn name(&self) -> &str {
         "tiny_deform"

@@ -49,7 +49,7 @@ impl Strategy for BudgetedGrowth {
         if !iteration.is_multiple_of(self.every) || iteration >= trainer.config.iterations {
             return false;
         }
-        let opacity = trainer.model.canonical().opacity;
+        let opacity = trainer.canonical().opacity;
         let grad = trainer.stats.mean_grad();
         let keep: Vec<usize> = (0..grad.len())
             .filter(|&i| opacity.data()[i] >= self.min_opacity)

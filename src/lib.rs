@@ -3,7 +3,8 @@
 //! This facade re-exports the member crates (docs/architecture.md):
 //! [`autodiff`] (reverse-mode tape and gradient checks), [`splat`] (differentiable
 //! Gaussian rasterization), [`filter`] (Mip-Splatting and motion-aware smoothing
-//! filters) and [`train`] (data, 4D representations, training and evaluation), and
+//! filters), [`scene`] (a trained run as a value), [`eval`] (evaluation, metrics and
+//! reports) and [`train`] (data, 4D representations, training), and
 //! holds the whole `maaf` command line as a library ([`cli::Maaf`]): a program of a
 //! few lines gets every command plus loss terms of its own.
 //!
@@ -13,6 +14,8 @@ pub mod alloc;
 pub mod cli;
 
 pub use maaf_autodiff as autodiff;
+pub use maaf_eval as eval;
 pub use maaf_filter as filter;
+pub use maaf_scene as scene;
 pub use maaf_splat as splat;
 pub use maaf_train as train;

@@ -7,8 +7,10 @@
 //! a store once, says which of them are the canonical 3DGS tensors
 //! ([`CanonicalIds`]: densification reads and writes those), and implements
 //! [`Representation::bind`] (time-independent work, once per step) and
-//! [`Bound::deform`] (per time). Checkpoints, densification resizing and the
-//! optimiser come from the store; nothing in the trainer changes.
+//! [`Bound::deform`] (per time). Checkpoints, densification (the [`ParamStore`]
+//! helpers of `canonical.rs`) and the optimiser come from the store; nothing in the
+//! trainer changes. What a model may customise beyond that is the optional
+//! [`TrainingHooks`].
 //!
 //! One training step (`Trainer::update`) reads:
 //!
@@ -22,24 +24,25 @@
 //! }                                             // backward of the views' mean objective
 //! ```
 
+mod canonical;
 pub mod config;
 pub mod deform;
 pub mod encoding;
+mod hooks;
 mod init;
 pub mod kplane;
 pub mod params;
 pub mod saro;
 
-use std::sync::Arc;
-
-use maaf_autodiff::scalar::{logit, sigmoid};
-use maaf_autodiff::{Float, PerGaussian, Tape, Tensor, Var};
+use maaf_autodiff::{Float, Tape, Tensor, Var};
 use maaf_splat::GaussianVars;
 
-use crate::params::{BoundParams, ParamId, ParamStore};
+use crate::params::{BoundParams, ParamStore};
 
+pub use canonical::{Canonical, CanonicalIds};
 pub use config::{ModelConfig, ModelInit, build_model};
 pub use deform::{DeformConfig, DeformModel};
+pub use hooks::TrainingHooks;
 pub use init::{InitialGaussians, knn_mean_sq_dist, rgb_to_sh_dc};
 pub use kplane::{KPlaneConfig, KPlaneField};
 pub use maaf_data::PointCloud;
@@ -83,40 +86,29 @@ pub(crate) fn flatten_outputs<'t, T: Float>(bound: &dyn Bound<'t, T>, times: &[f
     maaf_autodiff::ops::concat(&parts, 0)
 }
 
-/// Which parameters of a store hold the canonical 3DGS tensors, in 3DGS's
-/// parametrisation: centres `[N,3]`, log-scales `[N,3]`, unnormalised quaternions
-/// `[N,4]` (w, x, y, z) and opacity logits `[N]`. Densification reads them (scale
-/// threshold, split sampling, opacity prune) and writes them (split halves, opacity
-/// reset) through the defaults of [`Representation`].
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct CanonicalIds {
-    /// Centres.
-    pub means: ParamId,
-    /// Log-scales (`scale = exp`).
-    pub log_scales: ParamId,
-    /// Quaternions.
-    pub quats: ParamId,
-    /// Opacity logits (`opacity = sigmoid`).
-    pub opacity_logits: ParamId,
-}
-
-/// Canonical (undeformed) per-Gaussian values, activated, as plain tensors: what
-/// densification reads.
-#[derive(Clone, Debug)]
-pub struct Canonical<T: Float> {
-    /// Centres \[N,3].
-    pub means: Tensor<T>,
-    /// Activated scales \[N,3].
-    pub scales: Tensor<T>,
-    /// Unnormalised quaternions \[N,4] (w,x,y,z).
-    pub quats: Tensor<T>,
-    /// Activated base opacity \[N] (without any temporal factor).
-    pub opacity: Tensor<T>,
-}
-
-/// A 4D representation (docs/architecture.md, "Where things plug in"). Object safe: the trainer holds a
-/// `Box<dyn Representation<f32>>`, built from the config by [`build_model`] or by the
-/// user.
+/// A 4D representation (docs/architecture.md, "Where things plug in"). Object safe: the
+/// trainer holds a `Box<dyn Representation<f32>>`, built from the config by
+/// [`build_model`] or by the user.
+///
+/// **Modelling** is all a new representation implements (`examples/custom_representation.rs`):
+/// - required: [`name`](Self::name), [`params`](Self::params) /
+///   [`params_mut`](Self::params_mut) (every tensor declared once in a [`ParamStore`]),
+///   [`canonical_ids`](Self::canonical_ids) (which of them are the canonical 3DGS
+///   tensors) and [`bind`](Self::bind) (whose [`Bound::deform`] gives the Gaussians at
+///   a time);
+/// - with defaults: [`label`](Self::label), [`regularisers`](Self::regularisers),
+///   [`set_iteration`](Self::set_iteration) (stages),
+///   [`centres_at_times`](Self::centres_at_times) (a cheaper path for the filter).
+///
+/// Densification, the opacity reset, the optimiser and checkpoints need nothing more:
+/// they work on the store through [`CanonicalIds`] ([`ParamStore::canonical`],
+/// [`ParamStore::set_canonical_rows`], [`ParamStore::cap_opacity`],
+/// [`ParamStore::select_rows`](maaf_autodiff::PerGaussian::select_rows)).
+///
+/// **Optional hooks**, for a model with state outside its store or that steers
+/// training (SaRO's temporal pruning and adaptive optimisation, Deformable-3DGS's
+/// GroupFlow tables): implement [`TrainingHooks`] and return it from
+/// [`hooks`](Self::hooks) and [`hooks_mut`](Self::hooks_mut) (default `None`).
 pub trait Representation<T: Float> {
     /// Short name (`"saro"`), recorded in checkpoints: a checkpoint only loads into a
     /// representation of the same name.
@@ -155,101 +147,6 @@ pub trait Representation<T: Float> {
     /// model with stages (SaRO's static warm-up) switches here. Default: no stages.
     fn set_iteration(&mut self, _iteration: usize) {}
 
-    /// Number of Gaussians N.
-    fn num_gaussians(&self) -> usize {
-        self.params().gaussians().unwrap_or(0)
-    }
-
-    /// Number of stored scalars (parameters only, no optimiser state).
-    fn num_scalars(&self) -> usize {
-        self.params().num_scalars()
-    }
-
-    /// Replaces every per-Gaussian row by `old\[index\[0]], old\[index\[1]], ...`
-    /// (clone: repeat an index; split: repeat and drop; prune: leave out). The
-    /// default resizes every per-Gaussian parameter of the store; override only if
-    /// the model keeps other per-Gaussian state.
-    fn select_rows(&mut self, index: &[usize]) {
-        self.params_mut().select_rows(index);
-    }
-
-    /// Canonical values for densification (activated).
-    fn canonical(&self) -> Canonical<T> {
-        let ids = self.canonical_ids();
-        let p = self.params();
-        Canonical {
-            means: p.value(ids.means).clone(),
-            scales: p.value(ids.log_scales).map(|v| v.exp()),
-            quats: p.value(ids.quats).clone(),
-            opacity: p.value(ids.opacity_logits).map(sigmoid),
-        }
-    }
-
-    /// Overwrites the canonical centres and **activated** scales of `rows` (after
-    /// [`Representation::select_rows`] has created them, e.g. the two halves of a
-    /// split). `means` and `scales` are \[rows.len(), 3].
-    fn set_rows(&mut self, rows: &[usize], means: &Tensor<T>, scales: &Tensor<T>) {
-        assert_eq!(means.shape(), &[rows.len(), 3], "set_rows: means shape");
-        assert_eq!(scales.shape(), &[rows.len(), 3], "set_rows: scales shape");
-        let ids = self.canonical_ids();
-        let p = self.params_mut();
-        for (j, &r) in rows.iter().enumerate() {
-            for a in 0..3 {
-                p.value_mut(ids.means).data_mut()[3 * r + a] = means.data()[3 * j + a];
-                p.value_mut(ids.log_scales).data_mut()[3 * r + a] = scales.data()[3 * j + a].ln();
-            }
-        }
-    }
-
-    /// Opacity reset (3DGS `reset_opacity`), one cap per Gaussian:
-    /// `o_i = min(o_i, logit(caps_i))` on the logits (a cap of 1 or more leaves the
-    /// row as it is). The trainer computes the caps (`maaf_train::trainer::opacity_caps`).
-    /// Returns the names of the parameters it overwrote, whose optimiser
-    /// moments the trainer then zeroes (3DGS `replace_tensor_to_optimizer`): stale
-    /// momentum would otherwise keep pushing the reset opacities down.
-    fn reset_opacity(&mut self, caps: &[f64]) -> Vec<String> {
-        let id = self.canonical_ids().opacity_logits;
-        let p = self.params_mut();
-        for (v, &cap) in p.value_mut(id).data_mut().iter_mut().zip(caps) {
-            if cap < 1.0 {
-                *v = v.min(logit(T::of(cap)));
-            }
-        }
-        vec![p.param(id).name.clone()]
-    }
-
-    /// Indices of Gaussians the representation itself wants removed (SaRO: a temporal
-    /// integral below the threshold). Empty by default.
-    fn short_lived(&self) -> Vec<usize> {
-        Vec::new()
-    }
-
-    /// Per-Gaussian multipliers of the learning rate of parameter `name` at the
-    /// current iteration (one per row), or `None` for the plain rate. `densifying`:
-    /// whether the iteration is inside the densification window. SaRO: the adaptive
-    /// optimisation. Default: `None`.
-    fn lr_row_scale(&self, _name: &str, _densifying: bool) -> Option<Arc<[T]>> {
-        None
-    }
-
-    /// Per-Gaussian multipliers of the densification statistic (the mean screen-space
-    /// gradient) before it meets the threshold, or `None`. Default: `None`.
-    fn densify_grad_scale(&self) -> Option<Arc<[T]>> {
-        None
-    }
-
-    /// State outside the parameter store that a checkpoint must carry for a resumed
-    /// run to continue exactly, as (name, tensor). Default: none.
-    fn buffers(&self) -> Vec<(String, Tensor<T>)> {
-        Vec::new()
-    }
-
-    /// Restores a buffer [`Representation::buffers`] wrote; an error names the buffer
-    /// when it is unknown or has the wrong shape.
-    fn load_buffer(&mut self, name: &str, _value: Tensor<T>) -> Result<(), String> {
-        Err(format!("{} has no buffer `{name}`", self.name()))
-    }
-
     /// Deformed centres \[N,3] at each of `times`, outside any training tape: what the
     /// motion-aware filter's observation pass needs (every training (camera, time)
     /// sees the *deformed* centre). The default binds the parameters as constants
@@ -267,5 +164,17 @@ pub trait Representation<T: Float> {
                 centres
             })
             .collect()
+    }
+
+    /// The optional hooks (state outside the store, training customisations), or
+    /// `None` (the default): plain 3DGS training. A model implementing
+    /// [`TrainingHooks`] returns `Some(self)` here and from [`Self::hooks_mut`].
+    fn hooks(&self) -> Option<&dyn TrainingHooks<T>> {
+        None
+    }
+
+    /// The optional hooks, mutably (densification resizing, checkpoint load).
+    fn hooks_mut(&mut self) -> Option<&mut dyn TrainingHooks<T>> {
+        None
     }
 }

@@ -8,7 +8,9 @@
 //!   `Grads::param(name)` finds its gradient), or from any list of `Var`s in store
 //!   order ([`BoundParams::from_vars`], what a gradient check passes);
 //! - densification resizing ([`ParamStore::select_rows`] applies one row-index list to
-//!   every per-Gaussian tensor; shared tensors are untouched);
+//!   every per-Gaussian tensor; shared tensors are untouched) and the writes to the
+//!   canonical 3DGS tensors (`canonical.rs`: [`ParamStore::canonical`],
+//!   [`ParamStore::set_canonical_rows`], [`ParamStore::cap_opacity`]);
 //! - the optimiser ([`ParamStore::iter_mut`] yields every [`Param`] with its schedule);
 //! - checkpoints ([`ParamStore::named_tensors`] and [`ParamStore::load`]).
 

@@ -318,11 +318,11 @@ pub(crate) fn forward_tile<T: SplatFloat>(
 /// Per-pixel inputs of the backward of one tile (stride [`TILE`]).
 pub(crate) struct TileGrads<'a, T> {
     /// Cotangent of the colour.
-    pub g_rgb: [Vec<T>; 3],
+    pub v_render_colors: [Vec<T>; 3],
     /// Cotangent of the accumulated alpha.
-    pub g_alpha: Vec<T>,
+    pub v_render_alphas: Vec<T>,
     /// Cotangent of the depth.
-    pub g_depth: Vec<T>,
+    pub v_render_depths: Vec<T>,
     /// What the forward left.
     pub end: &'a TileEnd<T>,
 }
@@ -371,31 +371,32 @@ pub(crate) fn backward_tile<T: SplatFloat>(
             let t = T::L::select(m, t_behind * inv, t_behind);
             t.store(&mut tr[k..]);
             let wgt = alpha * t;
-            let gc = [0, 1, 2].map(|ch| T::L::load(&inp.g_rgb[ch][k..]));
-            let gd = T::L::load(&inp.g_depth[k..]);
-            let mut g_al = T::L::load(&inp.g_alpha[k..]) * T::L::load(&t_final[k..]) * inv;
+            let v_color_px = [0, 1, 2].map(|ch| T::L::load(&inp.v_render_colors[ch][k..]));
+            let v_depth_px = T::L::load(&inp.v_render_depths[k..]);
+            let mut v_alpha =
+                T::L::load(&inp.v_render_alphas[k..]) * T::L::load(&t_final[k..]) * inv;
             for ch in 0..3 {
-                acc[6 + ch] = acc[6 + ch] + pick(gc[ch] * wgt);
+                acc[6 + ch] = acc[6 + ch] + pick(v_color_px[ch] * wgt);
                 let bh = T::L::load(&behind[ch][k..]);
-                g_al = g_al + gc[ch] * (w.col[ch] * t - bh * inv);
+                v_alpha = v_alpha + v_color_px[ch] * (w.col[ch] * t - bh * inv);
                 T::L::select(m, bh + w.col[ch] * wgt, bh).store(&mut behind[ch][k..]);
             }
-            acc[9] = acc[9] + pick(gd * wgt);
+            acc[9] = acc[9] + pick(v_depth_px * wgt);
             let bh = T::L::load(&behind[3][k..]);
-            g_al = g_al + gd * (w.z * t - bh * inv);
+            v_alpha = v_alpha + v_depth_px * (w.z * t - bh * inv);
             T::L::select(m, bh + w.z * wgt, bh).store(&mut behind[3][k..]);
             // alpha = f(a) with a = o exp(-power): d/do = f'(a) g, d/dpower = -f'(a) a;
             // f'(a) = al.da (0 where the 0.99 clamp holds, w + dw/dr when smooth).
-            let g_a = g_al * al.da;
-            let g_o = g_a * al.g;
-            let g_p = -(g_a * w.o * al.g);
-            let g_p = pick(g_p);
-            acc[5] = acc[5] + pick(g_o);
-            acc[2] = acc[2] + g_p * l(half) * dx * dx;
-            acc[3] = acc[3] + g_p * dx * dy;
-            acc[4] = acc[4] + g_p * l(half) * dy * dy;
-            acc[0] = acc[0] - g_p * (w.a * dx + w.b * dy);
-            acc[1] = acc[1] - g_p * (w.b * dx + w.c * dy);
+            let v_a = v_alpha * al.da;
+            let v_opacity = v_a * al.g;
+            let v_power = -(v_a * w.o * al.g);
+            let v_power = pick(v_power);
+            acc[5] = acc[5] + pick(v_opacity);
+            acc[2] = acc[2] + v_power * l(half) * dx * dx;
+            acc[3] = acc[3] + v_power * dx * dy;
+            acc[4] = acc[4] + v_power * l(half) * dy * dy;
+            acc[0] = acc[0] - v_power * (w.a * dx + w.b * dy);
+            acc[1] = acc[1] - v_power * (w.b * dx + w.c * dy);
         });
         grads[j] = acc.map(|v| v.sum());
     }

@@ -57,23 +57,24 @@ impl<T: Float> Op<T> for QuatScaleToCov {
 
     fn backward(&self, ctx: &BackwardCtx<'_, T, ()>) -> Vec<Option<Tensor<T>>> {
         let (q, s) = (ctx.inputs[0], ctx.inputs[1]);
-        let g6 = &ctx.grad_outputs[0];
+        let v_cov3d = &ctx.grad_outputs[0];
         let n = q.rows();
         let half = T::of(0.5);
         let two = T::of(2.0);
-        let mut dq = vec![T::zero(); 4 * n];
-        let mut ds = vec![T::zero(); 3 * n];
-        dq.par_chunks_mut(4)
-            .zip(ds.par_chunks_mut(3))
+        let mut v_quats = vec![T::zero(); 4 * n];
+        let mut v_scales = vec![T::zero(); 3 * n];
+        v_quats
+            .par_chunks_mut(4)
+            .zip(v_scales.par_chunks_mut(3))
             .enumerate()
-            .for_each(|(i, (dq, ds))| {
+            .for_each(|(i, (v_quats, v_scales))| {
                 let qi = &q.data()[4 * i..4 * i + 4];
                 let (qh, qn) = normalise(qi);
                 let r = quat_to_rotmat([qi[0], qi[1], qi[2], qi[3]]);
                 let sc = &s.data()[3 * i..3 * i + 3];
-                let g = &g6.data()[6 * i..6 * i + 6];
+                let g = &v_cov3d.data()[6 * i..6 * i + 6];
                 // Symmetric cotangent: packed off-diagonals are split over both halves.
-                let gs: M3<T> = [
+                let v_covar: M3<T> = [
                     [g[0], half * g[1], half * g[2]],
                     [half * g[1], g[3], half * g[4]],
                     [half * g[2], half * g[4], g[5]],
@@ -84,24 +85,24 @@ impl<T: Float> Op<T> for QuatScaleToCov {
                         m[a][j] = r[a][j] * sc[j];
                     }
                 }
-                let gm = mul3(&gs, &m);
-                let mut gr = [[T::zero(); 3]; 3];
+                let v_m_half = mul3(&v_covar, &m);
+                let mut v_rot = [[T::zero(); 3]; 3];
                 for a in 0..3 {
                     for j in 0..3 {
-                        let dm = two * gm[a][j];
-                        gr[a][j] = dm * sc[j];
-                        ds[j] += dm * r[a][j];
+                        let v_m = two * v_m_half[a][j];
+                        v_rot[a][j] = v_m * sc[j];
+                        v_scales[j] += v_m * r[a][j];
                     }
                 }
-                let dqh = rotmat_vjp(qh, &gr);
-                let dot = (0..4).map(|k| qh[k] * dqh[k]).sum::<T>();
+                let v_qhat = rotmat_vjp(qh, &v_rot);
+                let dot = (0..4).map(|k| qh[k] * v_qhat[k]).sum::<T>();
                 for k in 0..4 {
-                    dq[k] = (dqh[k] - qh[k] * dot) / qn;
+                    v_quats[k] = (v_qhat[k] - qh[k] * dot) / qn;
                 }
             });
         vec![
-            Some(Tensor::from_vec(dq, &[n, 4])),
-            Some(Tensor::from_vec(ds, &[n, 3])),
+            Some(Tensor::from_vec(v_quats, &[n, 4])),
+            Some(Tensor::from_vec(v_scales, &[n, 3])),
         ]
     }
 }

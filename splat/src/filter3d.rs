@@ -66,17 +66,17 @@ impl<T: Float> Op<T> for Filter3dOp<T> {
     fn backward(&self, ctx: &BackwardCtx<'_, T, ()>) -> Vec<Option<Tensor<T>>> {
         let (s, o) = (ctx.inputs[0], ctx.inputs[1]);
         let s_out = ctx.outputs[0];
-        let (gs, go) = (&ctx.grad_outputs[0], &ctx.grad_outputs[1]);
+        let (v_scales_out, v_opacities_out) = (&ctx.grad_outputs[0], &ctx.grad_outputs[1]);
         let n = o.len();
-        let mut ds = vec![T::zero(); 3 * n];
-        let mut dop = vec![T::zero(); n];
+        let mut v_scales = vec![T::zero(); 3 * n];
+        let mut v_opacities = vec![T::zero(); n];
         for i in 0..n {
             let v = self.var.data()[i];
             let oi = o.data()[i];
             let si = &s.data()[3 * i..3 * i + 3];
             // c_i recomputed (not o'_i / o_i) so that o_i = 0 is fine.
             let r = ratios(si, v);
-            dop[i] = go.data()[i] * (r[0] * r[1] * r[2]).sqrt();
+            v_opacities[i] = v_opacities_out.data()[i] * (r[0] * r[1] * r[2]).sqrt();
             for j in 0..3 {
                 let (sj, out) = (si[j], s_out.data()[3 * i + j]);
                 let d_scale = if out > T::zero() { sj / out } else { T::zero() };
@@ -93,12 +93,13 @@ impl<T: Float> Op<T> for Filter3dOp<T> {
                 } else {
                     T::zero()
                 };
-                ds[3 * i + j] = gs.data()[3 * i + j] * d_scale + go.data()[i] * oi * d_c;
+                v_scales[3 * i + j] =
+                    v_scales_out.data()[3 * i + j] * d_scale + v_opacities_out.data()[i] * oi * d_c;
             }
         }
         vec![
-            Some(Tensor::from_vec(ds, &[n, 3])),
-            Some(Tensor::from_vec(dop, &[n])),
+            Some(Tensor::from_vec(v_scales, &[n, 3])),
+            Some(Tensor::from_vec(v_opacities, &[n])),
         ]
     }
 }

@@ -308,7 +308,7 @@ impl<T: Float> Op<T> for ProjectEwa<T> {
         let (cov3d, opac) = (ctx.inputs[1], ctx.inputs[2]);
         let n = opac.len();
         let conics = ctx.outputs[1];
-        let (g_m2, g_con, g_op, g_dep) = (
+        let (v_means2d, v_conics, v_opacities2d, v_depths) = (
             &ctx.grad_outputs[0],
             &ctx.grad_outputs[1],
             &ctx.grad_outputs[2],
@@ -317,9 +317,9 @@ impl<T: Float> Op<T> for ProjectEwa<T> {
         let zero = T::zero();
         let half = T::of(0.5);
         let two = T::of(2.0);
-        let mut d_mean = vec![zero; 3 * n];
-        let mut d_cov = vec![zero; 6 * n];
-        let mut d_op = vec![zero; n];
+        let mut v_means = vec![zero; 3 * n];
+        let mut v_cov3d = vec![zero; 6 * n];
+        let mut v_opacities = vec![zero; n];
         let one = |i: usize| -> Option<([T; 3], [T; 6], T)> {
             let sv = &ctx.saved[i];
             if !sv.visible {
@@ -328,115 +328,117 @@ impl<T: Float> Op<T> for ProjectEwa<T> {
             let [tx, ty, tz] = sv.t;
             let [a, b, c] = sv.cov;
             // opacity' = o * comp
-            let gop = g_op.data()[i];
-            let d_op_i = gop * sv.comp;
-            let g_comp = gop * opac.data()[i];
+            let v_opacity2d = v_opacities2d.data()[i];
+            let v_opacity = v_opacity2d * sv.comp;
+            let v_comp = v_opacity2d * opac.data()[i];
             // conic = inverse of the dilated covariance (a+k, b; b, c+k)
             let (ca, cb, cc) = (
                 conics.data()[3 * i],
                 conics.data()[3 * i + 1],
                 conics.data()[3 * i + 2],
             );
-            let (ga, gb, gc) = (
-                g_con.data()[3 * i],
-                g_con.data()[3 * i + 1],
-                g_con.data()[3 * i + 2],
+            let (v_conic_a, v_conic_b, v_conic_c) = (
+                v_conics.data()[3 * i],
+                v_conics.data()[3 * i + 1],
+                v_conics.data()[3 * i + 2],
             );
-            let mut da = -(ga * ca * ca + gb * ca * cb + gc * cb * cb);
-            let mut dc = -(ga * cb * cb + gb * cb * cc + gc * cc * cc);
-            let mut db = -(two * ga * ca * cb + gb * (ca * cc + cb * cb) + two * gc * cb * cc);
+            let mut v_a = -(v_conic_a * ca * ca + v_conic_b * ca * cb + v_conic_c * cb * cb);
+            let mut v_c = -(v_conic_a * cb * cb + v_conic_b * cb * cc + v_conic_c * cc * cc);
+            let mut v_b = -(two * v_conic_a * ca * cb
+                + v_conic_b * (ca * cc + cb * cb)
+                + two * v_conic_c * cb * cc);
             // comp = sqrt(det0 / det1): d comp = comp/2 (d det0/det0 - d det1/det1)
             if self.compensate && sv.comp > zero {
                 let det0 = a * c - b * b;
                 let (ad, cd) = (a + self.kernel, c + self.kernel);
                 let det1 = ad * cd - b * b;
-                let h = g_comp * half * sv.comp;
-                da += h * (c / det0 - cd / det1);
-                dc += h * (a / det0 - ad / det1);
-                db += h * (-two * b / det0 + two * b / det1);
+                let h = v_comp * half * sv.comp;
+                v_a += h * (c / det0 - cd / det1);
+                v_c += h * (a / det0 - ad / det1);
+                v_b += h * (-two * b / det0 + two * b / det1);
             }
             // cov2d = J Sc J^T
             let j = self.jacobian(sv.t, sv.u.0 * tz, sv.v.0 * tz);
             let sig = sym_from6(&cov3d.data()[6 * i..6 * i + 6]);
             let rt = transpose3(&self.rot);
             let sc = mul3(&mul3(&self.rot, &sig), &rt);
-            let g2 = [[da, half * db], [half * db, dc]];
+            let v_cov2d = [[v_a, half * v_b], [half * v_b, v_c]];
             // dL/dSc = J^T G2 J
-            let mut g_sc = [[zero; 3]; 3];
+            let mut v_cov_cam = [[zero; 3]; 3];
             for p in 0..3 {
                 for q in 0..3 {
                     let mut acc = zero;
                     for r in 0..2 {
                         for s in 0..2 {
-                            acc += j[r][p] * g2[r][s] * j[s][q];
+                            acc += j[r][p] * v_cov2d[r][s] * j[s][q];
                         }
                     }
-                    g_sc[p][q] = acc;
+                    v_cov_cam[p][q] = acc;
                 }
             }
             // dL/dJ = 2 G2 J Sc
-            let mut g_j = [[zero; 3]; 2];
+            let mut v_jac = [[zero; 3]; 2];
             for r in 0..2 {
                 let row = [
-                    g2[r][0] * j[0][0] + g2[r][1] * j[1][0],
-                    g2[r][0] * j[0][1] + g2[r][1] * j[1][1],
-                    g2[r][0] * j[0][2] + g2[r][1] * j[1][2],
+                    v_cov2d[r][0] * j[0][0] + v_cov2d[r][1] * j[1][0],
+                    v_cov2d[r][0] * j[0][1] + v_cov2d[r][1] * j[1][1],
+                    v_cov2d[r][0] * j[0][2] + v_cov2d[r][1] * j[1][2],
                 ];
                 let rs = mul3tv(&sc, row);
                 for q in 0..3 {
-                    g_j[r][q] = two * rs[q];
+                    v_jac[r][q] = two * rs[q];
                 }
             }
             // dL/dSigma = R^T G_sc R, packed (off-diagonals doubled).
-            let gs = mul3(&mul3(&rt, &g_sc), &self.rot);
-            let mut dcv = [zero; 6];
-            dcv[0] = gs[0][0];
-            dcv[1] = gs[0][1] + gs[1][0];
-            dcv[2] = gs[0][2] + gs[2][0];
-            dcv[3] = gs[1][1];
-            dcv[4] = gs[1][2] + gs[2][1];
-            dcv[5] = gs[2][2];
+            let v_covar = mul3(&mul3(&rt, &v_cov_cam), &self.rot);
+            let mut v_cov3d_i = [zero; 6];
+            v_cov3d_i[0] = v_covar[0][0];
+            v_cov3d_i[1] = v_covar[0][1] + v_covar[1][0];
+            v_cov3d_i[2] = v_covar[0][2] + v_covar[2][0];
+            v_cov3d_i[3] = v_covar[1][1];
+            v_cov3d_i[4] = v_covar[1][2] + v_covar[2][1];
+            v_cov3d_i[5] = v_covar[2][2];
             // J(t): J00 = fx/z, J02 = -fx x'/z^2, J11 = fy/z, J12 = -fy y'/z^2
             let (xc, yc) = (sv.u.0 * tz, sv.v.0 * tz);
             let z2 = tz * tz;
             let z3 = z2 * tz;
-            let mut gt = [zero; 3];
-            gt[2] += -g_j[0][0] * self.fx / z2 - g_j[1][1] * self.fy / z2
-                + g_j[0][2] * two * self.fx * xc / z3
-                + g_j[1][2] * two * self.fy * yc / z3;
-            let g_xc = -g_j[0][2] * self.fx / z2;
-            let g_yc = -g_j[1][2] * self.fy / z2;
+            let mut v_mean_c = [zero; 3];
+            v_mean_c[2] += -v_jac[0][0] * self.fx / z2 - v_jac[1][1] * self.fy / z2
+                + v_jac[0][2] * two * self.fx * xc / z3
+                + v_jac[1][2] * two * self.fy * yc / z3;
+            let v_xc = -v_jac[0][2] * self.fx / z2;
+            let v_yc = -v_jac[1][2] * self.fy / z2;
             // x' = x when unclamped, z * lim when clamped (gradient goes to z).
             if sv.u.1 {
-                gt[2] += g_xc * sv.u.0;
+                v_mean_c[2] += v_xc * sv.u.0;
             } else {
-                gt[0] += g_xc;
+                v_mean_c[0] += v_xc;
             }
             if sv.v.1 {
-                gt[2] += g_yc * sv.v.0;
+                v_mean_c[2] += v_yc * sv.v.0;
             } else {
-                gt[1] += g_yc;
+                v_mean_c[1] += v_yc;
             }
             // means2d = (fx x/z + cx, fy y/z + cy)
-            let (gmx, gmy) = (g_m2.data()[2 * i], g_m2.data()[2 * i + 1]);
-            gt[0] += gmx * self.fx / tz;
-            gt[1] += gmy * self.fy / tz;
-            gt[2] += -gmx * self.fx * tx / z2 - gmy * self.fy * ty / z2;
-            gt[2] += g_dep.data()[i];
-            Some((mul3tv(&self.rot, gt), dcv, d_op_i))
+            let (v_mx, v_my) = (v_means2d.data()[2 * i], v_means2d.data()[2 * i + 1]);
+            v_mean_c[0] += v_mx * self.fx / tz;
+            v_mean_c[1] += v_my * self.fy / tz;
+            v_mean_c[2] += -v_mx * self.fx * tx / z2 - v_my * self.fy * ty / z2;
+            v_mean_c[2] += v_depths.data()[i];
+            Some((mul3tv(&self.rot, v_mean_c), v_cov3d_i, v_opacity))
         };
         let rows: Vec<_> = (0..n).into_par_iter().map(one).collect();
         for (i, row) in rows.into_iter().enumerate() {
-            if let Some((gm, gc, go)) = row {
-                d_mean[3 * i..3 * i + 3].copy_from_slice(&gm);
-                d_cov[6 * i..6 * i + 6].copy_from_slice(&gc);
-                d_op[i] = go;
+            if let Some((v_mean, v_cov, v_op)) = row {
+                v_means[3 * i..3 * i + 3].copy_from_slice(&v_mean);
+                v_cov3d[6 * i..6 * i + 6].copy_from_slice(&v_cov);
+                v_opacities[i] = v_op;
             }
         }
         vec![
-            Some(Tensor::from_vec(d_mean, &[n, 3])),
-            Some(Tensor::from_vec(d_cov, &[n, 6])),
-            Some(Tensor::from_vec(d_op, &[n])),
+            Some(Tensor::from_vec(v_means, &[n, 3])),
+            Some(Tensor::from_vec(v_cov3d, &[n, 6])),
+            Some(Tensor::from_vec(v_opacities, &[n])),
         ]
     }
 }

@@ -194,7 +194,7 @@ impl<T: SplatFloat> Op<T> for Rasterize<T> {
         }
         let bins = &saved.bins;
         let ntiles = bins.tiles_x * bins.tiles_y;
-        let (g_img, g_alpha, g_depth) = (
+        let (v_render_colors, v_render_alphas, v_render_depths) = (
             ctx.grad_outputs[0].data(),
             ctx.grad_outputs[1].data(),
             ctx.grad_outputs[2].data(),
@@ -208,52 +208,52 @@ impl<T: SplatFloat> Op<T> for Rasterize<T> {
                 let splats = gather_splats(bins.tile(t), ctx.inputs, bins);
                 let rect = tile_pixels(t, bins.tiles_x, self.width, self.height);
                 let mut inp = TileGrads {
-                    g_rgb: [
+                    v_render_colors: [
                         vec![T::zero(); NP],
                         vec![T::zero(); NP],
                         vec![T::zero(); NP],
                     ],
-                    g_alpha: vec![T::zero(); NP],
-                    g_depth: vec![T::zero(); NP],
+                    v_render_alphas: vec![T::zero(); NP],
+                    v_render_depths: vec![T::zero(); NP],
                     end: &saved.tiles[t],
                 };
                 for (k, p) in rect.pixels(w) {
                     for ch in 0..3 {
-                        inp.g_rgb[ch][k] = g_img[3 * p + ch];
+                        inp.v_render_colors[ch][k] = v_render_colors[3 * p + ch];
                     }
-                    inp.g_alpha[k] = g_alpha[p];
-                    inp.g_depth[k] = g_depth[p];
+                    inp.v_render_alphas[k] = v_render_alphas[p];
+                    inp.v_render_depths[k] = v_render_depths[p];
                 }
                 backward_tile(&splats, rect, self.cutoff, self.background, &inp)
             })
             .collect();
-        let mut dm = vec![T::zero(); 2 * n];
-        let mut dcon = vec![T::zero(); 3 * n];
-        let mut dcol = vec![T::zero(); 3 * n];
-        let mut dop = vec![T::zero(); n];
-        let mut ddep = vec![T::zero(); n];
+        let mut v_means2d = vec![T::zero(); 2 * n];
+        let mut v_conics = vec![T::zero(); 3 * n];
+        let mut v_colors = vec![T::zero(); 3 * n];
+        let mut v_opacities = vec![T::zero(); n];
+        let mut v_depths = vec![T::zero(); n];
         // Serial reduction in tile order: bit-identical for any thread count.
         for (t, grads) in per_tile.iter().enumerate() {
             for (&g, gr) in bins.tile(t).iter().zip(grads) {
                 let g = g as usize;
-                dm[2 * g] += gr[0];
-                dm[2 * g + 1] += gr[1];
-                dcon[3 * g] += gr[2];
-                dcon[3 * g + 1] += gr[3];
-                dcon[3 * g + 2] += gr[4];
-                dop[g] += gr[5];
-                dcol[3 * g] += gr[6];
-                dcol[3 * g + 1] += gr[7];
-                dcol[3 * g + 2] += gr[8];
-                ddep[g] += gr[9];
+                v_means2d[2 * g] += gr[0];
+                v_means2d[2 * g + 1] += gr[1];
+                v_conics[3 * g] += gr[2];
+                v_conics[3 * g + 1] += gr[3];
+                v_conics[3 * g + 2] += gr[4];
+                v_opacities[g] += gr[5];
+                v_colors[3 * g] += gr[6];
+                v_colors[3 * g + 1] += gr[7];
+                v_colors[3 * g + 2] += gr[8];
+                v_depths[g] += gr[9];
             }
         }
         vec![
-            Some(Tensor::from_vec(dm, &[n, 2])),
-            Some(Tensor::from_vec(dcon, &[n, 3])),
-            Some(Tensor::from_vec(dcol, &[n, 3])),
-            Some(Tensor::from_vec(dop, &[n])),
-            Some(Tensor::from_vec(ddep, &[n])),
+            Some(Tensor::from_vec(v_means2d, &[n, 2])),
+            Some(Tensor::from_vec(v_conics, &[n, 3])),
+            Some(Tensor::from_vec(v_colors, &[n, 3])),
+            Some(Tensor::from_vec(v_opacities, &[n])),
+            Some(Tensor::from_vec(v_depths, &[n])),
             None,
         ]
     }

@@ -172,31 +172,32 @@ impl<T: Float> Op<T> for ShColor<T> {
     fn backward(&self, ctx: &BackwardCtx<'_, T, ()>) -> Vec<Option<Tensor<T>>> {
         let (means, sh) = (ctx.inputs[0], ctx.inputs[1]);
         let out = ctx.outputs[0];
-        let g = &ctx.grad_outputs[0];
+        let v_colors = &ctx.grad_outputs[0];
         let n = means.rows();
         let k = sh.shape()[1];
         let nk = num_coeffs(self.degree);
-        let mut dm = vec![T::zero(); 3 * n];
-        let mut dsh = vec![T::zero(); sh.len()];
-        dm.par_chunks_mut(3)
-            .zip(dsh.par_chunks_mut(3 * k))
+        let mut v_means = vec![T::zero(); 3 * n];
+        let mut v_sh = vec![T::zero(); sh.len()];
+        v_means
+            .par_chunks_mut(3)
+            .zip(v_sh.par_chunks_mut(3 * k))
             .zip(sh.data().par_chunks(3 * k))
             .enumerate()
-            .for_each(|(i, ((dm, dsh), coeffs))| {
+            .for_each(|(i, ((v_means, v_sh), coeffs))| {
                 let (d, len) = self.dir(&means.data()[3 * i..3 * i + 3]);
                 let b = sh_basis(d);
                 let db = sh_basis_grad(d);
                 // The clamp max(v, 0) passes no gradient where it is active (v <= 0).
-                let gc: [T; 3] = std::array::from_fn(|ch| {
+                let v_color: [T; 3] = std::array::from_fn(|ch| {
                     if out.data()[3 * i + ch] > T::zero() {
-                        g.data()[3 * i + ch]
+                        v_colors.data()[3 * i + ch]
                     } else {
                         T::zero()
                     }
                 });
-                // d colour_c / d sh[j][c] = b_j; d colour / d dir = sum_j (sh[j] . gc) db_j.
-                let mut gd = [T::zero(); 3];
-                for (j, (ds, c)) in dsh
+                // d colour_c / d sh[j][c] = b_j; d colour / d dir = sum_j (sh[j] . v_color) db_j.
+                let mut v_dir = [T::zero(); 3];
+                for (j, (v_coeff, c)) in v_sh
                     .chunks_exact_mut(3)
                     .zip(coeffs.chunks_exact(3))
                     .take(nk)
@@ -204,22 +205,22 @@ impl<T: Float> Op<T> for ShColor<T> {
                 {
                     let mut wj = T::zero();
                     for ch in 0..3 {
-                        ds[ch] = b[j] * gc[ch];
-                        wj += c[ch] * gc[ch];
+                        v_coeff[ch] = b[j] * v_color[ch];
+                        wj += c[ch] * v_color[ch];
                     }
                     for a in 0..3 {
-                        gd[a] += wj * db[j][a];
+                        v_dir[a] += wj * db[j][a];
                     }
                 }
-                // d = v / |v|: dv = (gd - d (d . gd)) / |v|
-                let dot = d[0] * gd[0] + d[1] * gd[1] + d[2] * gd[2];
+                // d = v / |v|: dv = (v_dir - d (d . v_dir)) / |v|
+                let dot = d[0] * v_dir[0] + d[1] * v_dir[1] + d[2] * v_dir[2];
                 for a in 0..3 {
-                    dm[a] = (gd[a] - d[a] * dot) / len;
+                    v_means[a] = (v_dir[a] - d[a] * dot) / len;
                 }
             });
         vec![
-            Some(Tensor::from_vec(dm, &[n, 3])),
-            Some(Tensor::from_vec(dsh, sh.shape())),
+            Some(Tensor::from_vec(v_means, &[n, 3])),
+            Some(Tensor::from_vec(v_sh, sh.shape())),
         ]
     }
 }

@@ -5,10 +5,11 @@
 use clap::Parser;
 use maaf_autodiff::Var;
 use maaf_filter::{FilterConfig, SamplingFilter};
+use maaf_scene::TrainConfig;
 use maaf_train::Plugins;
 use maaf_train::loss::{Term, TermCtx};
 use maaf_train::models::{ModelInit, Representation};
-use maaf_train::trainer::{Strategy, TrainConfig};
+use maaf_train::trainer::Strategy;
 
 use super::command::{self, Cli};
 use crate::alloc;
@@ -91,7 +92,7 @@ impl Maaf {
     /// initial cloud. `eval`, `render`, `render-video`, `export-ply` and the test
     /// PSNR after `train` rebuild it the same way from a checkpoint (whose tensors
     /// then replace the parameters) to load its runs as a
-    /// [`maaf_train::scene::TrainedScene`]; `examples/custom_representation.rs`.
+    /// [`maaf_scene::TrainedScene`]; `examples/custom_representation.rs`.
     pub fn representation<F>(mut self, name: &str, factory: F) -> Self
     where
         F: Fn(&TrainConfig, &ModelInit) -> Result<Box<dyn Representation<f32>>, String>

@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use maaf_train::bench::{StepBenchOptions, bench_step, format_table, measure_peak};
-use maaf_train::eval::load_run;
+use maaf_train::load_run;
 use maaf_train::trainer::MAX_BATCH;
 
 /// Arguments of `maaf bench`.

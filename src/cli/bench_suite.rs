@@ -3,7 +3,7 @@
 //! 1/4x..4x on the scene's evaluation split), written as a job list like `maaf sweep`
 //! (`jobs.txt`, one `train && eval` line per run, so scenes can run on several
 //! machines) and, without `--jobs-only`, run here one at a time, skipping evaluated runs
-//! and resuming interrupted ones. Then one report ([`maaf_train::report::suite`]):
+//! and resuming interrupted ones. Then one report ([`maaf_eval::report::suite`]):
 //! the paper's Tab. 2 layout with the published rows beside maaf's.
 
 use std::fmt::Write as _;
@@ -11,11 +11,11 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use anyhow::{Context, bail};
+use maaf_eval::report::suite::{SuiteRun, write_suite_report};
 use maaf_filter::FilterKind;
-use maaf_train::report::suite::{SuiteRun, write_suite_report};
+use maaf_scene::TrainConfig;
+use maaf_scene::write_atomic;
 use maaf_train::sweep::shell_quote;
-use maaf_train::trainer::TrainConfig;
-use maaf_train::write_atomic;
 use serde::{Deserialize, Serialize};
 
 use super::train::{FilterArg, SettingsArgs, config_from};

@@ -5,8 +5,8 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, bail};
+use maaf_scene::write_atomic;
 use maaf_train::data::{Dataset, DatasetOptions, Split};
-use maaf_train::write_atomic;
 
 /// Arguments of `maaf cameras`.
 #[derive(clap::Args, Debug)]

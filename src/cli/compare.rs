@@ -1,16 +1,16 @@
 //! `maaf compare`: PSNR, SSIM and LPIPS of two images, with the conventions of
 //! `maaf eval` (values `v / 255` on [0, 1], no gamma change, straight alpha composited
-//! on the background, PSNR and SSIM of [`maaf_train::metrics`], LPIPS of
+//! on the background, PSNR and SSIM of [`maaf_eval::metrics`], LPIPS of
 //! [`maaf_lpips`] on RGB at the images' own size).
 
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use maaf_autodiff::Tensor;
+use maaf_eval::metrics::{psnr, ssim};
 use maaf_lpips::Lpips;
 use maaf_train::data::downsample::{composite_premultiplied, premultiply};
 use maaf_train::data::image::decode_rgba;
-use maaf_train::metrics::{psnr, ssim};
 use serde_json::json;
 
 use super::Background;

@@ -7,11 +7,12 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::Context;
+use maaf_eval::{EvalOptions, evaluate_run};
 use maaf_filter::FilterKind;
+use maaf_scene::TrainConfig;
 use maaf_train::data::synthetic::{self, GenerateOptions};
 use maaf_train::data::{Dataset, DatasetOptions, Split};
-use maaf_train::eval::{EvalOptions, evaluate_run};
-use maaf_train::trainer::{TrainConfig, train_run};
+use maaf_train::trainer::train_run;
 
 /// Arguments of `maaf demo`.
 #[derive(clap::Args, Debug)]
@@ -174,13 +175,13 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         let cells: Vec<String> = report
             .scales
             .iter()
-            .map(|s| format!("{}x {:.2}", maaf_train::eval::trim_float(s.scale), s.psnr))
+            .map(|s| format!("{}x {:.2}", maaf_eval::trim_float(s.scale), s.psnr))
             .collect();
         println!("demo: {label}: PSNR {}", cells.join("  "));
         runs.push(run_dir);
     }
     let report_dir = args.out.join("report");
-    let report = maaf_train::report::write_report(&runs, &report_dir)?;
+    let report = maaf_eval::report::write_report(&runs, &report_dir)?;
     println!("\n{}", report.table);
     println!(
         "demo finished in {:.0} s; report: {}",

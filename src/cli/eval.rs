@@ -4,14 +4,14 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::bail;
+use maaf_eval::render::recorded_data;
+use maaf_scene::{ModelRegistry, SceneRecord, TrainedScene};
 use maaf_train::data::{Dataset, DatasetOptions, Split, WHITE};
-use maaf_train::eval::render::recorded_data;
-use maaf_train::scene::{ModelRegistry, SceneRecord, TrainedScene};
 
 use super::Background;
-use maaf_train::eval::{EvalOptions, evaluate_run_with, scale_label};
+use maaf_eval::{EvalOptions, evaluate_run_with, scale_label};
 
-/// [`maaf_train::eval::DEFAULT_SCALES`] as `--scales` takes them (comma-separated), so `--help` shows
+/// [`maaf_eval::DEFAULT_SCALES`] as `--scales` takes them (comma-separated), so `--help` shows
 /// a default that can be typed back.
 pub const DEFAULT_SCALES_ARG: &str = "0.25,0.5,1,2,4";
 
@@ -119,7 +119,7 @@ pub fn load_scene(
             Some(d) => d,
             None => {
                 opened = open_run_data(run, data_dir, background)
-                    .map_err(|e| maaf_train::Error::Input(e.to_string()))?;
+                    .map_err(|e| maaf_scene::Error::Input(e.to_string()))?;
                 &opened
             }
         };
@@ -193,7 +193,7 @@ pub fn run(args: &EvalArgs, models: &ModelRegistry) -> anyhow::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use maaf_train::eval::DEFAULT_SCALES;
+    use maaf_eval::DEFAULT_SCALES;
 
     #[test]
     fn the_scales_default_as_typed_is_the_library_default() {

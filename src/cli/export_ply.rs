@@ -7,11 +7,11 @@
 use std::path::PathBuf;
 
 use anyhow::bail;
-use maaf_train::eval::export::{
+use maaf_eval::export::{
     check_sequence_target, export_frame, export_sequence, export_sequence_zip, is_zip_path,
 };
 
-use maaf_train::scene::ModelRegistry;
+use maaf_scene::ModelRegistry;
 
 use super::Background;
 use super::eval::{load_scene, read_lock};

@@ -4,17 +4,17 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, bail};
+use maaf_eval::camera_path::Rig;
+use maaf_eval::images::{save_png, to_rgb8};
+use maaf_eval::render::render_video;
+use maaf_eval::{frame_times, run_camera};
+use maaf_scene::TrainedScene;
 use maaf_splat::Camera;
 use maaf_train::data::{Dataset, Split};
-use maaf_train::eval::camera_path::Rig;
-use maaf_train::eval::images::{save_png, to_rgb8};
-use maaf_train::eval::render::render_video;
-use maaf_train::eval::{frame_times, run_camera};
-use maaf_train::scene::TrainedScene;
 
 use super::Background;
 use super::eval::{load_scene, open_run_data, read_lock};
-use maaf_train::scene::ModelRegistry;
+use maaf_scene::ModelRegistry;
 
 /// Where the camera comes from (shared by `render` and `render-video`).
 #[derive(clap::Args, Debug)]

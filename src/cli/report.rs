@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use maaf_train::report::write_report;
+use maaf_eval::report::write_report;
 
 /// Arguments of `maaf report`.
 #[derive(clap::Args, Debug)]

@@ -6,8 +6,8 @@ use std::fmt::Write as _;
 use std::path::PathBuf;
 
 use anyhow::{Context, bail};
+use maaf_scene::write_atomic;
 use maaf_train::sweep::{Axis, Layout, points, shell_quote};
-use maaf_train::write_atomic;
 
 use super::train::{SettingsArgs, config_from};
 

@@ -3,14 +3,14 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
+use maaf_eval::metrics::psnr;
+use maaf_eval::render::recorded_data;
 use maaf_filter::FilterKind;
+use maaf_scene::{TrainConfig, TrainedScene};
 use maaf_train::Plugins;
 use maaf_train::data::{Dataset, DatasetOptions, Split};
-use maaf_train::eval::render::recorded_data;
-use maaf_train::metrics::psnr;
 use maaf_train::models::ModelConfig;
-use maaf_train::scene::TrainedScene;
-use maaf_train::trainer::{TrainConfig, branch_run_with_plugins, train_run_with_plugins};
+use maaf_train::trainer::{branch_run_with_plugins, train_run_with_plugins};
 
 use super::Background;
 

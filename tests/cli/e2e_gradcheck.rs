@@ -6,9 +6,9 @@
 use maaf::autodiff::check::{GradcheckConfig, gradcheck, tests_support::random_tensor};
 use maaf::autodiff::{BackwardCtx, Op, Tape, Tensor, Var};
 use maaf::filter::FilterState;
+use maaf::scene::forward::{forward, forward_bound};
 use maaf::splat::{AlphaCutoff, Camera, Filter2d, RenderSettings};
-use maaf::train::forward::{batch_mean, forward, forward_bound};
-use maaf::train::loss::Objective;
+use maaf::train::loss::{ForwardTerms, Objective, batch_mean};
 use maaf::train::models::{KPlaneConfig, PointCloud, Representation, SaroConfig, SaroModel};
 use maaf::train::params::BoundParams;
 

@@ -202,7 +202,7 @@ fn resize_for_bench(trainer: &mut Trainer, gaussians: usize, opts: &StepBenchOpt
 }
 
 /// Times `opts.iterations` training steps of the trained run `trainer` (see
-/// [`crate::eval::load_run`]) at `gaussians` Gaussians; also returns the op profile
+/// [`crate::load_run`]) at `gaussians` Gaussians; also returns the op profile
 /// of the timed steps. The filter is recomputed once for the resized model, untimed.
 pub fn bench_step(
     mut trainer: Trainer,

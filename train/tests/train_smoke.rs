@@ -82,7 +82,7 @@ fn loss_falls_with_every_filter_and_representation() {
         ("deform", FilterKind::Motion),
     ];
     for (kind, filter) in runs {
-        let mut t = Trainer::new(&data, tiny_config_of(kind, filter)).expect("trainer");
+        let mut t = Trainer::new(&data, tiny_config_of(kind, filter.clone())).expect("trainer");
         let mut first = Vec::new();
         let mut last = Vec::new();
         for i in 0..60 {
@@ -172,6 +172,8 @@ fn resume_is_bit_identical_for(data: &Dataset, kind: &str, cfg: TrainConfig) {
     }
     let grouped = straight
         .model
+        .hooks()
+        .expect("deform has hooks")
         .buffers()
         .iter()
         .any(|(n, _)| n == "group_flow/labels");
@@ -397,7 +399,7 @@ fn one_plan_resizes_every_container_in_lock_step() {
         );
     }
     // The planned centres and scales landed in the new rows.
-    let canon = t.model.canonical();
+    let canon = t.canonical();
     for (j, &r) in new_rows.iter().enumerate() {
         assert_eq!(
             &canon.means.data()[3 * r..3 * r + 3],
@@ -438,14 +440,14 @@ fn sensitivity_pruning_removes_the_lowest_scores_at_its_iteration() {
         assert!(scores.iter().all(|s| s.is_finite() && *s >= 0.0));
         assert!(scores.iter().any(|&s| s > 0.0), "{kind}: every score is 0");
         let keep = keep_highest(&scores, 0.5);
-        let xyz = t.model.canonical().means;
+        let xyz = t.canonical().means;
         let grad_accum = t.stats.grad_accum.clone();
         t.schedule();
         assert_eq!(t.num_gaussians(), keep.len(), "{kind}");
         assert_eq!(keep.len(), n - n / 2);
         assert_eq!(t.filter.rows(), keep.len());
         assert_eq!(t.observations.rows(), keep.len());
-        let after = t.model.canonical().means;
+        let after = t.canonical().means;
         for (r, &i) in keep.iter().enumerate() {
             assert_eq!(
                 &after.data()[3 * r..3 * r + 3],
@@ -589,9 +591,8 @@ fn a_branch_continues_a_checkpoint_with_its_own_settings() {
     assert_eq!(grouped.config, grouped_cfg);
     let fitted = |t: &Trainer| {
         t.model
-            .buffers()
-            .iter()
-            .any(|(n, _)| n == "group_flow/labels")
+            .hooks()
+            .is_some_and(|h| h.buffers().iter().any(|(n, _)| n == "group_flow/labels"))
     };
     assert!(fitted(&grouped), "groups fitted when the branch loads");
     for _ in 25..30 {

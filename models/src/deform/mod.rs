@@ -49,9 +49,9 @@ use std::sync::Arc;
 
 use maaf_autodiff::nn::Mlp;
 use maaf_autodiff::optim::LrSchedule;
-use maaf_autodiff::{Float, PerGaussian, Tape, Tensor};
+use maaf_autodiff::{Float, Tape, Tensor};
 
-use super::{Bound, CanonicalIds, InitialGaussians, PointCloud, Representation};
+use super::{Bound, CanonicalIds, InitialGaussians, PointCloud, Representation, TrainingHooks};
 use crate::params::{BoundParams, MlpParams, ParamId, ParamStore, Rows};
 
 pub use bound::DeformBound;
@@ -318,16 +318,29 @@ impl<T: Float> Representation<T> for DeformModel<T> {
         }
     }
 
-    fn select_rows(&mut self, index: &[usize]) {
-        self.params.select_rows(index);
+    /// GroupFlow's tables, once fitted ([`TrainingHooks`]).
+    fn hooks(&self) -> Option<&dyn TrainingHooks<T>> {
+        Some(self)
+    }
+
+    fn hooks_mut(&mut self) -> Option<&mut dyn TrainingHooks<T>> {
+        Some(self)
+    }
+}
+
+/// GroupFlow's tables: per-Gaussian state outside the store (each Gaussian's group and
+/// knot-0 residuals), resized with the rows, counted in the model's size and carried
+/// in checkpoints as buffers. Nothing before the groups are fitted.
+impl<T: Float> TrainingHooks<T> for DeformModel<T> {
+    fn select_state_rows(&mut self, index: &[usize]) {
         if let Some(g) = &mut self.grouped {
             Arc::make_mut(g).select_rows(index);
         }
     }
 
-    /// Parameters plus the GroupFlow tables once fitted.
-    fn num_scalars(&self) -> usize {
-        self.params.num_scalars() + self.grouped.as_ref().map_or(0, |g| g.num_scalars())
+    /// The GroupFlow tables once fitted.
+    fn state_scalars(&self) -> usize {
+        self.grouped.as_ref().map_or(0, |g| g.num_scalars())
     }
 
     fn buffers(&self) -> Vec<(String, Tensor<T>)> {

@@ -177,7 +177,7 @@ fn deformed_gaussians_match_a_per_gaussian_loop_for_every_network_shape() {
 #[test]
 fn zero_head_and_warm_up_render_the_canonical_gaussians() {
     let mut m = tiny_model::<f32>(tiny_config(), 30, 1);
-    let canon = m.canonical();
+    let canon = m.params.canonical(m.canonical_ids());
     for dynamic in [false, true] {
         m.set_iteration(if dynamic { 7 } else { 6 });
         assert_eq!(m.is_dynamic(), dynamic);

@@ -30,7 +30,6 @@ mod tests_residuals;
 
 use std::sync::Arc;
 
-use maaf_autodiff::PerGaussian;
 use maaf_autodiff::nn::Mlp;
 use maaf_autodiff::optim::LrSchedule;
 use maaf_autodiff::{Float, Tape, Tensor};
@@ -38,7 +37,7 @@ use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 
 use super::kplane::{KPlaneField, PLANE_NAMES};
-use super::{Bound, CanonicalIds, InitialGaussians, PointCloud, Representation};
+use super::{Bound, CanonicalIds, InitialGaussians, PointCloud, Representation, TrainingHooks};
 use crate::params::{BoundParams, MlpParams, ParamId, ParamStore, Rows};
 
 pub use bound::{Norm2, SaroBound};
@@ -309,6 +308,60 @@ impl<T: Float> Representation<T> for SaroModel<T> {
         }
     }
 
+    /// `x + MLP_x(\[f, PE(t - mu_t)])` per time, with the field queried once and only
+    /// the motion MLP evaluated (one small scratch tape per time, so memory stays
+    /// O(N H)). In the static stage the centres do not move.
+    fn centres_at_times(&self, times: &[f64]) -> Vec<Tensor<T>> {
+        let xyz = self.params.value(self.ids.xyz);
+        if !self.dynamic {
+            return times.iter().map(|_| xyz.clone()).collect();
+        }
+        let features = self.features_now();
+        let t_centre = self.params.value(self.ids.t_centre);
+        times
+            .iter()
+            .map(|&time| {
+                let tape = Tape::<T>::new();
+                let dt = t_centre
+                    .data()
+                    .iter()
+                    .map(|&m| time - Float::to_f64(m))
+                    .collect();
+                let h = saro_input(
+                    tape.constant(features.clone()),
+                    SaroInput {
+                        rows: (0..xyz.rows()).collect(),
+                        dt,
+                        freqs: self.config.time_freqs,
+                    },
+                );
+                let dx = self
+                    .ids
+                    .motion
+                    .bind_constants(&self.params, &tape)
+                    .forward(h);
+                // The binding ends the borrow of the tape before the tape is dropped.
+                #[allow(clippy::let_and_return)]
+                let centres = (tape.constant(xyz.clone()) + dx).value().clone();
+                centres
+            })
+            .collect()
+    }
+
+    /// SaRO's adaptive optimisation and temporal pruning ([`TrainingHooks`]).
+    fn hooks(&self) -> Option<&dyn TrainingHooks<T>> {
+        Some(self)
+    }
+
+    fn hooks_mut(&mut self) -> Option<&mut dyn TrainingHooks<T>> {
+        Some(self)
+    }
+}
+
+/// The adaptive scale (per-Gaussian learning-rate and densification-statistic
+/// multipliers, kept as a checkpoint buffer and resized with the rows) and the
+/// temporal pruning.
+impl<T: Float> TrainingHooks<T> for SaroModel<T> {
     /// The adaptive scale for centre, opacity, temporal centre, rotation and SH DC
     /// (while densifying, or always with `adaptive_after_densify`) and for the
     /// log-scale (while densifying only: SaRO-GS stops it then "to ensure stability").
@@ -357,10 +410,9 @@ impl<T: Float> Representation<T> for SaroModel<T> {
         Ok(())
     }
 
-    /// Resizes the parameters and the adaptive scale (a clone or split half keeps
-    /// its parent's scale until the next refresh).
-    fn select_rows(&mut self, index: &[usize]) {
-        self.params.select_rows(index);
+    /// Resizes the adaptive scale (a clone or split half keeps its parent's scale
+    /// until the next refresh).
+    fn select_state_rows(&mut self, index: &[usize]) {
         if let Some(a) = &self.adaptive {
             self.adaptive = Some(index.iter().map(|&i| a[i]).collect());
         }
@@ -379,46 +431,6 @@ impl<T: Float> Representation<T> for SaroModel<T> {
             .enumerate()
             .filter(|&(_, &i)| i.is_nan() || i < min)
             .map(|(k, _)| k)
-            .collect()
-    }
-
-    /// `x + MLP_x(\[f, PE(t - mu_t)])` per time, with the field queried once and only
-    /// the motion MLP evaluated (one small scratch tape per time, so memory stays
-    /// O(N H)). In the static stage the centres do not move.
-    fn centres_at_times(&self, times: &[f64]) -> Vec<Tensor<T>> {
-        let xyz = self.params.value(self.ids.xyz);
-        if !self.dynamic {
-            return times.iter().map(|_| xyz.clone()).collect();
-        }
-        let features = self.features_now();
-        let t_centre = self.params.value(self.ids.t_centre);
-        times
-            .iter()
-            .map(|&time| {
-                let tape = Tape::<T>::new();
-                let dt = t_centre
-                    .data()
-                    .iter()
-                    .map(|&m| time - Float::to_f64(m))
-                    .collect();
-                let h = saro_input(
-                    tape.constant(features.clone()),
-                    SaroInput {
-                        rows: (0..xyz.rows()).collect(),
-                        dt,
-                        freqs: self.config.time_freqs,
-                    },
-                );
-                let dx = self
-                    .ids
-                    .motion
-                    .bind_constants(&self.params, &tape)
-                    .forward(h);
-                // The binding ends the borrow of the tape before the tape is dropped.
-                #[allow(clippy::let_and_return)]
-                let centres = (tape.constant(xyz.clone()) + dx).value().clone();
-                centres
-            })
             .collect()
     }
 }

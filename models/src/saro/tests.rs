@@ -1,6 +1,6 @@
-use maaf_autodiff::Var;
 use maaf_autodiff::check::{GradcheckConfig, gradcheck, tests_support::random_tensor};
 use maaf_autodiff::nn::Linear;
+use maaf_autodiff::{PerGaussian, Var};
 
 use super::*;
 use crate::KPlaneConfig;
@@ -46,7 +46,7 @@ fn zero_heads_give_the_canonical_scene_times_the_temporal_factor() {
     // Random planes so that the field, the lifespans and the MLP hidden layers are
     // all non-trivial; only the zero output layers keep the residuals at zero.
     randomise_planes(&mut model, -1.0, 1.0, 7);
-    let canon = model.canonical();
+    let canon = model.params.canonical(model.canonical_ids());
     let lifespans = model.lifespans();
     let tape = Tape::new();
     let bound = bind_tape(&model, &tape);
@@ -188,8 +188,8 @@ fn select_rows_resizes_every_per_gaussian_parameter_in_lock_step() {
     let before = model.clone();
     // Prune 1 and 3, clone 2, split 4 into two rows.
     let index = [0, 2, 2, 4, 4];
-    model.select_rows(&index);
-    assert_eq!(model.num_gaussians(), 5);
+    (&mut model as &mut dyn Representation<_>).select_rows(&index);
+    assert_eq!(model.params.gaussians(), Some(5));
     for (new, old) in model.params.iter().zip(before.params.iter()) {
         if new.rows == Rows::Shared {
             assert_eq!(new.value, old.value, "{} must not change", new.name);
@@ -210,8 +210,11 @@ fn select_rows_resizes_every_per_gaussian_parameter_in_lock_step() {
     let means = Tensor::from_vec(vec![0.1, 0.2, 0.3, -0.1, -0.2, -0.3], &[2, 3]);
     let scales = Tensor::from_vec(vec![0.01, 0.02, 0.03, 0.04, 0.05, 0.06], &[2, 3]);
     let kept = model.clone();
-    model.set_rows(&[3, 4], &means, &scales);
-    let c = model.canonical();
+    let ids = model.canonical_ids();
+    model
+        .params
+        .set_canonical_rows(ids, &[3, 4], &means, &scales);
+    let c = model.params.canonical(ids);
     assert_eq!(&c.means.data()[9..15], means.data());
     for (a, b) in c.scales.data()[9..15].iter().zip(scales.data()) {
         assert!((a - b).abs() <= 1e-15 * b, "exp(ln s) round trip");
@@ -327,7 +330,7 @@ fn adaptive_scale_is_the_longest_integral_over_each_and_follows_the_schedule() {
     assert!(model.lr_row_scale("log_scale", false).is_none());
     // Densification carries each row's scale to its clones; a checkpoint buffer
     // restores it; the static stage and `adaptive_every = 0` turn it off.
-    model.select_rows(&[7, 0, 0]);
+    (&mut model as &mut dyn Representation<_>).select_rows(&[7, 0, 0]);
     assert_eq!(
         &model.densify_grad_scale().expect("resized")[..],
         &[scale[7], scale[0], scale[0]]
@@ -436,7 +439,7 @@ fn cost_report() {
         let mut mlps = vec![&model.ids.motion, &model.ids.rot, &model.ids.life];
         mlps.extend(model.ids.sh.as_ref());
         let mlp_scalars: usize = mlps.iter().map(|m| m.num_params(&model.params)).sum();
-        let per_gaussian = (model.num_scalars() - field - mlp_scalars) / n;
+        let per_gaussian = (model.params.num_scalars() - field - mlp_scalars) / n;
         println!(
             "{label}: planes {field} scalars ({:.2} MB f32), MLPs {mlp_scalars} ({:.2} MB), \
              {per_gaussian} scalars per Gaussian ({:.2} MB at N = {n}); Adam triples all",
@@ -539,7 +542,8 @@ fn centres_at_times_equal_the_deformed_means_of_present_gaussians() {
 fn the_trainer_can_hold_any_representation_as_a_trait_object() {
     let model: Box<dyn Representation<f32>> = Box::new(tiny_model::<f32>(3, 2));
     assert_eq!(model.name(), "saro");
-    assert_eq!(model.num_gaussians(), 3);
+    assert_eq!(model.rows(), 3);
+    assert!(model.hooks().is_some());
     assert_eq!(model.regularisers(), vec![("l_sr".to_string(), 8e-6)]);
     let tape = Tape::new();
     let params = model.params().bind(&tape);

@@ -24,13 +24,16 @@
 //! ```
 
 pub mod builtin;
+mod forward_terms;
 mod registry;
 pub mod ssim;
 mod terms;
 
 use maaf_autodiff::{Float, Var};
 
-pub use registry::{RESERVED, TermMaker, TermRegistry, name_problem};
+pub use forward_terms::{ForwardTerms, batch_mean};
+pub use maaf_scene::{RESERVED, name_problem};
+pub use registry::{TermMaker, TermRegistry};
 pub use ssim::{Ssim, SsimOutput, ssim, ssim_map};
 pub use terms::{DSsim, FnTerm, L1, Provided, Term, TermCtx};
 

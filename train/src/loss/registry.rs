@@ -10,42 +10,10 @@ use std::sync::Arc;
 use maaf_autodiff::{Float, Var};
 
 use super::builtin::{self, DepthTv, OpacityEntropy, ScaleAnisotropy};
-use super::{FnTerm, Term, TermCtx};
+use super::{FnTerm, Term, TermCtx, name_problem};
 
 /// Makes the term registered under a name, given the weight the config gives it.
 pub type TermMaker<T> = dyn Fn(f64) -> Box<dyn Term<T>> + Send + Sync;
-
-/// Names a config may not give a term: the photometric terms and the other columns
-/// of `log.csv`.
-pub const RESERVED: [&str; 8] = [
-    "l1",
-    "dssim",
-    "iteration",
-    "total",
-    "num_gaussians",
-    "elapsed_seconds",
-    "skipped_steps",
-    "val_psnr",
-];
-
-/// Why `name` cannot name a term, if it cannot: it must be 1 to 64 ASCII letters,
-/// digits or `_` (it becomes a `log.csv` column) and not one of [`RESERVED`].
-pub fn name_problem(name: &str) -> Option<String> {
-    let ok = !name.is_empty()
-        && name.len() <= 64
-        && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
-    if !ok {
-        Some(format!(
-            "`{name}` is not a term name (1 to 64 letters, digits or _)"
-        ))
-    } else if RESERVED.contains(&name) {
-        Some(format!(
-            "`{name}` is reserved (the photometric loss or a log.csv column)"
-        ))
-    } else {
-        None
-    }
-}
 
 /// Term makers by name (module docs). Cloning shares the makers.
 pub struct TermRegistry<T: Float> {

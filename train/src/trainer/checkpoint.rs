@@ -12,52 +12,20 @@ use std::path::Path;
 
 use maaf_autodiff::Tensor;
 use maaf_autodiff::optim::Moments;
-use maaf_filter::FilterState;
 use safetensors::{Dtype, tensor::TensorView};
-use serde::{Deserialize, Serialize};
 
-use super::checkpoint_read::{Opened, tensor};
-use super::{DensifyStats, Liveness, Timings, TrainConfig, Trainer};
+use super::{DensifyStats, Liveness, Trainer};
 use crate::data::Dataset;
 use crate::loss::TermRegistry;
 use crate::params::Rows;
+use crate::scene::checkpoint_read::{BUFFER, Opened, State, bytes_of, tensor};
 use crate::{Error, Plugins};
-
-/// Non-tensor state of a run.
-#[derive(Serialize, Deserialize)]
-pub(crate) struct State {
-    /// The representation's name: a checkpoint loads only into the same kind.
-    pub(crate) model: String,
-    pub(crate) iteration: usize,
-    pub(crate) skipped_steps: usize,
-    pub(crate) last_reset: Option<usize>,
-    pub(crate) num_gaussians: usize,
-    pub(crate) config: TrainConfig,
-    pub(crate) filter: FilterState,
-    pub(crate) timings: Timings,
-    pub(crate) adam_steps: HashMap<String, u64>,
-    /// The densification strategy's own state ([`super::Strategy::state`]); absent
-    /// when it keeps none, and in checkpoints written before it existed.
-    #[serde(default, skip_serializing_if = "serde_json::Value::is_null")]
-    pub(crate) strategy: serde_json::Value,
-    /// CRC-32 of `tensors.safetensors` as 8 hex digits; absent in checkpoints written
-    /// before it existed (loaded unchecked).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub(crate) tensors_crc32: Option<String>,
-}
 
 /// Per Gaussian (u32), the last iteration with an opacity gradient
 /// ([`super::Liveness`]); absent in checkpoints written before it existed.
 const LAST_GRAD: &str = "liveness/last_grad";
 /// Per Gaussian, 1 where the last opacity reset lowered the opacity, else 0.
 const LOWERED: &str = "liveness/lowered";
-
-/// Prefix of the representation's buffers ([`crate::models::Representation::buffers`]).
-pub(super) const BUFFER: &str = "buffer/";
-
-pub(crate) fn bytes_of(data: &[f32]) -> Vec<u8> {
-    data.iter().flat_map(|v| v.to_le_bytes()).collect()
-}
 
 /// Writes the trainer's full state to the folder `dir` atomically (temp folder, then
 /// swap; an existing `dir` stays readable until the new one is complete).
@@ -84,7 +52,8 @@ pub fn save_checkpoint(trainer: &Trainer, dir: &Path) -> Result<(), Error> {
             adam_steps.insert(name.to_string(), m.steps);
         }
     }
-    for (name, value) in trainer.model.buffers() {
+    let buffers = trainer.model.hooks().map_or_else(Vec::new, |h| h.buffers());
+    for (name, value) in buffers {
         named.push((
             format!("{BUFFER}{name}"),
             value.shape().to_vec(),

@@ -6,7 +6,7 @@ use maaf_autodiff::{PerGaussian, Tensor};
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
 
-use super::config::DensifyConfig;
+use super::DensifyConfig;
 use crate::models::Representation;
 
 /// One view's part of [`DensifyStats::record_views`]: the cotangent of its screen
@@ -131,7 +131,7 @@ pub struct DensifyPlan {
 ///   short-lived; a pruned Gaussian is neither cloned nor split;
 /// - growth stops at `max_gaussians`, taking the largest gradients first;
 /// - the mean gradient is first multiplied by the representation's
-///   [`Representation::densify_grad_scale`] (SaRO: the adaptive-optimisation scale).
+///   [`TrainingHooks::densify_grad_scale`](crate::models::TrainingHooks::densify_grad_scale) (SaRO: the adaptive-optimisation scale).
 pub fn plan(
     model: &dyn Representation<f32>,
     stats: &DensifyStats,
@@ -140,16 +140,17 @@ pub fn plan(
     big_screen: bool,
     seed: u64,
 ) -> DensifyPlan {
-    let canon = model.canonical();
-    let n = model.num_gaussians();
+    let canon = model.params().canonical(model.canonical_ids());
+    let n = model.rows();
+    let hooks = model.hooks();
     let mut grad = stats.mean_grad();
-    if let Some(scale) = model.densify_grad_scale() {
+    if let Some(scale) = hooks.and_then(|h| h.densify_grad_scale()) {
         for (g, s) in grad.iter_mut().zip(scale.iter()) {
             *g *= s;
         }
     }
     let mut prune = vec![false; n];
-    for i in model.short_lived() {
+    for i in hooks.map_or_else(Vec::new, |h| h.short_lived()) {
         prune[i] = true;
     }
     let max_scale = |i: usize| {

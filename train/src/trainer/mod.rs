@@ -10,8 +10,6 @@
 //! a run directory.
 
 mod checkpoint;
-mod checkpoint_read;
-mod config;
 mod densify;
 mod health;
 mod log;
@@ -22,28 +20,27 @@ mod resume;
 mod run;
 mod step;
 mod strategy;
-mod timings;
 mod validation;
 
 use maaf_autodiff::optim::{Adam, AdamConfig};
 use maaf_autodiff::{OpProfile, PerGaussian, Tensor};
 use maaf_filter::{CameraTime, FilterState, ObservationTable, SamplingFilter};
 use maaf_splat::Camera;
-use rand::{RngExt, SeedableRng};
-use rand_pcg::Pcg64;
 
-pub(crate) use checkpoint::bytes_of;
 pub use checkpoint::{
     checkpoint_iteration, load_checkpoint, load_checkpoint_with_plugins,
     load_checkpoint_with_terms, save_checkpoint,
 };
-pub(crate) use checkpoint_read::Opened;
-pub use config::{DensifyConfig, MAX_BATCH, OpacityReset, PruneConfig, TrainConfig};
 pub use densify::{DensifyPlan, DensifyStats, ViewGrad, plan as plan_densify};
+/// The run's configuration, its timings and what it starts from: `maaf-scene` types,
+/// here under the trainer's paths.
+pub use maaf_scene::{
+    DensifyConfig, MAX_BATCH, OpacityReset, PruneConfig, Timings, TrainConfig, camera_extent,
+    model_init, repair_run_dir,
+};
 pub use prune::{keep_highest, removal_sensitivity};
-pub(crate) use refresh::{centres, observed_views};
 pub use reset::{Liveness, opacity_caps};
-pub use resume::{checkpoints_newest_first, load_newest, repair_run_dir, truncate_log};
+pub use resume::{checkpoints_newest_first, load_newest, truncate_log};
 pub use run::{
     RunSummary, branch_run, branch_run_with_plugins, branch_run_with_terms, checkpoint_dir,
     train_run, train_run_with, train_run_with_plugins, train_run_with_terms,
@@ -52,12 +49,11 @@ pub use strategy::{
     DefaultStrategy, SensitivityPruning, StepInfo, Strategy, StrategyMaker, StrategyRegistry,
     for_config as strategy_for_config,
 };
-pub use timings::Timings;
 
-use crate::data::{Dataset, View};
+use crate::data::Dataset;
 use crate::loss::{Objective, TermRegistry};
-use crate::models::{ModelInit, PointCloud, Representation};
-use crate::scene::{SceneRecord, TrainedScene};
+use crate::models::{Canonical, Representation};
+use crate::scene::{SceneRecord, TrainedScene, observed_views, training_views};
 use crate::{Error, Plugins};
 
 /// A trainer: the model, its optimiser, the filter and every per-Gaussian container,
@@ -128,87 +124,6 @@ pub struct Trainer {
     background: [f32; 3],
     /// `(min, max)` of the data set's time stamps (the scene record's).
     time_range: (f64, f64),
-}
-
-/// Radius of the sphere around the mean camera centre that holds every camera,
-/// times 1.1 (3DGS `getNerfppNorm`): the scene extent that scales position learning
-/// rates and the clone/split boundary.
-pub fn camera_extent(cameras: &[Camera]) -> f64 {
-    let n = cameras.len().max(1) as f64;
-    let c = cameras
-        .iter()
-        .map(|c| c.center())
-        .fold(glam::DVec3::ZERO, |a, b| a + b)
-        / n;
-    1.1 * cameras
-        .iter()
-        .map(|cam| (cam.center() - c).length())
-        .fold(0.0, f64::max)
-}
-
-/// The training views of `data` at the config's scale, or an error naming the folder.
-fn training_views(data: &Dataset, config: &TrainConfig) -> Result<Vec<View>, Error> {
-    let views = data
-        .train_views(config.train_scale)
-        .map_err(|e| Error::Input(e.to_string()))?;
-    if views.is_empty() {
-        return Err(Error::Input(format!(
-            "{}: no training views",
-            data.root().display()
-        )));
-    }
-    Ok(views)
-}
-
-/// What a representation of a run on `data` is initialised from: the data set's own
-/// point cloud (`points3d.ply`, [`crate::data::points`]) subsampled to at most
-/// `init_points`, as 3DGS-family loaders use it when present, or the visual hull of
-/// its foreground masks ([`Dataset::initial_cloud`]); otherwise
-/// `init_points` random points in the data set's scene bounds with random colours
-/// (as SaRO-GS and Deformable-3DGS initialise synthetic D-NeRF scenes). Plus the
-/// camera extent, the seed and the number of distinct training times. The same for
-/// every representation, so a user's model starts from the same cloud as the
-/// built-in one.
-pub fn model_init(data: &Dataset, config: &TrainConfig) -> Result<ModelInit, Error> {
-    let views = training_views(data, config)?;
-    let cloud = match data
-        .initial_cloud(config.init_points, config.hull_fraction, config.seed)
-        .map_err(|e| Error::Input(e.to_string()))?
-    {
-        Some(init) => {
-            eprintln!("maaf: initial points: {}", init.description);
-            init.cloud
-        }
-        None => random_cloud(data, config),
-    };
-    let cameras: Vec<Camera> = views.iter().map(|v| v.camera.clone()).collect();
-    let mut times: Vec<f64> = views.iter().map(|v| v.time).collect();
-    times.sort_by(f64::total_cmp);
-    times.dedup();
-    Ok(ModelInit {
-        cloud,
-        extent: camera_extent(&cameras),
-        seed: config.seed,
-        frames: times.len(),
-    })
-}
-
-/// `init_points` points uniform in the data set's scene bounds, colours uniform in
-/// \[0, 1], from the run's seed.
-fn random_cloud(data: &Dataset, config: &TrainConfig) -> PointCloud {
-    let bounds = data.scene_bounds();
-    let mut rng = Pcg64::seed_from_u64(config.seed);
-    let points: Vec<[f64; 3]> = (0..config.init_points)
-        .map(|_| std::array::from_fn(|a| rng.random_range(bounds.min[a]..bounds.max[a])))
-        .collect();
-    let colours = (0..config.init_points)
-        .map(|_| std::array::from_fn(|_| rng.random_range(0.0..1.0)))
-        .collect();
-    PointCloud {
-        points,
-        colours,
-        times: None,
-    }
 }
 
 impl Trainer {
@@ -292,7 +207,7 @@ impl Trainer {
         let views = training_views(data, &config)?;
         let cameras: Vec<Camera> = views.iter().map(|v| v.camera.clone()).collect();
         let extent = camera_extent(&cameras);
-        let n = model.num_gaussians();
+        let n = model.rows();
         let sampling = plugins
             .filters
             .for_config(&config.filter)
@@ -355,7 +270,17 @@ impl Trainer {
 
     /// Number of Gaussians.
     pub fn num_gaussians(&self) -> usize {
-        self.model.num_gaussians()
+        self.model.rows()
+    }
+
+    /// The model's canonical Gaussians, activated ([`ParamStore::canonical`] of its
+    /// [`CanonicalIds`]): what densification, the opacity reset, a strategy and the
+    /// filters read.
+    ///
+    /// [`ParamStore::canonical`]: crate::params::ParamStore::canonical
+    /// [`CanonicalIds`]: crate::models::CanonicalIds
+    pub fn canonical(&self) -> Canonical<f32> {
+        self.model.params().canonical(self.model.canonical_ids())
     }
 
     /// About how many bytes a training step of this model holds at `gaussians`
@@ -430,12 +355,14 @@ impl Trainer {
     /// the observations, the statistics and the liveness record with one index list (each row's statistics
     /// travel with it; a densification then restarts them, a pruning keeps them).
     pub fn apply_plan(&mut self, plan: &DensifyPlan) {
-        let n_old = self.model.num_gaussians();
+        let n_old = self.model.rows();
         let names = self.model.params().per_gaussian_names();
         self.model.select_rows(&plan.index);
         if !plan.new_rows.is_empty() {
             let k = plan.new_rows.len();
-            self.model.set_rows(
+            let ids = self.model.canonical_ids();
+            self.model.params_mut().set_canonical_rows(
+                ids,
                 &plan.new_rows,
                 &Tensor::from_vec(plan.new_means.clone(), &[k, 3]),
                 &Tensor::from_vec(plan.new_scales.clone(), &[k, 3]),

@@ -77,7 +77,7 @@ impl Trainer {
     /// frame and darkens another does not cancel out.
     pub fn sensitivity_scores(&self, iteration: usize) -> Result<Vec<f64>, String> {
         let settings = self.render_settings(iteration);
-        let mut scores = vec![0.0; self.model.num_gaussians()];
+        let mut scores = vec![0.0; self.num_gaussians()];
         for (&time, camera) in self.view_times.iter().zip(&self.cameras) {
             let deformed = deformed_at(self.model.as_ref(), time);
             let s = removal_sensitivity(deformed, &self.filter, time, camera, &settings)?;

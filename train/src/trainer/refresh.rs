@@ -2,57 +2,24 @@
 //! config's, by name from [`FilterRegistry`](maaf_filter::FilterRegistry), or a
 //! user's) computes the filter state from the inputs the trainer supplies.
 
-use maaf_autodiff::Tensor;
-use maaf_filter::{CameraTime, FilterInputs, ObservationTable, SamplingFilter, observed_frames};
+use maaf_autodiff::PerGaussian;
+use maaf_filter::{FilterInputs, ObservationTable, SamplingFilter};
 use maaf_splat::Camera;
 
 use super::{Trainer, log_line};
-
-/// Rows of an `[N, 3]` tensor as points (the observation table's input).
-pub(crate) fn centres(t: &Tensor<f32>) -> Vec<[f32; 3]> {
-    t.data()
-        .chunks_exact(3)
-        .map(|c| [c[0], c[1], c[2]])
-        .collect()
-}
-
-/// The training views (by their times) a filter that `observes` reads: at most
-/// `max_views` by [`observed_frames`], none for a filter that reads no observation;
-/// and each view's frame in the observation table.
-pub(crate) fn observed_views(
-    view_times: &[f64],
-    observes: bool,
-    max_views: usize,
-) -> (Vec<CameraTime>, Vec<Option<usize>>) {
-    let mut slot = vec![None; view_times.len()];
-    if !observes {
-        return (Vec::new(), slot);
-    }
-    let all: Vec<CameraTime> = view_times
-        .iter()
-        .enumerate()
-        .map(|(i, &t)| CameraTime {
-            camera: i,
-            time: t as f32,
-        })
-        .collect();
-    let kept = observed_frames(&all, max_views);
-    for (frame, &v) in kept.iter().enumerate() {
-        slot[v] = Some(frame);
-    }
-    (kept.iter().map(|&v| all[v]).collect(), slot)
-}
+use crate::scene::{centres, observed_views};
 
 /// The trainer as a filter's inputs.
 struct Inputs<'a>(&'a Trainer);
 
 impl FilterInputs for Inputs<'_> {
     fn gaussians(&self) -> usize {
-        self.0.model.num_gaussians()
+        self.0.model.rows()
     }
 
     fn canonical_centres(&self) -> Vec<[f32; 3]> {
-        centres(&self.0.model.canonical().means)
+        let model = &self.0.model;
+        centres(model.params().value(model.canonical_ids().means))
     }
 
     fn cameras(&self) -> &[Camera] {

@@ -139,15 +139,16 @@ impl Trainer {
     /// and canonical scales); zeroes the Adam moments of the parameters it overwrote
     /// and records in [`Trainer::liveness`] which Gaussians it lowered.
     pub fn reset_opacity(&mut self, mode: OpacityReset) {
-        let opacity = self.model.canonical_ids().opacity_logits;
+        let ids = self.model.canonical_ids();
+        let opacity = ids.opacity_logits;
         let before = self.model.params().value(opacity).clone();
-        let scales = self.model.canonical().scales;
+        let scales = self.model.params().value(ids.log_scales).map(f32::exp);
         let caps = opacity_caps(mode, &self.filter, &scales, 0.01);
-        for name in self.model.reset_opacity(&caps) {
-            if let Some(m) = self.adam.moments_mut(&name) {
-                m.m.data_mut().fill(0.0);
-                m.v.data_mut().fill(0.0);
-            }
+        let store = self.model.params_mut();
+        let reset = store.cap_opacity(ids, &caps);
+        if let Some(m) = self.adam.moments_mut(&store.param(reset).name) {
+            m.m.data_mut().fill(0.0);
+            m.v.data_mut().fill(0.0);
         }
         let after = self.model.params().value(opacity);
         let lowered = before.data().iter().zip(after.data()).map(|(a, b)| a != b);
@@ -186,7 +187,7 @@ mod tests {
     /// The opacity each Gaussian of `model` is drawn with at each of `times` under
     /// `filter`: `sigmoid(o) * prod_a sqrt(s_a^2 / (s_a^2 + var(t)))`, in f64.
     fn drawn(model: &DeformModel<f32>, filter: &FilterState, times: &[f32]) -> Vec<Vec<f64>> {
-        let c = model.canonical();
+        let c = model.params.canonical(model.canonical_ids());
         let var: Vec<Vec<f32>> = times.iter().map(|&t| filter.variance_at(t)).collect();
         (0..N)
             .map(|i| {
@@ -213,8 +214,9 @@ mod tests {
     ) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
         let mut m = model();
         let before = drawn(&m, filter, times);
-        let caps = opacity_caps(mode, filter, &m.canonical().scales, 0.01);
-        m.reset_opacity(&caps);
+        let ids = m.canonical_ids();
+        let caps = opacity_caps(mode, filter, &m.params().canonical(ids).scales, 0.01);
+        m.params_mut().cap_opacity(ids, &caps);
         (before, drawn(&m, filter, times))
     }
 
@@ -287,8 +289,13 @@ mod tests {
         let mut m = model();
         let ids = m.canonical_ids();
         let before = m.params().value(ids.opacity_logits).clone();
-        let caps = opacity_caps(OpacityReset::Raw, &filter, &m.canonical().scales, 0.01);
-        m.reset_opacity(&caps);
+        let caps = opacity_caps(
+            OpacityReset::Raw,
+            &filter,
+            &m.params().canonical(ids).scales,
+            0.01,
+        );
+        m.params_mut().cap_opacity(ids, &caps);
         // 3DGS `inverse_sigmoid(0.01)`.
         let p = 0.01f32;
         let cap = (p / (1.0 - p)).ln();

@@ -11,11 +11,11 @@ use rand::seq::SliceRandom;
 use rand_pcg::Pcg64;
 
 use super::ViewGrad;
-use super::refresh::centres;
 use super::strategy::StepInfo;
 use super::{Trainer, log_line};
-use crate::forward::{batch_mean, forward_bound};
-use crate::loss::Evaluated;
+use crate::forward::forward_bound;
+use crate::loss::{Evaluated, ForwardTerms, batch_mean};
+use crate::scene::centres;
 
 impl Trainer {
     /// Render settings at `iteration` ([`crate::scene::render_settings`], the 2D filter
@@ -118,11 +118,12 @@ impl Trainer {
         match grads {
             Ok(grads) => {
                 let densifying = it <= self.config.densify.until;
+                let hooks = self.model.hooks();
                 let scales: Vec<_> = self
                     .model
                     .params()
                     .iter()
-                    .map(|p| self.model.lr_row_scale(&p.name, densifying))
+                    .map(|p| hooks.and_then(|h| h.lr_row_scale(&p.name, densifying)))
                     .collect();
                 for (p, scale) in self.model.params_mut().iter_mut().zip(scales) {
                     if let Some(gr) = grads.param(&p.name) {

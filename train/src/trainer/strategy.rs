@@ -23,8 +23,7 @@ use std::sync::Arc;
 
 use serde_json::Value;
 
-use super::config::TrainConfig;
-use super::{DensifyStats, Trainer, ViewGrad, plan_densify};
+use super::{DensifyStats, TrainConfig, Trainer, ViewGrad, plan_densify};
 
 /// What a strategy sees of one gradient step (gsplat's `info`).
 pub struct StepInfo<'a> {

@@ -214,3 +214,44 @@ fn negative_control_a_backward_reading_pre_relu_like_activations_is_rejected() {
     assert!(!report.passed());
     assert!(report.failures().len() > 5, "{report}");
 }
+
+#[test]
+fn bias_rows_by_doubling_equal_one_copy_per_row() {
+    let b1 = Tensor::from_vec(vec![1.0f32, 2.0, 3.0], &[3]);
+    let b2 = Tensor::from_vec(vec![-4.0f32, 5.0], &[2]);
+    for rows in [0, 1, 2, 3, 5, 8, 1000, ROW_BLOCK] {
+        let mut naive = Vec::new();
+        for b in [&b1, &b2] {
+            for _ in 0..rows {
+                naive.extend_from_slice(b.data());
+            }
+        }
+        assert_eq!(bias_rows(&[&b1, &b2], rows), naive, "rows {rows}");
+    }
+}
+
+#[test]
+fn gathering_runs_of_rows_equals_one_copy_per_row() {
+    let w = 3;
+    let src: Vec<u32> = (0..30 * w as u32).collect();
+    for rows in [
+        vec![],
+        vec![4],
+        vec![0, 1, 2, 9, 10, 20, 29],
+        (0..30).collect(),
+    ] {
+        let mut out = vec![7];
+        gather_rows(&src, w, &rows, &mut out);
+        let mut naive = vec![7];
+        for &r in &rows {
+            naive.extend_from_slice(&src[r * w..(r + 1) * w]);
+        }
+        assert_eq!(out, naive, "rows {rows:?}");
+        let runs: Vec<_> = row_runs(&rows).collect();
+        assert_eq!(runs.iter().map(|r| r.1).sum::<usize>(), rows.len());
+    }
+    assert_eq!(
+        row_runs(&[0, 1, 2, 9, 10, 20]).collect::<Vec<_>>(),
+        [(0, 3), (9, 2), (20, 1)]
+    );
+}

@@ -29,22 +29,13 @@
 //! both inputs need a gradient). See crates.md section 3.
 //!
 //! Note this is the *training* convention. The evaluation metric
-//! ([`crate::metrics::ssim`]) follows scikit-image and crops the border instead.
+//! ([`maaf_eval::metrics::ssim`]) follows scikit-image and crops the border instead.
 
-mod blur;
-
-pub use blur::{blur_same, gaussian_taps};
 use maaf_autodiff::{BackwardCtx, Float, Op, Tensor, Var};
+pub use maaf_eval::metrics::ssim_window::{
+    SSIM_C1, SSIM_C2, SSIM_SIGMA, SSIM_WINDOW, blur_same, gaussian_taps,
+};
 use rayon::prelude::*;
-
-/// Side of the SSIM window (11 taps).
-pub const SSIM_WINDOW: usize = 11;
-/// Standard deviation of the SSIM Gaussian window, in pixels.
-pub const SSIM_SIGMA: f64 = 1.5;
-/// `C1 = (K1 L)^2` with `K1 = 0.01` and data range `L = 1` (Wang et al. 2004).
-pub const SSIM_C1: f64 = 0.01 * 0.01;
-/// `C2 = (K2 L)^2` with `K2 = 0.03` and data range `L = 1` (Wang et al. 2004).
-pub const SSIM_C2: f64 = 0.03 * 0.03;
 
 /// What the [`Ssim`] op returns.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

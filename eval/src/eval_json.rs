@@ -1,0 +1,364 @@
+//! The `RUN/eval.json` contract (docs/conventions.md): [`EvalReport`], one
+//! [`ScaleResult`] per evaluation scale, and the temporal-stability entries
+//! ([`TemporalResult`]) that `maaf eval --temporal` adds.
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::Error;
+use crate::metrics::regions::RegionPsnr;
+
+/// Metrics at one evaluation scale (an entry of `eval.json`'s `scales`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScaleResult {
+    /// Scale relative to the training scale.
+    pub scale: f64,
+    /// Rendered width, pixels.
+    pub width: u32,
+    /// Rendered height, pixels.
+    pub height: u32,
+    /// Mean over views of the per-image PSNR, dB (data range 1).
+    pub psnr: f64,
+    /// Mean over views of the per-image SSIM (scikit-image convention).
+    pub ssim: f64,
+    /// Mean over views of LPIPS (AlexNet, lin v0.1, [`maaf_lpips::Lpips::distance`]:
+    /// RGB mapped to [-1, 1], no resizing); `null` when it could not be computed, with
+    /// the reason in [`ScaleResult::lpips_note`].
+    pub lpips: Option<f64>,
+    /// Why `lpips` is `null` (weights missing, image below
+    /// [`maaf_lpips::MIN_SIZE`] pixels); `null` when LPIPS was computed.
+    #[serde(default)]
+    pub lpips_note: Option<String>,
+    /// W-Temporal Error (supplementary: `sum_t E_warp(I_t, I_{t+1})`) of the
+    /// fixed-camera video with the flow named in [`ScaleResult::flow`]; `null` unless
+    /// evaluated with `--temporal`.
+    pub warp_error: Option<f64>,
+    /// W-SSIM (mean over t of `SSIM(I_t, warped I_{t+1})`) with the same flow.
+    #[serde(default)]
+    pub w_ssim: Option<f64>,
+    /// W-LPIPS (mean over t of `LPIPS(I_t, warped I_{t+1})`) with the same flow;
+    /// `null` also when LPIPS is unavailable (see `lpips_note`).
+    #[serde(default)]
+    pub w_lpips: Option<f64>,
+    /// Which flow `warp_error`, `w_ssim` and `w_lpips` used: `exact` (the data set's
+    /// own flow files, preferred when present) or `model` (the run's rendered screen
+    /// motion); `null` without `--temporal`.
+    #[serde(default)]
+    pub flow: Option<String>,
+    /// Every temporal evaluation of this scale (exact and model flow side by side),
+    /// with the per-step warping error for the chart; empty without `--temporal`.
+    #[serde(default)]
+    pub temporal: Vec<TemporalResult>,
+    /// PSNR by region (moving, static, silhouette band), when the data set has
+    /// moving-object masks for the evaluated views; `null` otherwise.
+    #[serde(default)]
+    pub regions: Option<RegionSummary>,
+    /// Popping of single Gaussians in the fixed-camera video of the temporal metrics;
+    /// `null` without `--temporal`.
+    #[serde(default)]
+    pub popping: Option<PoppingResult>,
+}
+
+/// Mean over views of the per-view PSNR of each region
+/// ([`crate::metrics::regions`]), over the views that have pixels in it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RegionSummary {
+    /// Moving pixels, dB.
+    pub moving: Option<f64>,
+    /// Static pixels, dB.
+    pub static_: Option<f64>,
+    /// Silhouette band, dB.
+    pub band: Option<f64>,
+    /// Views averaged for moving, static and band.
+    pub views: [usize; 3],
+}
+
+impl RegionSummary {
+    /// The summary of per-view values (`None` when there are none).
+    pub fn of(per_view: impl Iterator<Item = RegionPsnr>) -> Option<Self> {
+        let mut sums = [0.0f64; 3];
+        let mut views = [0usize; 3];
+        let mut any = false;
+        for r in per_view {
+            any = true;
+            for (k, v) in [r.moving, r.static_, r.band].into_iter().enumerate() {
+                if let Some(v) = v {
+                    sums[k] += v;
+                    views[k] += 1;
+                }
+            }
+        }
+        let mean = |k: usize| (views[k] > 0).then(|| sums[k] / views[k] as f64);
+        any.then(|| RegionSummary {
+            moving: mean(0),
+            static_: mean(1),
+            band: mean(2),
+            views,
+        })
+    }
+}
+
+impl std::fmt::Display for RegionSummary {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let show = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.2} dB"));
+        write!(
+            f,
+            "moving {} ({} views), static {} ({}), band {} ({})",
+            show(self.moving),
+            self.views[0],
+            show(self.static_),
+            self.views[1],
+            show(self.band),
+            self.views[2]
+        )
+    }
+}
+
+impl ScaleResult {
+    /// A scale with PSNR and SSIM only (no LPIPS, no temporal metrics yet).
+    pub fn new(scale: f64, (width, height): (u32, u32), psnr: f64, ssim: f64) -> Self {
+        ScaleResult {
+            scale,
+            width,
+            height,
+            psnr,
+            ssim,
+            lpips: None,
+            lpips_note: None,
+            warp_error: None,
+            w_ssim: None,
+            w_lpips: None,
+            flow: None,
+            temporal: Vec::new(),
+            regions: None,
+            popping: None,
+        }
+    }
+}
+
+/// Temporal stability of one fixed-camera video at one scale with one flow
+/// ([`crate::metrics::temporal::temporal_metrics`]).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TemporalResult {
+    /// `exact` (data set flow files) or `model` (rendered Gaussian motion,
+    /// [`crate::flow::model_flow`]).
+    pub flow: String,
+    /// Which camera the video was rendered from: `video 0` (the data set's fixed-camera
+    /// video split) or `test 0` (the first test camera, when there is no video split).
+    pub camera: String,
+    /// Times of the `T` frames, ascending.
+    pub times: Vec<f64>,
+    /// W-Temporal Error: the sum over the `T - 1` steps of `E_warp`.
+    pub warp_error: f64,
+    /// W-SSIM: mean over the steps.
+    pub w_ssim: f64,
+    /// W-LPIPS: mean over the steps (`null` without LPIPS weights).
+    pub w_lpips: Option<f64>,
+    /// `E_warp(I_t, I_{t+1})` of each step, `T - 1` values (the supplementary's
+    /// warping-error-over-time figure).
+    pub per_step: Vec<f64>,
+}
+
+/// Popping of single Gaussians in one fixed-camera video at one scale
+/// ([`crate::metrics::popping`]: a Gaussian pops when its visible weight at least
+/// halves or doubles within one frame step).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PoppingResult {
+    /// The camera of the video, as in [`TemporalResult::camera`].
+    pub camera: String,
+    /// Times of the `T` frames, ascending.
+    pub times: Vec<f64>,
+    /// Popping Gaussians of each step, `T - 1` values.
+    pub pops: Vec<usize>,
+    /// Popped mass of each step (fraction of the frame's pixels), `T - 1` values.
+    pub mass: Vec<f64>,
+}
+
+impl PoppingResult {
+    /// Mean number of popping Gaussians per step.
+    pub fn mean_pops(&self) -> f64 {
+        mean(self.pops.iter().map(|&p| p as f64))
+    }
+
+    /// Mean popped mass per step.
+    pub fn mean_mass(&self) -> f64 {
+        mean(self.mass.iter().copied())
+    }
+
+    /// The step with the largest popped mass: `(t, mass)`, `t` the time of its first
+    /// frame; `None` for a video of one frame.
+    pub fn worst_step(&self) -> Option<(f64, f64)> {
+        self.mass
+            .iter()
+            .enumerate()
+            .max_by(|a, b| a.1.total_cmp(b.1))
+            .map(|(j, &m)| (self.times[j], m))
+    }
+}
+
+/// `RUN/eval.json`: exactly the field names of the docs/conventions.md contract.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EvalReport {
+    /// Representation label (`saro`, `deform + GroupFlow (500 groups)`).
+    pub model: String,
+    /// Filter: `none`, `mip3d` or `motion`.
+    pub filter: String,
+    /// Training scale relative to the source images.
+    pub train_scale: f64,
+    /// Iterations trained.
+    pub iterations: usize,
+    /// Training wall time, seconds (all phases, summed over resumed sessions).
+    pub train_seconds: f64,
+    /// Number of Gaussians.
+    pub num_gaussians: usize,
+    /// Bytes of the representation's parameters (`num_scalars * 4`).
+    pub model_bytes: u64,
+    /// Bytes of the filter state (`bytes_per_gaussian * num_gaussians`).
+    pub filter_bytes: u64,
+    /// Background colour the renders and ground truth are composited on.
+    pub background: [f32; 3],
+    /// Whether renders were quantised to 8 bits before the metrics (always `false`).
+    pub quantized_8bit: bool,
+    /// Every this many distinct times of the split were evaluated (1 = all views; then
+    /// the field is left out of `eval.json`, whose contract is unchanged).
+    #[serde(default = "one", skip_serializing_if = "is_one")]
+    pub frame_stride: usize,
+    /// One entry per evaluation scale, in the order asked.
+    pub scales: Vec<ScaleResult>,
+}
+
+fn one() -> usize {
+    1
+}
+
+fn is_one(v: &usize) -> bool {
+    *v == 1
+}
+
+impl EvalReport {
+    /// Mean PSNR over the scales (the "Avg." column of the paper's tables).
+    pub fn mean_psnr(&self) -> f64 {
+        mean(self.scales.iter().map(|s| s.psnr))
+    }
+
+    /// Mean SSIM over the scales.
+    pub fn mean_ssim(&self) -> f64 {
+        mean(self.scales.iter().map(|s| s.ssim))
+    }
+
+    /// Model plus filter bytes.
+    pub fn total_bytes(&self) -> u64 {
+        self.model_bytes + self.filter_bytes
+    }
+
+    /// Reads `RUN/eval.json`.
+    pub fn read(run: &Path) -> Result<Self, Error> {
+        let path = run.join("eval.json");
+        let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+        serde_json::from_str(&text).map_err(|e| {
+            // Older versions wrote a NaN metric as null; say so instead of a type error.
+            let hint = if e.to_string().contains("null") {
+                " (a null metric: the evaluated model rendered non-finite pixels; retrain and re-run `maaf eval`)"
+            } else {
+                ""
+            };
+            Error::Input(format!("{}: not an eval.json: {e}{hint}", path.display()))
+        })
+    }
+}
+
+/// Arithmetic mean, NaN for no value.
+pub(crate) fn mean(values: impl Iterator<Item = f64>) -> f64 {
+    let (s, n) = values.fold((0.0, 0usize), |(s, n), v| (s + v, n + 1));
+    if n == 0 { f64::NAN } else { s / n as f64 }
+}
+
+/// Folder name of a scale's outputs: `1x`, `2x`, `0.5x`, `0.25x`.
+pub fn scale_label(scale: f64) -> String {
+    format!("{}x", trim_float(scale))
+}
+
+/// `0.5` -> `0.5`, `2.0` -> `2`: the shortest decimal spelling of a scale.
+pub fn trim_float(v: f64) -> String {
+    let s = format!("{v:.6}");
+    let s = s.trim_end_matches('0').trim_end_matches('.');
+    s.to_string()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn labels() {
+        assert_eq!(scale_label(1.0), "1x");
+        assert_eq!(scale_label(0.25), "0.25x");
+        assert_eq!(scale_label(4.0), "4x");
+        assert_eq!(trim_float(0.125), "0.125");
+    }
+
+    #[test]
+    fn report_has_the_contract_fields() {
+        let r = EvalReport {
+            model: "saro".into(),
+            filter: "motion".into(),
+            train_scale: 0.25,
+            iterations: 1,
+            train_seconds: 1.0,
+            num_gaussians: 2,
+            model_bytes: 3,
+            filter_bytes: 4,
+            background: [1.0; 3],
+            quantized_8bit: false,
+            frame_stride: 1,
+            scales: vec![ScaleResult::new(4.0, (8, 8), 30.0, 0.9)],
+        };
+        let v: serde_json::Value =
+            serde_json::from_slice(&serde_json::to_vec(&r).expect("json")).expect("value");
+        let mut got: Vec<&str> = v
+            .as_object()
+            .expect("object")
+            .keys()
+            .map(String::as_str)
+            .collect();
+        let mut want = vec![
+            "model",
+            "filter",
+            "train_scale",
+            "iterations",
+            "train_seconds",
+            "num_gaussians",
+            "model_bytes",
+            "filter_bytes",
+            "background",
+            "quantized_8bit",
+            "scales",
+        ];
+        want.sort_unstable();
+        got.sort_unstable();
+        assert_eq!(got, want);
+        for k in [
+            "lpips",
+            "lpips_note",
+            "warp_error",
+            "w_ssim",
+            "w_lpips",
+            "flow",
+        ] {
+            assert!(v["scales"][0][k].is_null(), "{k}");
+        }
+    }
+
+    #[test]
+    fn an_eval_json_from_before_the_temporal_fields_still_reads() {
+        let old = r#"{"scale":1.0,"width":8,"height":8,"psnr":30.0,"ssim":0.9,
+                      "lpips":null,"warp_error":null}"#;
+        let s: ScaleResult = serde_json::from_str(old).expect("old entry");
+        assert_eq!(s, ScaleResult::new(1.0, (8, 8), 30.0, 0.9));
+    }
+}

@@ -1,0 +1,253 @@
+//! `maaf export-ply`: a trained dynamic run as standard 3DGS PLY frames.
+//!
+//! A frame at time `t` is what the renderer draws at `t`
+//! ([`maaf_scene::forward::gaussians_at`]: deformed, with the 3D filter folded into scale
+//! and opacity as Mip-Splatting's fused export does, `s' = sqrt(s^2 + var)`,
+//! `o' = o sqrt(prod s^2 / prod(s^2 + var))`), stored in the Inria parameterisation
+//! (`log s'`, `logit o'`, SH up to the degree the run renders with), so that any 3DGS
+//! viewer shows the frame as `maaf render` does. Gaussians whose opacity at `t` is at
+//! most 1/255 (SaRO's lifespan opacity outside a Gaussian's life, a pruned-looking
+//! one) are left out: the renderer culls them ([`maaf_splat::compositing::ALPHA_MIN`]),
+//! so the frame renders the same and the file is smaller.
+//!
+//! A sequence is a folder holding only `frame_0000.ply`, `frame_0001.ply`, ..., each
+//! with its time in a header comment (`comment maaf time T`), swapped into place whole,
+//! or the same files as one zip archive (`--out X.zip`). Only PLY files, because brush
+//! plays a folder or zip as a sequence only when every file in it is a PLY (in natural
+//! file-name order) and SuperSplat takes dropped files as a sequence only when all share
+//! one prefix followed by a frame number (`docs/viewing.md`).
+
+use std::io::{BufWriter, Read, Write};
+use std::path::{Path, PathBuf};
+
+use maaf_autodiff::Tensor;
+use maaf_autodiff::scalar::logit;
+use maaf_splat::Gaussians;
+use maaf_splat::ply::ply_bytes_with_comments;
+
+use super::sequence::{check_own_folder, frame_times};
+use maaf_splat::sh::num_coeffs;
+use zip::write::SimpleFileOptions;
+use zip::{CompressionMethod, ZipWriter};
+
+use crate::{Error, write_atomic};
+use maaf_scene::TrainedScene;
+
+/// The deformed, filtered Gaussians of `scene` at `time` as a static 3DGS scene, SH
+/// truncated to the degree the run renders with ([`TrainedScene::render_settings`]), less
+/// those the renderer culls at `time` (opacity at most 1/255).
+pub fn frame_gaussians(scene: &TrainedScene, time: f64) -> Gaussians {
+    let [means, scales, quats, opacity, sh] = scene.gaussians_at(time);
+    let n = means.shape()[0];
+    let stored = sh.shape()[1];
+    let degree = scene.render_settings().sh_degree;
+    let degree = (0..=degree)
+        .rev()
+        .find(|&d| num_coeffs(d) <= stored)
+        .unwrap_or(0);
+    let k = num_coeffs(degree);
+    let sh_data: Vec<f32> = (0..n)
+        .flat_map(|i| {
+            sh.data()[i * stored * 3..(i * stored + k) * 3]
+                .iter()
+                .copied()
+        })
+        .collect();
+    // Kept unless surely culled: a NaN opacity stays so the export refuses it.
+    let cutoff = maaf_splat::compositing::ALPHA_MIN as f32;
+    let keep: Vec<usize> = (0..n)
+        .filter(|&i| {
+            let o = opacity.data()[i];
+            o > cutoff || o.is_nan()
+        })
+        .collect();
+    Gaussians {
+        means: means.gather_rows(&keep),
+        log_scales: scales.gather_rows(&keep).map(f32::ln),
+        quats: quats.gather_rows(&keep),
+        raw_opacity: opacity.gather_rows(&keep).map(logit),
+        sh: Tensor::from_vec(sh_data, &[n, k, 3]).gather_rows(&keep),
+        sh_degree: degree,
+    }
+}
+
+/// [`frame_gaussians`], refused when a value is NaN or a centre, rotation or colour
+/// is infinite (a log-scale or opacity logit of minus or plus infinity is a scale of
+/// zero or an opacity of one, which a PLY can hold): a degenerate model exports
+/// nothing rather than a file viewers cannot draw.
+pub fn finite_frame_gaussians(scene: &TrainedScene, time: f64) -> Result<Gaussians, Error> {
+    let g = frame_gaussians(scene, time);
+    let fields = [
+        ("centre", &g.means, true),
+        ("rotation", &g.quats, true),
+        ("colour", &g.sh, true),
+        ("log-scale", &g.log_scales, false),
+        ("opacity", &g.raw_opacity, false),
+    ];
+    for (name, values, finite) in fields {
+        let bad = |v: &f32| if finite { !v.is_finite() } else { v.is_nan() };
+        if let Some(i) = values.data().iter().position(bad) {
+            let row = i / (values.len() / g.len().max(1)).max(1);
+            return Err(Error::Input(format!(
+                "t = {time}: Gaussian {row} has a non-finite {name} ({}): the model is degenerate at this time, nothing written",
+                values.data()[i]
+            )));
+        }
+    }
+    Ok(g)
+}
+
+/// Writes the frame at `time` to `out` as a binary 3DGS PLY (atomically), its time
+/// in a header comment; refuses non-finite Gaussians ([`finite_frame_gaussians`]).
+/// Returns how many Gaussians it holds (those drawn at `time`).
+pub fn export_frame(scene: &TrainedScene, time: f64, out: &Path) -> Result<usize, Error> {
+    let g = finite_frame_gaussians(scene, time)?;
+    write_atomic(out, &ply_bytes_with_comments(&g, &[time_comment(time)]))?;
+    Ok(g.len())
+}
+
+/// The header comment that records a frame's time.
+fn time_comment(time: f64) -> String {
+    format!("maaf time {time}")
+}
+
+/// Name of frame `i` of a sequence, `frame_NNNN.ply`.
+fn frame_name(i: usize) -> String {
+    format!("frame_{i:04}.ply")
+}
+
+/// Frame `time` as PLY bytes with its time in a header comment (`comment maaf time
+/// T`), refused when non-finite ([`finite_frame_gaussians`]).
+fn frame_bytes(scene: &TrainedScene, time: f64) -> Result<Vec<u8>, Error> {
+    let g = finite_frame_gaussians(scene, time)?;
+    Ok(ply_bytes_with_comments(&g, &[time_comment(time)]))
+}
+
+/// Whether `out` names a zip archive (its extension is `zip`, any case): then
+/// [`export_sequence_zip`] is the writer, else [`export_sequence`].
+pub fn is_zip_path(out: &Path) -> bool {
+    out.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("zip"))
+}
+
+/// Refuses an `out` that a sequence must not replace (see [`export_sequence`] and
+/// [`export_sequence_zip`]), with one line naming the path; the CLI calls it before
+/// loading the run so a bad `--out` fails at once.
+pub fn check_sequence_target(out: &Path) -> Result<(), Error> {
+    if is_zip_path(out) {
+        check_zip_target(out)
+    } else {
+        check_sequence_folder(out)
+    }
+}
+
+/// Refuses an `out` folder that a sequence must not replace: an existing file, or a
+/// folder holding anything but the `frame_*.ply` (and the `frames.json` of exports
+/// before the times moved into the PLY headers) of an earlier export.
+fn check_sequence_folder(out: &Path) -> Result<(), Error> {
+    if !out.exists() {
+        return Ok(());
+    }
+    if !out.is_dir() {
+        return Err(Error::Input(format!(
+            "{}: exists and is not a folder; give a new folder, or a path ending in .zip",
+            out.display()
+        )));
+    }
+    check_own_folder(out, "export", |name| {
+        name == "frames.json" || (name.starts_with("frame_") && name.ends_with(".ply"))
+    })
+}
+
+/// Refuses a `.zip` target that is a folder or an existing file that is not a zip
+/// archive (it does not start with a local file header `PK\x03\x04` or, for an
+/// empty archive, the end-of-central-directory record `PK\x05\x06`).
+fn check_zip_target(out: &Path) -> Result<(), Error> {
+    if !out.exists() {
+        return Ok(());
+    }
+    if out.is_dir() {
+        return Err(Error::Input(format!(
+            "{}: is a folder; a .zip sequence is written as one file",
+            out.display()
+        )));
+    }
+    let mut head = Vec::with_capacity(4);
+    std::fs::File::open(out)
+        .and_then(|f| f.take(4).read_to_end(&mut head))
+        .map_err(|e| Error::io(out, e))?;
+    if !(head == b"PK\x03\x04" || head == b"PK\x05\x06") {
+        return Err(Error::Input(format!(
+            "{}: exists and is not a zip archive; refusing to replace it",
+            out.display()
+        )));
+    }
+    Ok(())
+}
+
+/// Writes `frames` evenly spaced times over `[t0, t1]` (`t_i = t0 + (t1 - t0) i /
+/// (frames - 1)`) into the folder `out` as `frame_0000.ply ...` (nothing else; each
+/// frame's time in its header, [`frame_bytes`]), built in a temporary sibling and
+/// swapped in whole. An existing file at `out`, or a folder holding other files, is refused.
+/// Returns the PLY paths.
+pub fn export_sequence(
+    scene: &TrainedScene,
+    range: (f64, f64),
+    frames: usize,
+    out: &Path,
+) -> Result<Vec<PathBuf>, Error> {
+    let times = frame_times(range, frames)?;
+    check_sequence_folder(out)?;
+    let tmp = maaf_io::temp_sibling(out);
+    if tmp.exists() {
+        std::fs::remove_dir_all(&tmp).map_err(|e| Error::io(&tmp, e))?;
+    }
+    std::fs::create_dir_all(&tmp).map_err(|e| Error::io(&tmp, e))?;
+    let result = (|| {
+        for (i, &t) in times.iter().enumerate() {
+            write_atomic(&tmp.join(frame_name(i)), &frame_bytes(scene, t)?)?;
+        }
+        Ok(())
+    })();
+    if let Err(e) = result {
+        let _ = std::fs::remove_dir_all(&tmp);
+        return Err(e);
+    }
+    maaf_io::replace_dir(&tmp, out).map_err(|e| Error::io(out, e))?;
+    Ok((0..frames).map(|i| out.join(frame_name(i))).collect())
+}
+
+/// The same sequence as [`export_sequence`] as one zip archive `out`: the entries
+/// `frame_0000.ply ...`, byte for byte the files of the folder
+/// version, deflated, with the zip format's fixed default timestamp (1980-01-01) so
+/// that equal runs give equal archives. The archive is streamed into a temporary
+/// sibling and renamed into place ([`maaf_io::write_atomic_with`]: fsync, rename,
+/// folder fsync); a folder at `out`, or an existing file that is not a zip archive, is
+/// refused. Returns the archive's size in bytes.
+pub fn export_sequence_zip(
+    scene: &TrainedScene,
+    range: (f64, f64),
+    frames: usize,
+    out: &Path,
+) -> Result<u64, Error> {
+    let times = frame_times(range, frames)?;
+    check_zip_target(out)?;
+    maaf_io::write_atomic_with(out, |file| {
+        let mut zip = ZipWriter::new(BufWriter::new(file));
+        let mut put = |name: &str, bytes: &[u8]| -> std::io::Result<()> {
+            let options = SimpleFileOptions::default()
+                .compression_method(CompressionMethod::Deflated)
+                .large_file(bytes.len() as u64 >= u64::from(u32::MAX));
+            zip.start_file(name, options)?;
+            zip.write_all(bytes)
+        };
+        for (i, &t) in times.iter().enumerate() {
+            // A refused frame fails the write, which removes the partial archive.
+            let bytes = frame_bytes(scene, t).map_err(|e| std::io::Error::other(e.to_string()))?;
+            put(&frame_name(i), &bytes)?;
+        }
+        zip.finish()?.flush()
+    })
+    .map_err(|e| Error::io(out, e))?;
+    Ok(std::fs::metadata(out).map_err(|e| Error::io(out, e))?.len())
+}

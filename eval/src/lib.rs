@@ -1,0 +1,528 @@
+//! maaf-eval: evaluation of a trained run, its image and temporal metrics
+//! ([`metrics`]) and reports ([`report`]), working on a
+//! [`maaf_scene::TrainedScene`] and never on the trainer.
+//!
+//! Multi-scale evaluation of a trained run (docs/conventions.md).
+//!
+//! [`evaluate_run`] renders every view of a split at each evaluation scale, computes
+//! PSNR and SSIM on the float renders (no 8-bit quantisation) against ground truth at
+//! that resolution, saves 8-bit renders and colour-mapped error maps under
+//! `RUN/eval/<scale>x/`, and writes `RUN/eval.json` with exactly the fields of the
+//! docs/conventions.md contract ([`EvalReport`]).
+//!
+//! Evaluation scales are relative to the run's *training* scale: `2` and `4` zoom in,
+//! `0.5` and `0.25` zoom out. The data set's scale is `train_scale * s`, which must
+//! be `1 / k` for an integer `k` dividing the source image size; a scale asking for
+//! more pixels than the source images have is refused before anything is rendered.
+//!
+//! Nothing is overwritten on error: outputs go to a temporary folder that replaces
+//! `RUN/eval/` only when complete, then `eval.json` is written atomically.
+
+pub mod camera_path;
+pub mod eval_json;
+pub mod export;
+pub mod filter_agreement;
+pub mod flow;
+pub mod images;
+pub mod metrics;
+pub mod popping;
+pub mod render;
+pub mod report;
+mod sequence;
+pub mod temporal;
+
+use std::path::Path;
+use std::time::Instant;
+
+use maaf_autodiff::Tensor;
+use maaf_data::{Dataset, Image, Split};
+use maaf_filter::{FilterKind, FilterState};
+use maaf_lpips::Lpips;
+use maaf_scene::{ModelRegistry, TrainedScene};
+use rayon::prelude::*;
+
+use crate::metrics::regions::{RegionPsnr, region_psnr};
+use crate::metrics::{ImageMetrics, error_map, image_metrics, mean_metrics};
+
+pub use eval_json::{
+    EvalReport, PoppingResult, RegionSummary, ScaleResult, TemporalResult, scale_label, trim_float,
+};
+pub use maaf_scene::{Error, write_atomic};
+pub use render::{load_scene_on, run_camera};
+pub use sequence::frame_times;
+
+/// The paper's evaluation scales relative to the training scale: 1/4x, 1/2x (zoom-out),
+/// 1x, 2x and 4x (zoom-in).
+pub const DEFAULT_SCALES: [f64; 5] = [0.25, 0.5, 1.0, 2.0, 4.0];
+
+/// Options of [`evaluate_run`].
+#[derive(Clone, Debug)]
+pub struct EvalOptions {
+    /// Scales relative to the training scale (`2` = zoom-in 2x, `0.5` = zoom-out 2x).
+    pub scales: Vec<f64>,
+    /// Split whose views are rendered (the protocol uses `test`).
+    pub split: Split,
+    /// Evaluate only the first `n` views of the split (quick runs); `None` = all.
+    /// Applied after `frame_stride`.
+    pub max_views: Option<usize>,
+    /// Evaluate only the views at every `n`-th distinct time of the split (the 1st,
+    /// `n+1`-th, ... in time order), every camera at those times; 1 = all. A multi-view
+    /// video's test split has cameras x frames views, so the protocol can evaluate a
+    /// fixed stride of frames of every test camera.
+    pub frame_stride: usize,
+    /// Save 8-bit renders and error maps as PNG (metrics are computed either way).
+    pub save_images: bool,
+    /// Also measure temporal stability of a fixed-camera video at every scale
+    /// ([`temporal::evaluate_temporal`]: W-Temporal Error, W-SSIM, W-LPIPS).
+    pub temporal: bool,
+}
+
+impl Default for EvalOptions {
+    fn default() -> Self {
+        EvalOptions {
+            scales: DEFAULT_SCALES.to_vec(),
+            split: Split::Test,
+            max_views: None,
+            frame_stride: 1,
+            save_images: true,
+            temporal: false,
+        }
+    }
+}
+
+/// One resolved evaluation scale: relative, source-relative, output size.
+#[derive(Clone, Copy, Debug)]
+struct ResolvedScale {
+    relative: f64,
+    source: f64,
+    width: u32,
+    height: u32,
+}
+
+/// Checks every scale against the data before anything is rendered: positive,
+/// finite, not repeated, no more pixels than the source images, an integer
+/// downsampling factor of them.
+fn resolve_scales(
+    data: &Dataset,
+    split: Split,
+    train_scale: f64,
+    scales: &[f64],
+) -> Result<Vec<ResolvedScale>, Error> {
+    if scales.is_empty() {
+        return Err(Error::Input("no evaluation scale given".into()));
+    }
+    let meta = data.split(split).map_err(|e| Error::Input(e.to_string()))?;
+    let (sw, sh) = (meta.width, meta.height);
+    let mut out: Vec<ResolvedScale> = Vec::new();
+    for &s in scales {
+        if !(s.is_finite() && s > 0.0) {
+            return Err(Error::Input(format!(
+                "scale {s}: must be a positive number (relative to the training scale, e.g. 0.25,0.5,1,2,4)"
+            )));
+        }
+        if out.iter().any(|r| (r.relative - s).abs() < 1e-9) {
+            return Err(Error::Input(format!("scale {s} is given twice")));
+        }
+        let source = train_scale * s;
+        let want = (
+            (sw as f64 * source).round() as u64,
+            (sh as f64 * source).round() as u64,
+        );
+        if source > 1.0 + 1e-9 {
+            return Err(Error::Input(format!(
+                "scale {}x needs {}x{} ground truth but the source images are {sw}x{sh} (training scale {}: at most {}x)",
+                trim_float(s),
+                want.0,
+                want.1,
+                trim_float(train_scale),
+                trim_float(1.0 / train_scale)
+            )));
+        }
+        let (width, height) = data.size(split, source).map_err(|e| {
+            Error::Input(format!(
+                "scale {}x (source scale {}): {e}",
+                trim_float(s),
+                trim_float(source)
+            ))
+        })?;
+        out.push(ResolvedScale {
+            relative: s,
+            source,
+            width,
+            height,
+        });
+    }
+    Ok(out)
+}
+
+/// The views of `split` at every `stride`-th distinct time (ranked in time order),
+/// in split order, then at most `max` of them.
+fn strided_views(data: &Dataset, split: Split, stride: usize, max: Option<usize>) -> Vec<usize> {
+    let times = data.times(split);
+    let mut distinct = times.clone();
+    distinct.sort_by(f64::total_cmp);
+    distinct.dedup();
+    let mut out: Vec<usize> = (0..times.len())
+        .filter(|&i| {
+            distinct
+                .binary_search_by(|t| t.total_cmp(&times[i]))
+                .is_ok_and(|rank| rank % stride == 0)
+        })
+        .collect();
+    if let Some(n) = max {
+        out.truncate(n);
+    }
+    out
+}
+
+/// Per-view metrics of one scale (written as `RUN/eval/<scale>x/metrics.csv`).
+#[derive(Clone, Debug)]
+struct ViewResult {
+    index: usize,
+    time: f64,
+    metrics: ImageMetrics,
+    /// LPIPS of the view, or why there is none.
+    lpips: Result<f64, String>,
+    /// Wall seconds spent in LPIPS for this view.
+    lpips_seconds: f64,
+    /// PSNR by region, when the data set has the view's moving-object mask.
+    regions: Option<RegionPsnr>,
+}
+
+/// Renders, measures and (optionally) saves the views `indices` at one scale into `dir`.
+#[allow(clippy::too_many_arguments)]
+fn evaluate_scale(
+    scene: &TrainedScene,
+    data: &Dataset,
+    split: Split,
+    indices: &[usize],
+    scale: &ResolvedScale,
+    options: &EvalOptions,
+    lpips: &Result<Lpips, String>,
+    dir: &Path,
+) -> Result<Vec<ViewResult>, Error> {
+    let views = indices
+        .iter()
+        .map(|&i| data.view(split, i, scale.source))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| Error::Input(e.to_string()))?;
+    let settings = scene.render_settings();
+    // The model is not `Sync`: views are rendered one after the other (the renderer
+    // is parallel inside), then metrics and PNG encoding run in parallel over a
+    // chunk of views (bounded memory: one chunk of float images at a time).
+    let mut results = Vec::with_capacity(views.len());
+    for chunk in views.chunks(8) {
+        let rendered: Vec<Tensor<f32>> = chunk
+            .iter()
+            .map(|v| scene.render_with(&v.camera, v.time, &settings))
+            .collect();
+        let masks: Vec<Option<Image>> = chunk
+            .iter()
+            .map(|v| match split {
+                Split::Test => data.moving_mask(v.index, scale.source),
+                _ => Ok(None),
+            })
+            .collect::<Result<_, _>>()
+            .map_err(|e| Error::Input(e.to_string()))?;
+        let part: Vec<ViewResult> = chunk
+            .par_iter()
+            .zip(rendered.par_iter().zip(masks.par_iter()))
+            .map(|(v, (image, mask))| {
+                measure_view(v, image, mask.as_ref(), scale, options, lpips, dir)
+            })
+            .collect::<Result<_, _>>()?;
+        results.extend(part);
+    }
+    Ok(results)
+}
+
+/// Metrics of one rendered view (LPIPS when the model loaded), plus its PNGs when
+/// asked (render, error map and ground truth, for the report's pictures).
+fn measure_view(
+    v: &maaf_data::View,
+    image: &Tensor<f32>,
+    mask: Option<&Image>,
+    scale: &ResolvedScale,
+    options: &EvalOptions,
+    lpips: &Result<Lpips, String>,
+    dir: &Path,
+) -> Result<ViewResult, Error> {
+    let gt = v.image.to_tensor();
+    let metrics = image_metrics(image, &gt).map_err(|e| {
+        Error::Input(format!(
+            "view {} at scale {}: {e}",
+            v.index,
+            scale_label(scale.relative)
+        ))
+    })?;
+    let regions = mask
+        .map(|m| region_psnr(image, &gt, &m.data))
+        .transpose()
+        .map_err(|e| {
+            Error::Input(format!(
+                "view {} at scale {}: moving mask: {e}",
+                v.index,
+                scale_label(scale.relative)
+            ))
+        })?;
+    let start = Instant::now();
+    let lpips = match lpips {
+        Ok(model) => model.distance(image, &gt).map_err(|e| e.to_string()),
+        Err(reason) => Err(reason.clone()),
+    };
+    let lpips_seconds = start.elapsed().as_secs_f64();
+    if options.save_images {
+        let err = error_map(image, &gt).map_err(|e| Error::Input(e.to_string()))?;
+        images::save_png(
+            &images::to_rgb8(image)?,
+            &dir.join(format!("render_{:03}.png", v.index)),
+        )?;
+        images::save_png(
+            &images::error_to_rgb8(&err)?,
+            &dir.join(format!("error_{:03}.png", v.index)),
+        )?;
+        images::save_png(
+            &images::to_rgb8(&gt)?,
+            &dir.join(format!("gt_{:03}.png", v.index)),
+        )?;
+    }
+    Ok(ViewResult {
+        index: v.index,
+        time: v.time,
+        metrics,
+        lpips,
+        lpips_seconds,
+        regions,
+    })
+}
+
+/// Where [`evaluate_run`] writes the nu(t) traces of a motion-filter run
+/// ([`filter_agreement::FilterStudy::analysis`]).
+pub const FILTER_ANALYSIS_FILE: &str = "filter_analysis.json";
+
+/// Builds the contract fields that describe the run (everything but `scales`).
+pub fn run_report(scene: &TrainedScene, data: &Dataset) -> EvalReport {
+    let n = scene.num_gaussians();
+    EvalReport {
+        model: scene.model.label(),
+        filter: filter_name(scene),
+        train_scale: scene.config.train_scale,
+        iterations: scene.iteration,
+        train_seconds: scene.train_seconds,
+        num_gaussians: n,
+        model_bytes: scene.num_scalars() as u64 * 4,
+        filter_bytes: (scene.filter.bytes_per_gaussian() * n) as u64,
+        background: data.background(),
+        quantized_8bit: false,
+        frame_stride: 1,
+        scales: Vec::new(),
+    }
+}
+
+/// The run's filter as eval.json and the report name it: a program's own filter by
+/// its registered name, a built-in by the state it draws (`window_max` draws motion
+/// curves, `motion`; the report tells the estimators apart).
+fn filter_name(scene: &TrainedScene) -> String {
+    if let FilterKind::Custom(name) = &scene.config.filter.kind {
+        return name.clone();
+    }
+    match &scene.filter {
+        FilterState::None { .. } => "none",
+        FilterState::Mip3d { .. } => "mip3d",
+        FilterState::Motion { .. } => "motion",
+    }
+    .to_string()
+}
+
+/// Evaluates the run in `run` (a built-in representation) on `data` (the data set it
+/// was trained on): [`evaluate_run_with`] and [`ModelRegistry::builtin`].
+pub fn evaluate_run(
+    run: &Path,
+    data: &Dataset,
+    options: &EvalOptions,
+) -> Result<EvalReport, Error> {
+    evaluate_run_with(run, data, options, &ModelRegistry::builtin())
+}
+
+/// Evaluates the run in `run` on `data` (the data set it was trained on) at every
+/// scale of `options` and writes `RUN/eval.json` plus `RUN/eval/<scale>x/` (renders,
+/// error maps, per-view `metrics.csv`) and, for a motion-filter run,
+/// `RUN/eval/filter_analysis.json` (nu(t) of a static and the most moving Gaussian,
+/// for the report's chart) and `RUN/eval/filter_agreement.json`. Prints one progress
+/// line per scale to stderr.
+///
+/// The model is loaded as a [`TrainedScene`] (its representation through `registry`):
+/// of the data set only the views scored are read.
+///
+/// Errors (one line, nothing written): the run being trained or evaluated by another
+/// process, no trained model in `run`, a representation `registry` does not know, a
+/// data set that does not match the run, an impossible scale.
+pub fn evaluate_run_with(
+    run: &Path,
+    data: &Dataset,
+    options: &EvalOptions,
+    registry: &ModelRegistry,
+) -> Result<EvalReport, Error> {
+    // The evaluation writes into the run: it holds the run's lock exclusively (no
+    // trainer replaces the model it reads, no other evaluation shares its outputs)
+    // and so may sweep what a killed evaluation left behind.
+    let _lock = if run.is_dir() {
+        let doing = format!("evaluated (pid {})", std::process::id());
+        let lock =
+            maaf_io::RunLock::exclusive(run, &doing).map_err(|e| Error::Input(e.to_string()))?;
+        maaf_scene::repair_run_dir(run)?;
+        Some(lock)
+    } else {
+        None
+    };
+    let scene = load_scene_on(run, data, registry)?;
+    evaluate_scene(&scene, run, data, options)
+}
+
+/// [`evaluate_run`] for a run already loaded (saves loading it twice when the caller
+/// also renders videos, or evaluates a trainer's `maaf_train::trainer::Trainer::into_scene`).
+pub fn evaluate_scene(
+    scene: &TrainedScene,
+    run: &Path,
+    data: &Dataset,
+    options: &EvalOptions,
+) -> Result<EvalReport, Error> {
+    let split = options.split;
+    if data.len(split) == 0 {
+        return Err(Error::Input(format!(
+            "{}: the {split:?} split has no views",
+            data.root().display()
+        )));
+    }
+    if options.max_views == Some(0) {
+        return Err(Error::Input("--max-views must be at least 1".into()));
+    }
+    if options.frame_stride == 0 {
+        return Err(Error::Input("--frame-stride must be at least 1".into()));
+    }
+    let indices = strided_views(data, split, options.frame_stride, options.max_views);
+    let scales = resolve_scales(data, split, scene.config.train_scale, &options.scales)?;
+    let mut report = run_report(scene, data);
+    report.frame_stride = options.frame_stride;
+    // LPIPS is optional: without weights every scale gets `lpips: null` and the reason.
+    let lpips = Lpips::load_default().map_err(|e| e.to_string());
+
+    let final_dir = run.join("eval");
+    let tmp_dir = maaf_io::temp_sibling(&final_dir);
+    if tmp_dir.exists() {
+        std::fs::remove_dir_all(&tmp_dir).map_err(|e| Error::io(&tmp_dir, e))?;
+    }
+    let result = (|| {
+        let sources: Vec<f64> = scales.iter().map(|s| s.source).collect();
+        data.preload(split, &indices, &sources)
+            .map_err(|e| Error::Input(e.to_string()))?;
+        for s in &scales {
+            let start = Instant::now();
+            let dir = tmp_dir.join(scale_label(s.relative));
+            std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
+            let views = evaluate_scale(scene, data, split, &indices, s, options, &lpips, &dir)?;
+            let per: Vec<ImageMetrics> = views.iter().map(|v| v.metrics).collect();
+            let m =
+                mean_metrics(&per).ok_or_else(|| Error::Input("no views were evaluated".into()))?;
+            if !(m.psnr.is_finite() && m.ssim.is_finite()) {
+                return Err(Error::Input(format!(
+                    "{}: the model renders non-finite pixels at scale {} (PSNR {}, SSIM {}): the run diverged; eval.json not written",
+                    run.display(),
+                    scale_label(s.relative),
+                    m.psnr,
+                    m.ssim
+                )));
+            }
+            let mut csv = String::from("view,time,psnr,ssim,lpips\n");
+            for v in &views {
+                let l = v
+                    .lpips
+                    .as_ref()
+                    .map_or(String::new(), |l| format!("{l:.6}"));
+                csv.push_str(&format!(
+                    "{},{},{:.6},{:.6},{l}\n",
+                    v.index, v.time, v.metrics.psnr, v.metrics.ssim
+                ));
+            }
+            write_atomic(&dir.join("metrics.csv"), csv.as_bytes())?;
+            let mut result = ScaleResult::new(s.relative, (s.width, s.height), m.psnr, m.ssim);
+            match views
+                .iter()
+                .map(|v| v.lpips.clone())
+                .collect::<Result<Vec<f64>, String>>()
+            {
+                Ok(values) => result.lpips = Some(eval_json::mean(values.into_iter())),
+                Err(reason) => result.lpips_note = Some(reason),
+            }
+            result.regions = RegionSummary::of(views.iter().filter_map(|v| v.regions));
+            if let Some(r) = &result.regions {
+                eprintln!("maaf: eval {:>5} by region: {}", scale_label(s.relative), r);
+            }
+            let lpips_seconds: f64 = views.iter().map(|v| v.lpips_seconds).sum();
+            eprintln!(
+                "maaf: eval {:>5} {}x{}: PSNR {:.2} dB  SSIM {:.4}  LPIPS {}  ({} views, {:.1} s; LPIPS {:.2} s per view)",
+                scale_label(s.relative),
+                s.width,
+                s.height,
+                m.psnr,
+                m.ssim,
+                result.lpips.map_or("-".to_string(), |l| format!("{l:.4}")),
+                views.len(),
+                start.elapsed().as_secs_f64(),
+                lpips_seconds / views.len() as f64
+            );
+            if options.temporal {
+                let start = Instant::now();
+                let model = lpips.as_ref().ok();
+                let (flows, popping) = temporal::evaluate_temporal(scene, data, s.source, model)?;
+                result.temporal = flows;
+                temporal::set_primary(&mut result);
+                eprintln!(
+                    "maaf: temporal {:>5}: {}; popping {:.1} Gaussians per step, mass {:.3} % ({:.1} s)",
+                    scale_label(s.relative),
+                    result
+                        .temporal
+                        .iter()
+                        .map(|t| format!(
+                            "{} flow: W-error {:.4} W-SSIM {:.4}",
+                            t.flow, t.warp_error, t.w_ssim
+                        ))
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                    popping.mean_pops(),
+                    100.0 * popping.mean_mass(),
+                    start.elapsed().as_secs_f64()
+                );
+                result.popping = Some(popping);
+            }
+            report.scales.push(result);
+        }
+        let study = filter_agreement::FilterStudy::of(scene);
+        if let Some(export) = study.as_ref().and_then(|s| s.analysis()) {
+            write_atomic(
+                &tmp_dir.join(FILTER_ANALYSIS_FILE),
+                export.to_json().as_bytes(),
+            )?;
+        }
+        if let Some(agreement) = study.as_ref().and_then(|s| s.agreement()) {
+            eprintln!("maaf: filter agreement: {}", agreement.summary());
+            let json = serde_json::to_string_pretty(&agreement)
+                .map_err(|e| Error::Input(format!("filter agreement: {e}")))?;
+            write_atomic(
+                &tmp_dir.join(filter_agreement::FILTER_AGREEMENT_FILE),
+                json.as_bytes(),
+            )?;
+        }
+        Ok(())
+    })();
+    if let Err(e) = result {
+        let _ = std::fs::remove_dir_all(&tmp_dir);
+        return Err(e);
+    }
+    // Swap the complete folder into place, then write eval.json.
+    maaf_io::replace_dir(&tmp_dir, &final_dir).map_err(|e| Error::io(&final_dir, e))?;
+    let json =
+        serde_json::to_vec_pretty(&report).map_err(|e| Error::Input(format!("eval.json: {e}")))?;
+    write_atomic(&run.join("eval.json"), &json)?;
+    Ok(report)
+}

@@ -1,0 +1,257 @@
+//! A run's data set (its fingerprint, checked before evaluating or resuming), loading
+//! a trained scene on it, test-view cameras at any scale, and a video over time (PNG
+//! frames + GIF) of a [`TrainedScene`].
+
+use std::path::{Path, PathBuf};
+
+use maaf_data::{Dataset, Split, SplitMeta};
+use maaf_scene::{ModelRegistry, TrainedScene, model_dir};
+use maaf_splat::Camera;
+use serde::{Deserialize, Serialize};
+
+use super::images;
+use super::sequence::check_own_folder;
+use crate::{Error, write_atomic};
+
+/// What a run was trained on, written as `RUN/data.json` by [`record_data`] when the
+/// run starts; `maaf_train::load_run`, evaluation and a resumed training refuse a data set that differs.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct DataFingerprint {
+    /// Data folder, absolute (the default data of `train --resume`, `eval`, `render`;
+    /// a moved folder still matches when given explicitly).
+    pub root: PathBuf,
+    /// Number of training views.
+    pub train_views: usize,
+    /// Number of test views.
+    pub test_views: usize,
+    /// Source image width of the training split.
+    pub width: u32,
+    /// Source image height of the training split.
+    pub height: u32,
+    /// Background colour the images were composited on.
+    pub background: [f32; 3],
+    /// [`frames_fingerprint`] of the training split: 16 hex digits over every training
+    /// frame's file name, time, intrinsics, pose and image size. Absent in runs
+    /// written before it existed, which are checked by the fields above only.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub frames: Option<String>,
+}
+
+/// A fingerprint of a split's frames and cameras (FNV-1a 64 over, per frame, the
+/// image path relative to the data folder, the time and the camera's size,
+/// intrinsics and world-to-camera matrix, as bit patterns), as 16 hex digits.
+/// Computed from the [`SplitMeta`] every loader produces, so any data format is
+/// covered; two folders with the same frames and cameras have the same fingerprint.
+pub fn frames_fingerprint(meta: &SplitMeta, root: &Path) -> String {
+    let mut hash: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut feed = |bytes: &[u8]| {
+        for &b in bytes {
+            hash ^= u64::from(b);
+            hash = hash.wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    };
+    feed(&meta.width.to_le_bytes());
+    feed(&meta.height.to_le_bytes());
+    for frame in &meta.frames {
+        let name = frame.file.strip_prefix(root).unwrap_or(&frame.file);
+        let name = name.to_string_lossy();
+        feed(&(name.len() as u64).to_le_bytes());
+        feed(name.as_bytes());
+        let c = &frame.camera;
+        feed(&c.width.to_le_bytes());
+        feed(&c.height.to_le_bytes());
+        let pose = c.world_to_camera.iter().flatten();
+        for v in [frame.time, c.fx, c.fy, c.cx, c.cy].iter().chain(pose) {
+            feed(&v.to_bits().to_le_bytes());
+        }
+    }
+    format!("{hash:016x}")
+}
+
+impl DataFingerprint {
+    /// The fingerprint of `data`.
+    pub fn of(data: &Dataset) -> Result<Self, Error> {
+        let meta = data
+            .split(Split::Train)
+            .map_err(|e| Error::Input(e.to_string()))?;
+        // Absolute, so the run can be evaluated from any working folder.
+        let root = std::fs::canonicalize(data.root()).map_err(|e| Error::io(data.root(), e))?;
+        Ok(DataFingerprint {
+            root,
+            train_views: data.len(Split::Train),
+            test_views: data.len(Split::Test),
+            width: meta.width,
+            height: meta.height,
+            background: data.background(),
+            frames: Some(frames_fingerprint(meta, data.root())),
+        })
+    }
+
+    /// Refuses `now` (the data set at hand) when it is not this recorded one: another
+    /// frames fingerprint (or, for a record without one, another view count or image
+    /// size), or another background. The message names both folders.
+    pub fn check(&self, now: &DataFingerprint, run: &Path) -> Result<(), Error> {
+        let differs = match (&self.frames, &now.frames) {
+            (Some(a), Some(b)) if a != b => Some(format!(
+                "its training frames and cameras differ (fingerprint {b}, the run's {a})"
+            )),
+            (Some(_), Some(_)) => None,
+            _ if (self.train_views, self.width, self.height)
+                != (now.train_views, now.width, now.height) =>
+            {
+                Some(format!(
+                    "it has {} training views of {}x{}, the run's has {} of {}x{}",
+                    now.train_views,
+                    now.width,
+                    now.height,
+                    self.train_views,
+                    self.width,
+                    self.height
+                ))
+            }
+            _ => None,
+        };
+        if let Some(why) = differs {
+            return Err(Error::Input(format!(
+                "{}: is not the data set the run {} was trained on ({}): {why}",
+                now.root.display(),
+                run.display(),
+                self.root.display()
+            )));
+        }
+        if self.background != now.background {
+            return Err(Error::Input(format!(
+                "{}: background {:?} differs from the {:?} the run {} was trained on",
+                now.root.display(),
+                now.background,
+                self.background,
+                run.display()
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// Writes `RUN/data.json` (the data set's [`DataFingerprint`]), so a resumed training
+/// and later evaluations can refuse a different data set. A run records it when it
+/// starts (`maaf_train::trainer::train_run`).
+pub fn record_data(run: &Path, data: &Dataset) -> Result<(), Error> {
+    let fp = DataFingerprint::of(data)?;
+    let json =
+        serde_json::to_vec_pretty(&fp).map_err(|e| Error::Input(format!("data.json: {e}")))?;
+    write_atomic(&run.join("data.json"), &json)
+}
+
+/// Checks `data` against the run's `RUN/data.json` ([`DataFingerprint::check`]) when
+/// there is one, then records it: a run resumed on another data set is refused before
+/// anything of it changes; a record without a fingerprint (an older run) gains one;
+/// a moved data folder with the same frames is recorded at its new place.
+pub fn check_and_record_data(run: &Path, data: &Dataset) -> Result<(), Error> {
+    let now = DataFingerprint::of(data)?;
+    if let Some(rec) = recorded_data(run)? {
+        rec.check(&now, run)?;
+        if rec == now {
+            return Ok(());
+        }
+    }
+    record_data(run, data)
+}
+
+/// Reads `RUN/data.json` if the run has one.
+pub fn recorded_data(run: &Path) -> Result<Option<DataFingerprint>, Error> {
+    let path = run.join("data.json");
+    if !path.exists() {
+        return Ok(None);
+    }
+    let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+    serde_json::from_str(&text)
+        .map(Some)
+        .map_err(|e| Error::Input(format!("{}: {e}", path.display())))
+}
+
+/// Loads the trained scene of `run` for evaluation on `data`: refuses a data set
+/// other than the one `RUN/data.json` records ([`DataFingerprint::check`]), then
+/// loads `RUN/model` through `registry`, taking from `data` only what a run saved
+/// before the scene record lacks ([`TrainedScene::load_with`]).
+pub fn load_scene_on(
+    run: &Path,
+    data: &Dataset,
+    registry: &ModelRegistry,
+) -> Result<TrainedScene, Error> {
+    let dir = model_dir(run)?;
+    if let Some(rec) = recorded_data(run)? {
+        rec.check(&DataFingerprint::of(data)?, run)?;
+    }
+    TrainedScene::from_checkpoint(&dir, registry, Some(data))
+}
+
+/// Camera of view `index` of `split` at `scale` relative to the run's training scale
+/// (no ground truth is needed, so zoom-in beyond the source images is allowed).
+pub fn run_camera(
+    scene: &TrainedScene,
+    data: &Dataset,
+    split: Split,
+    index: usize,
+    scale: f64,
+) -> Result<Camera, Error> {
+    if !(scale.is_finite() && scale > 0.0) {
+        return Err(Error::Input(format!(
+            "scale {scale}: must be a positive number"
+        )));
+    }
+    let source = data
+        .camera(split, index, 1.0)
+        .map_err(|e| Error::Input(e.to_string()))?;
+    let s = scene.config.train_scale * scale;
+    let cam = source.scaled(s);
+    if cam.width as u64 * cam.height as u64 > 64_000_000 {
+        return Err(Error::Input(format!(
+            "scale {scale}: {}x{} is too large to render",
+            cam.width, cam.height
+        )));
+    }
+    Ok(cam)
+}
+
+/// Renders one frame per `(camera, time)` of `frames` (a fixed camera over time, a
+/// camera path, or a data set's views) into `out` as `frame_NNNN.png` plus an
+/// animated `video.gif` (10 frames per second). Returns the PNG paths. The frames are
+/// built in a fresh temporary folder swapped in for `out` ([`maaf_io::replace_dir`]),
+/// so no frame of an earlier, longer video stays beside the new ones; an `out`
+/// holding anything but such frames is refused.
+pub fn render_video(
+    scene: &TrainedScene,
+    frames: &[(Camera, f64)],
+    out: &Path,
+) -> Result<Vec<PathBuf>, Error> {
+    if frames.is_empty() {
+        return Err(Error::Input("a video needs at least one frame".into()));
+    }
+    check_own_folder(out, "video", |name| {
+        name == "video.gif" || (name.starts_with("frame_") && name.ends_with(".png"))
+    })?;
+    let tmp = maaf_io::temp_sibling(out);
+    if tmp.exists() {
+        std::fs::remove_dir_all(&tmp).map_err(|e| Error::io(&tmp, e))?;
+    }
+    std::fs::create_dir_all(&tmp).map_err(|e| Error::io(&tmp, e))?;
+    let settings = scene.render_settings();
+    let names: Vec<String> = (0..frames.len())
+        .map(|i| format!("frame_{i:04}.png"))
+        .collect();
+    let written = (|| {
+        let mut rgb = Vec::with_capacity(frames.len());
+        for (name, (camera, t)) in names.iter().zip(frames) {
+            let img = images::to_rgb8(&scene.render_with(camera, *t, &settings))?;
+            images::save_png(&img, &tmp.join(name))?;
+            rgb.push(img);
+        }
+        images::save_gif(&rgb, 100, &tmp.join("video.gif"))?;
+        maaf_io::replace_dir(&tmp, out).map_err(|e| Error::io(out, e))
+    })();
+    if let Err(e) = written {
+        let _ = std::fs::remove_dir_all(&tmp);
+        return Err(e);
+    }
+    Ok(names.iter().map(|name| out.join(name)).collect())
+}

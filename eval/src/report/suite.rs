@@ -1,0 +1,561 @@
+//! The report of a D-NeRF suite (`maaf bench-suite`): one Tab. 2-shaped table of every
+//! method (preset / filter / background) averaged over the scenes it was evaluated on,
+//! with the paper's Tab. 2 rows and the released code's row beside it
+//! ([`super::published`], labelled as published), then per-scene PSNR, SSIM and LPIPS at
+//! every evaluated scale and the cost of each run (training wall time, Gaussians, model
+//! bytes). Written as `report.md` and `report.json`.
+//!
+//! Averages are plain means over the scenes present: a cell is averaged only when every
+//! evaluated scene of the method has it, and a scene is counted only once it has an
+//! `eval.json`. The "avg" columns are the mean over 1x, 2x and 4x, the paper's "Avg.".
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use super::published::{PublishedRow, paper_tab2, released};
+use super::scale_header;
+use crate::EvalReport;
+use crate::{Error, write_atomic};
+
+/// The scales of Tab. 2 (relative to the training scale), whose mean is its "Avg.".
+pub const TAB2_SCALES: [f64; 3] = [1.0, 2.0, 4.0];
+
+/// One run of a suite: a scene trained and evaluated with one method.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SuiteRun {
+    /// Scene (its folder name).
+    pub scene: String,
+    /// Split it is evaluated on (`test`, or `val` where the suite says so).
+    pub split: String,
+    /// Preset name (the config file's stem).
+    pub preset: String,
+    /// Filter: `none`, `mip3d` or `motion`.
+    pub filter: String,
+    /// Background: `white` or `black`.
+    pub background: String,
+    /// Run folder.
+    pub dir: PathBuf,
+}
+
+impl SuiteRun {
+    /// `preset / filter / background`, the row label of its method.
+    pub fn method(&self) -> String {
+        format!("{} / {} / {}", self.preset, self.filter, self.background)
+    }
+}
+
+/// One metric triple at one scale.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Cell {
+    /// Render scale relative to the training scale.
+    pub scale: f64,
+    /// PSNR, dB.
+    pub psnr: f64,
+    /// SSIM.
+    pub ssim: f64,
+    /// LPIPS (absent when the evaluation could not compute it).
+    pub lpips: Option<f64>,
+}
+
+/// One evaluated scene of a method.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SceneResult {
+    /// Scene.
+    pub scene: String,
+    /// Split evaluated.
+    pub split: String,
+    /// Run folder.
+    pub run: PathBuf,
+    /// Metrics per evaluated scale, ascending.
+    pub scales: Vec<Cell>,
+    /// Iterations trained.
+    pub iterations: usize,
+    /// Training wall time, seconds.
+    pub train_seconds: f64,
+    /// Gaussians of the final model.
+    pub gaussians: usize,
+    /// Bytes of the model's parameters.
+    pub model_bytes: u64,
+    /// Bytes of the filter state.
+    pub filter_bytes: u64,
+}
+
+/// A method's mean over its evaluated scenes.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Average {
+    /// Scenes averaged.
+    pub scenes: usize,
+    /// Per scale; a scale some scene lacks is left out, LPIPS is `None` when a scene
+    /// lacks it.
+    pub scales: Vec<Cell>,
+    /// Mean training wall time, seconds.
+    pub train_seconds: f64,
+    /// Mean Gaussians.
+    pub gaussians: f64,
+    /// Mean model bytes.
+    pub model_bytes: f64,
+}
+
+/// A method and its scenes.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct MethodResult {
+    /// `preset / filter / background`.
+    pub method: String,
+    /// Evaluated scenes, in the suite's order.
+    pub scenes: Vec<SceneResult>,
+    /// Their mean (absent while no scene is evaluated).
+    pub average: Option<Average>,
+}
+
+/// Everything `report.json` holds.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SuiteSummary {
+    /// Every scale some run was evaluated at, ascending.
+    pub scales: Vec<f64>,
+    /// One entry per method, in the suite's order.
+    pub methods: Vec<MethodResult>,
+    /// Run folders without an `eval.json` yet.
+    pub missing: Vec<PathBuf>,
+    /// The paper's Tab. 2 rows (published, 8 scenes).
+    pub paper_tab2: Vec<PublishedRow>,
+    /// The released code's rows (published, 8 scenes, 4x).
+    pub released: Vec<PublishedRow>,
+}
+
+/// What [`write_suite_report`] wrote.
+#[derive(Clone, Debug)]
+pub struct SuiteOutput {
+    /// `OUT/report.md`.
+    pub markdown: PathBuf,
+    /// `OUT/report.json`.
+    pub json: PathBuf,
+    /// The Tab. 2-shaped table, for printing.
+    pub table: String,
+}
+
+fn mean(v: impl Iterator<Item = f64>) -> Option<f64> {
+    let (sum, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x, n + 1));
+    (n > 0).then(|| sum / n as f64)
+}
+
+fn scene_result(run: &SuiteRun, eval: &EvalReport) -> SceneResult {
+    let mut scales: Vec<Cell> = eval
+        .scales
+        .iter()
+        .map(|s| Cell {
+            scale: s.scale,
+            psnr: s.psnr,
+            ssim: s.ssim,
+            lpips: s.lpips,
+        })
+        .collect();
+    scales.sort_by(|a, b| a.scale.total_cmp(&b.scale));
+    SceneResult {
+        scene: run.scene.clone(),
+        split: run.split.clone(),
+        run: run.dir.clone(),
+        scales,
+        iterations: eval.iterations,
+        train_seconds: eval.train_seconds,
+        gaussians: eval.num_gaussians,
+        model_bytes: eval.model_bytes,
+        filter_bytes: eval.filter_bytes,
+    }
+}
+
+fn cell_at(scene: &SceneResult, s: f64) -> Option<&Cell> {
+    scene.scales.iter().find(|c| (c.scale - s).abs() < 1e-9)
+}
+
+fn average(scenes: &[SceneResult], scales: &[f64]) -> Option<Average> {
+    if scenes.is_empty() {
+        return None;
+    }
+    let n = scenes.len() as f64;
+    let cells = scales
+        .iter()
+        .filter_map(|&s| {
+            let at: Vec<&Cell> = scenes.iter().filter_map(|r| cell_at(r, s)).collect();
+            (at.len() == scenes.len()).then(|| Cell {
+                scale: s,
+                psnr: at.iter().map(|c| c.psnr).sum::<f64>() / n,
+                ssim: at.iter().map(|c| c.ssim).sum::<f64>() / n,
+                lpips: at
+                    .iter()
+                    .map(|c| c.lpips)
+                    .sum::<Option<f64>>()
+                    .map(|v| v / n),
+            })
+        })
+        .collect();
+    Some(Average {
+        scenes: scenes.len(),
+        scales: cells,
+        train_seconds: scenes.iter().map(|r| r.train_seconds).sum::<f64>() / n,
+        gaussians: scenes.iter().map(|r| r.gaussians as f64).sum::<f64>() / n,
+        model_bytes: scenes.iter().map(|r| r.model_bytes as f64).sum::<f64>() / n,
+    })
+}
+
+/// Groups `runs` (with their `eval.json`, `None` while not evaluated) by method, in
+/// the order methods first appear, and averages each over its evaluated scenes.
+pub fn summarise(runs: &[(SuiteRun, Option<EvalReport>)]) -> SuiteSummary {
+    let mut scales: Vec<f64> = runs
+        .iter()
+        .filter_map(|(_, e)| e.as_ref())
+        .flat_map(|e| e.scales.iter().map(|s| s.scale))
+        .collect();
+    scales.sort_by(f64::total_cmp);
+    scales.dedup_by(|a, b| (*a - *b).abs() < 1e-9);
+    let mut methods: Vec<MethodResult> = Vec::new();
+    let mut missing = Vec::new();
+    for (run, eval) in runs {
+        let name = run.method();
+        let i = match methods.iter().position(|m| m.method == name) {
+            Some(i) => i,
+            None => {
+                methods.push(MethodResult {
+                    method: name,
+                    scenes: Vec::new(),
+                    average: None,
+                });
+                methods.len() - 1
+            }
+        };
+        match eval {
+            Some(e) => methods[i].scenes.push(scene_result(run, e)),
+            None => missing.push(run.dir.clone()),
+        }
+    }
+    for m in &mut methods {
+        m.average = average(&m.scenes, &scales);
+    }
+    SuiteSummary {
+        scales,
+        methods,
+        missing,
+        paper_tab2: paper_tab2(),
+        released: released(),
+    }
+}
+
+/// `v` with `digits` decimals, `-` when absent.
+fn num(v: Option<f64>, digits: usize) -> String {
+    v.map_or("-".into(), |v| format!("{v:.digits$}"))
+}
+
+/// The mean over [`TAB2_SCALES`] of one metric, when every one is present.
+fn tab2_avg(cells: &[Cell], f: fn(&Cell) -> Option<f64>) -> Option<f64> {
+    let v: Vec<f64> = TAB2_SCALES
+        .iter()
+        .map(|&s| {
+            cells
+                .iter()
+                .find(|c| (c.scale - s).abs() < 1e-9)
+                .and_then(f)
+        })
+        .collect::<Option<Vec<f64>>>()?;
+    mean(v.into_iter())
+}
+
+type Metric = (&'static str, usize, fn(&Cell) -> Option<f64>);
+
+const METRICS: [Metric; 3] = [
+    ("PSNR", 2, |c| Some(c.psnr)),
+    ("SSIM", 3, |c| Some(c.ssim)),
+    ("LPIPS", 3, |c| c.lpips),
+];
+
+/// The Tab. 2-shaped table: each method's average over its scenes at 1x, 2x, 4x and
+/// their mean for PSNR, SSIM and LPIPS, then the paper's rows (published).
+pub fn tab2_table(summary: &SuiteSummary) -> String {
+    let mut t = String::from("| Method | Scenes |");
+    for (name, _, _) in METRICS {
+        for s in TAB2_SCALES {
+            let _ = write!(t, " {name} {} |", scale_header(s));
+        }
+        let _ = write!(t, " {name} avg |");
+    }
+    t.push_str("\n|---|---:|");
+    t.push_str(&"---:|".repeat(METRICS.len() * (TAB2_SCALES.len() + 1)));
+    t.push('\n');
+    for m in &summary.methods {
+        let Some(avg) = &m.average else { continue };
+        let _ = write!(t, "| {} (maaf) | {} |", m.method, avg.scenes);
+        for (_, digits, f) in METRICS {
+            for s in TAB2_SCALES {
+                let v = avg
+                    .scales
+                    .iter()
+                    .find(|c| (c.scale - s).abs() < 1e-9)
+                    .and_then(f);
+                let _ = write!(t, " {} |", num(v, digits));
+            }
+            let _ = write!(t, " {} |", num(tab2_avg(&avg.scales, f), digits));
+        }
+        t.push('\n');
+    }
+    for row in &summary.paper_tab2 {
+        let _ = write!(
+            t,
+            "| {} [published: {}] | {} |",
+            row.method, row.source, row.scenes
+        );
+        let avg = row.average;
+        for (i, digits) in [2, 3, 3].into_iter().enumerate() {
+            let pick = |p: &super::published::PublishedScale| [p.psnr, p.ssim, p.lpips][i];
+            for s in TAB2_SCALES {
+                let v = row.scales.iter().find(|p| p.scale == s).map(pick);
+                let _ = write!(t, " {} |", num(v, digits));
+            }
+            let _ = write!(t, " {} |", num(avg.as_ref().map(pick), digits));
+        }
+        t.push('\n');
+    }
+    t
+}
+
+/// Each method's average at 4x with its cost, beside the released code's rows.
+pub fn released_table(summary: &SuiteSummary) -> String {
+    let mut t = String::from(
+        "| Method | Scenes | PSNR 4x | SSIM 4x | LPIPS 4x | Train time (min) | Gaussians | Model (MB) |\n|---|---:|---:|---:|---:|---:|---:|---:|\n",
+    );
+    for m in &summary.methods {
+        let Some(avg) = &m.average else { continue };
+        let c = avg.scales.iter().find(|c| (c.scale - 4.0).abs() < 1e-9);
+        let _ = writeln!(
+            t,
+            "| {} (maaf, CPU) | {} | {} | {} | {} | {:.2} | {:.0} | {:.2} |",
+            m.method,
+            avg.scenes,
+            num(c.map(|c| c.psnr), 2),
+            num(c.map(|c| c.ssim), 3),
+            num(c.and_then(|c| c.lpips), 3),
+            avg.train_seconds / 60.0,
+            avg.gaussians,
+            avg.model_bytes / 1e6
+        );
+    }
+    for row in &summary.released {
+        let c = row.scales.iter().find(|p| p.scale == 4.0);
+        let _ = writeln!(
+            t,
+            "| {} [published, GPU: {}] | {} | {} | {} | {} | {} | {} | - |",
+            row.method,
+            row.source,
+            row.scenes,
+            num(c.map(|c| c.psnr), 2),
+            num(c.map(|c| c.ssim), 3),
+            num(c.map(|c| c.lpips), 3),
+            num(row.train_minutes, 2),
+            row.gaussians.map_or("-".into(), |g| g.to_string())
+        );
+    }
+    t
+}
+
+/// Per scene and method, one metric at every evaluated scale and the mean over
+/// 1x..4x, with each method's average row.
+fn per_scene_table(summary: &SuiteSummary, metric: &Metric) -> String {
+    let (_, digits, f) = *metric;
+    let mut t = String::from("| Method | Scene | Split |");
+    for &s in &summary.scales {
+        let _ = write!(t, " {} |", scale_header(s));
+    }
+    let _ = write!(t, " avg 1x-4x |\n|---|---|---|");
+    t.push_str(&"---:|".repeat(summary.scales.len() + 1));
+    t.push('\n');
+    let row = |t: &mut String, method: &str, scene: &str, split: &str, cells: &[Cell]| {
+        let _ = write!(t, "| {method} | {scene} | {split} |");
+        for &s in &summary.scales {
+            let v = cells
+                .iter()
+                .find(|c| (c.scale - s).abs() < 1e-9)
+                .and_then(f);
+            let _ = write!(t, " {} |", num(v, digits));
+        }
+        let _ = writeln!(t, " {} |", num(tab2_avg(cells, f), digits));
+    };
+    for m in &summary.methods {
+        for r in &m.scenes {
+            row(&mut t, &m.method, &r.scene, &r.split, &r.scales);
+        }
+        if let Some(avg) = &m.average {
+            let label = format!("**average ({} scenes)**", avg.scenes);
+            row(&mut t, &m.method, &label, "", &avg.scales);
+        }
+    }
+    t
+}
+
+/// Per scene and method: iterations, training wall time, Gaussians, bytes.
+fn cost_table(summary: &SuiteSummary) -> String {
+    let mut t = String::from(
+        "| Method | Scene | Iterations | Train time (min) | Gaussians | Model (MB) | Filter state (MB) |\n|---|---|---:|---:|---:|---:|---:|\n",
+    );
+    for m in &summary.methods {
+        for r in &m.scenes {
+            let _ = writeln!(
+                t,
+                "| {} | {} | {} | {:.2} | {} | {:.2} | {:.3} |",
+                m.method,
+                r.scene,
+                r.iterations,
+                r.train_seconds / 60.0,
+                r.gaussians,
+                r.model_bytes as f64 / 1e6,
+                r.filter_bytes as f64 / 1e6
+            );
+        }
+        if let Some(avg) = &m.average {
+            let _ = writeln!(
+                t,
+                "| {} | **average ({} scenes)** | | {:.2} | {:.0} | {:.2} | |",
+                m.method,
+                avg.scenes,
+                avg.train_seconds / 60.0,
+                avg.gaussians,
+                avg.model_bytes / 1e6
+            );
+        }
+    }
+    t
+}
+
+/// The markdown report of `summary`.
+pub fn markdown(summary: &SuiteSummary) -> String {
+    let evaluated: usize = summary.methods.iter().map(|m| m.scenes.len()).sum();
+    let mut md = String::from("# D-NeRF suite report\n\n");
+    let _ = writeln!(
+        md,
+        "{evaluated} of {} runs evaluated. Scales are relative to the training scale. maaf's \
+         rows average the scenes present (the Scenes column); the published rows average \
+         the eight D-NeRF scenes on a GPU: the two are not the same scenes, and the \
+         published figures are copied from their sources, not measured here. \"avg\" is \
+         the mean over 1x, 2x and 4x (Tab. 2's Avg.).\n",
+        evaluated + summary.missing.len()
+    );
+    md.push_str("## Tab. 2 layout: 1x / 2x / 4x, averaged over scenes\n\n");
+    md.push_str(&tab2_table(summary));
+    md.push_str("\n## At 4x against the released code (SpeeDe3DGS backbone)\n\n");
+    md.push_str(&released_table(summary));
+    for metric in &METRICS {
+        let _ = writeln!(md, "\n## Per scene: {}\n", metric.0);
+        md.push_str(&per_scene_table(summary, metric));
+    }
+    md.push_str("\n## Per scene: cost (training wall time as each run recorded it; the machine's load is not recorded)\n\n");
+    md.push_str(&cost_table(summary));
+    if !summary.missing.is_empty() {
+        md.push_str("\n## Not evaluated yet\n\n");
+        for d in &summary.missing {
+            let _ = writeln!(md, "- `{}`", d.display());
+        }
+    }
+    md
+}
+
+/// Reads each run's `eval.json` (a run without one is listed as not evaluated yet)
+/// and writes `OUT/report.md` and `OUT/report.json`.
+pub fn write_suite_report(runs: &[SuiteRun], out: &Path) -> Result<SuiteOutput, Error> {
+    let mut loaded = Vec::with_capacity(runs.len());
+    for r in runs {
+        let eval = if r.dir.join("eval.json").is_file() {
+            Some(EvalReport::read(&r.dir)?)
+        } else {
+            None
+        };
+        loaded.push((r.clone(), eval));
+    }
+    let summary = summarise(&loaded);
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    let markdown_path = out.join("report.md");
+    write_atomic(&markdown_path, markdown(&summary).as_bytes())?;
+    let json_path = out.join("report.json");
+    let json = serde_json::to_string_pretty(&summary)
+        .map_err(|e| Error::Input(format!("cannot serialise the suite report: {e}")))?;
+    write_atomic(&json_path, json.as_bytes())?;
+    Ok(SuiteOutput {
+        markdown: markdown_path,
+        json: json_path,
+        table: tab2_table(&summary),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ScaleResult;
+
+    fn run(scene: &str, filter: &str) -> SuiteRun {
+        SuiteRun {
+            scene: scene.into(),
+            split: "test".into(),
+            preset: "dnerf".into(),
+            filter: filter.into(),
+            background: "black".into(),
+            dir: format!("{scene}/{filter}").into(),
+        }
+    }
+
+    fn eval(psnr: f64, scales: &[f64]) -> EvalReport {
+        let cells = scales
+            .iter()
+            .map(|&s| {
+                let mut c = ScaleResult::new(s, (8, 8), psnr + s, 0.9);
+                c.lpips = Some(0.1 * s);
+                c
+            })
+            .collect();
+        let mut r = super::super::ReportRun::for_test("x", "saro", "motion", cells).eval;
+        r.train_seconds = psnr;
+        r
+    }
+
+    #[test]
+    fn methods_average_their_evaluated_scenes_and_list_the_rest() {
+        let all = [0.25, 1.0, 2.0, 4.0];
+        let runs = vec![
+            (run("a", "motion"), Some(eval(30.0, &all))),
+            (run("a", "none"), Some(eval(20.0, &all))),
+            (run("b", "motion"), Some(eval(34.0, &all))),
+            (run("b", "none"), None),
+        ];
+        let s = summarise(&runs);
+        assert_eq!(s.methods.len(), 2);
+        assert_eq!(s.missing, vec![PathBuf::from("b/none")]);
+        let motion = s.methods[0].average.as_ref().expect("average");
+        assert_eq!(motion.scenes, 2);
+        let at4 = motion.scales.iter().find(|c| c.scale == 4.0).expect("4x");
+        assert!((at4.psnr - 36.0).abs() < 1e-12);
+        assert!((motion.train_seconds - 32.0).abs() < 1e-12);
+        let none = s.methods[1].average.as_ref().expect("average");
+        assert_eq!(none.scenes, 1);
+        // Tab. 2's avg: the mean of 1x, 2x, 4x (32 + 34 + 36) / 3.
+        let table = tab2_table(&s);
+        assert!(
+            table.contains("| dnerf / motion / black (maaf) | 2 | 33.00 | 34.00 | 36.00 | 34.33 |"),
+            "{table}"
+        );
+        assert!(
+            table.contains("37.10") && table.contains("36.61"),
+            "{table}"
+        );
+        assert!(released_table(&s).contains("32.28"));
+    }
+
+    #[test]
+    fn a_scale_missing_in_one_scene_is_left_out_of_the_average() {
+        let runs = vec![
+            (run("a", "motion"), Some(eval(30.0, &[1.0, 2.0, 4.0]))),
+            (run("b", "motion"), Some(eval(30.0, &[1.0, 2.0]))),
+        ];
+        let s = summarise(&runs);
+        let avg = s.methods[0].average.as_ref().expect("average");
+        let scales: Vec<f64> = avg.scales.iter().map(|c| c.scale).collect();
+        assert_eq!(scales, vec![1.0, 2.0]);
+        let md = markdown(&s);
+        assert!(md.contains("**average (2 scenes)**"), "{md}");
+    }
+}

@@ -1,0 +1,447 @@
+//! Training configuration (serde, every value exposed; defaults follow the SaRO-GS
+//! D-NeRF configs and the paper's protocol unless noted).
+
+use std::collections::BTreeMap;
+
+use maaf_filter::FilterConfig;
+use serde::{Deserialize, Serialize};
+
+use maaf_models::ModelConfig;
+
+use crate::Error;
+
+/// Densification schedule and thresholds (3DGS `densify_and_prune`, SaRO-GS D-NeRF
+/// config: from 500 to 15 000 every 100, gradient threshold 2e-4, opacity reset every
+/// 2000, prune below opacity 0.005, clone/split boundary 0.01 x scene extent, and
+/// after the first reset prune above 0.1 x scene extent).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct DensifyConfig {
+    /// First densification iteration.
+    pub from: usize,
+    /// Last densification iteration.
+    pub until: usize,
+    /// Interval.
+    pub every: usize,
+    /// Mean screen-space gradient norm (pixels, at the training resolution) above
+    /// which a Gaussian is cloned or split.
+    pub grad_threshold: f64,
+    /// Opacity reset interval (0 = never).
+    pub opacity_reset_every: usize,
+    /// What the opacity reset caps ([`OpacityReset`]): the opacity the 3D filter
+    /// draws (`filtered`, Mip-Splatting) or the stored one (`raw`, 3DGS).
+    pub reset_opacity: OpacityReset,
+    /// Opacity below which Gaussians are pruned.
+    pub min_opacity: f64,
+    /// Clone if the largest scale is at most this fraction of the scene extent, else split.
+    pub percent_dense: f64,
+    /// After the first opacity reset, prune Gaussians whose largest activated scale
+    /// exceeds this fraction of the scene extent (3DGS `big_points_ws`, 0.1; 0 = off).
+    pub max_world_size: f64,
+    /// After the first opacity reset, prune Gaussians whose screen radius since the
+    /// last densification exceeded this many pixels (0 = off, the default). 3DGS and
+    /// the 4D references pass 20, but `densification_postfix` zeroes `max_radii2D`
+    /// before `densify_and_prune` reads it, so their test never fires; gsplat leaves it
+    /// off too. Live, it prunes by a pixel count that does not follow the training
+    /// resolution: at 400x400 it emptied a Deformable-3DGS mutant run by iteration 6000.
+    pub max_screen_size: f64,
+    /// Hard cap on the number of Gaussians (CPU budget); growth stops there.
+    pub max_gaussians: usize,
+    /// The densification strategy by its registered name (`"default"`,
+    /// `"sensitivity"`, or a program's own: `maaf::cli::Maaf::strategy`); `null`
+    /// chooses `"sensitivity"` when `prune.every` > 0, else `"default"`.
+    pub strategy: Option<String>,
+}
+
+impl Default for DensifyConfig {
+    fn default() -> Self {
+        DensifyConfig {
+            from: 500,
+            until: 15_000,
+            every: 100,
+            grad_threshold: 2e-4,
+            opacity_reset_every: 2000,
+            reset_opacity: OpacityReset::Filtered,
+            min_opacity: 0.005,
+            percent_dense: 0.01,
+            max_world_size: 0.1,
+            max_screen_size: 0.0,
+            max_gaussians: 60_000,
+            strategy: None,
+        }
+    }
+}
+
+/// Which opacity the periodic reset caps at `c = 0.01` (3DGS `reset_opacity`).
+///
+/// With a 3D filter a Gaussian is drawn with the opacity `sigmoid(o) * k`, where
+/// `k = sqrt(det S / det(S + var I)) = prod_a sqrt(s_a^2 / (s_a^2 + var))` is the
+/// filter's compensation (paper Eq. 3) on the canonical scales `s`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum OpacityReset {
+    /// Mip-Splatting's reset: the drawn opacity is capped,
+    /// `sigmoid(o') = min(sigmoid(o) * k, c) / k`, with the widest variance the filter
+    /// gives the Gaussian at any time (the smallest `k`; for the motion filter
+    /// `var = s3d / (min_t nu(t))^2`), so after a reset it is drawn at `c` or more at
+    /// every time and keeps receiving gradients. Without a filter `k = 1`: the same
+    /// as `Raw`.
+    #[default]
+    Filtered,
+    /// 3DGS's reset: `sigmoid(o') = min(sigmoid(o), c)`; with a filter the smallest
+    /// Gaussians are then drawn below 1/255 and stop receiving gradients.
+    Raw,
+}
+
+/// Sensitivity pruning (Speedy-Splat's soft and hard pruning, scheduled as SpeeDe3DGS
+/// does for deformable Gaussians: from iteration 6000 every 3000, 80 % of the
+/// Gaussians while densification runs, 30 % after it). Off by default (`every` = 0):
+/// turning it on changes the model a run ends with, so it is a choice, not a default.
+/// The score is `maaf_train::trainer::Trainer::sensitivity_scores`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct PruneConfig {
+    /// Interval in iterations (0 = never prune by sensitivity).
+    pub every: usize,
+    /// First pruning iteration.
+    pub from: usize,
+    /// Last pruning iteration.
+    pub until: usize,
+    /// Fraction of the Gaussians removed at a pruning before `densify.until`
+    /// (Speedy-Splat's soft pruning; densification grows them back).
+    pub ratio_densifying: f64,
+    /// Fraction removed at a pruning from `densify.until` on (hard pruning).
+    pub ratio_after: f64,
+}
+
+impl Default for PruneConfig {
+    fn default() -> Self {
+        PruneConfig {
+            every: 0,
+            from: 6000,
+            until: 30_000,
+            ratio_densifying: 0.8,
+            ratio_after: 0.3,
+        }
+    }
+}
+
+/// Everything a training run needs besides the data.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct TrainConfig {
+    /// Iterations (`batch` views per iteration).
+    pub iterations: usize,
+    /// Training views per iteration. Each view is rendered at its own time from one
+    /// binding of the model (SaRO's field and lifespans are queried once per
+    /// iteration), and the gradient is the mean of the views' objectives: SaRO-GS
+    /// `train.py` with `batch` (its D-NeRF and N3D configs use 4; Deformable-3DGS and
+    /// 3DGS use 1). 1 is the default here because it costs least per iteration.
+    pub batch: usize,
+    /// Training scale relative to the source images (0.25 = 200x200 from 800x800).
+    pub train_scale: f64,
+    /// Seed of initialisation, view order and densification noise.
+    pub seed: u64,
+    /// Initial random points inside the scene bounds.
+    pub init_points: usize,
+    /// Share of `init_points` placed on the visual hulls of the foreground masks when
+    /// the data set has masks and no point cloud (the Panoptic layout), in [0, 1]; the
+    /// rest are random static points ([`maaf_data::visual_hull`]). 0 starts the
+    /// movers from random points too.
+    pub hull_fraction: f64,
+    /// D-SSIM weight lambda in `(1 - lambda) L1 + lambda D-SSIM`.
+    pub lambda_dssim: f64,
+    /// Further loss terms by name with their weights, `{"opacity_entropy": 0.001}`:
+    /// the built-in regularisers (`maaf_train::loss::builtin`) or terms the training
+    /// program registered (`maaf_train::loss::TermRegistry`). Added after the
+    /// photometric loss and the model's regularisers, in name order.
+    pub terms: BTreeMap<String, f64>,
+    /// Raise the evaluated SH degree by one every this many iterations (3DGS: 1000).
+    pub sh_degree_every: usize,
+    /// Write a checkpoint every this many iterations (and always at the end).
+    pub checkpoint_every: usize,
+    /// Log a row to log.csv every this many iterations.
+    pub log_every: usize,
+    /// Record the validation PSNR (`val_psnr` in log.csv) every this many iterations
+    /// and at the last one (0 = never); it goes on that iteration's log row, so use a
+    /// multiple of `log_every`.
+    pub val_every: usize,
+    /// Held-back views the validation PSNR averages (evenly spaced over the val split,
+    /// else the test split).
+    pub val_views: usize,
+    /// Scan every forward value and cotangent for NaN/Inf (slower; names the op).
+    pub validate: bool,
+    /// Largest share of skipped (non-finite) steps a run may have before it is
+    /// stopped as diverged, in [0, 1].
+    pub max_skipped_fraction: f64,
+    /// Iterations before `max_skipped_fraction` applies (a few early skips are noise).
+    pub skip_grace: usize,
+    /// The 4D representation: its kind (`"kind": "saro"`) and settings.
+    pub model: ModelConfig,
+    /// The 3D smoothing filter (kind and KDE parameters).
+    pub filter: FilterConfig,
+    /// Densification.
+    pub densify: DensifyConfig,
+    /// Sensitivity pruning (off unless `prune.every` > 0).
+    pub prune: PruneConfig,
+}
+
+impl Default for TrainConfig {
+    fn default() -> Self {
+        TrainConfig {
+            iterations: 20_000,
+            batch: 1,
+            train_scale: 0.25,
+            seed: 0,
+            init_points: 10_000,
+            hull_fraction: 0.5,
+            lambda_dssim: 0.2,
+            terms: BTreeMap::new(),
+            sh_degree_every: 1000,
+            checkpoint_every: 5000,
+            log_every: 100,
+            val_every: 500,
+            val_views: 3,
+            validate: false,
+            max_skipped_fraction: 0.05,
+            skip_grace: 20,
+            model: ModelConfig::default(),
+            filter: FilterConfig::default(),
+            densify: DensifyConfig::default(),
+            prune: PruneConfig::default(),
+        }
+    }
+}
+
+/// Most training views one iteration may batch (each view's render stays on the tape
+/// until the backward).
+pub const MAX_BATCH: usize = 64;
+
+/// Largest number of initial points or Gaussians a config may ask for (a CPU run
+/// beyond this would not fit in memory or time).
+pub const MAX_GAUSSIANS_CAP: usize = 10_000_000;
+
+/// One-line error for `field` = `value` outside `range`.
+fn bad(field: &str, value: &dyn std::fmt::Display, range: &str) -> Error {
+    Error::Input(format!("config: {field} = {value}: must be {range}"))
+}
+
+/// `Ok` if `v` is finite and in `lo..=hi`, else the error naming `field`.
+fn in_range(field: &str, v: f64, lo: f64, hi: f64) -> Result<(), Error> {
+    if v.is_finite() && (lo..=hi).contains(&v) {
+        Ok(())
+    } else {
+        Err(bad(field, &v, &format!("a number in [{lo}, {hi}]")))
+    }
+}
+
+/// `Ok` if `v` is in `lo..=hi`, else the error naming `field`.
+fn count(field: &str, v: usize, lo: usize, hi: usize) -> Result<(), Error> {
+    if (lo..=hi).contains(&v) {
+        Ok(())
+    } else {
+        let range = if hi == usize::MAX {
+            format!("an integer >= {lo}")
+        } else {
+            format!("an integer in {lo}..={hi}")
+        };
+        Err(bad(field, &v, &range))
+    }
+}
+
+impl TrainConfig {
+    /// Checks every setting before any work starts; the error is one line naming the
+    /// field, its value and the allowed range.
+    pub fn validate(&self) -> Result<(), Error> {
+        count("iterations", self.iterations, 1, 100_000_000)?;
+        count("batch", self.batch, 1, MAX_BATCH)?;
+        if !(self.train_scale.is_finite() && self.train_scale > 0.0 && self.train_scale <= 1.0) {
+            return Err(bad(
+                "train_scale",
+                &self.train_scale,
+                "in (0, 1] (a downsampling of the source images)",
+            ));
+        }
+        count("init_points", self.init_points, 1, MAX_GAUSSIANS_CAP)?;
+        in_range("hull_fraction", self.hull_fraction, 0.0, 1.0)?;
+        in_range("lambda_dssim", self.lambda_dssim, 0.0, 1.0)?;
+        for (name, &weight) in &self.terms {
+            if let Some(problem) = crate::name_problem(name) {
+                return Err(Error::Input(format!("config: terms: {problem}")));
+            }
+            if !(weight.is_finite() && weight >= 0.0) {
+                return Err(bad(
+                    &format!("terms.{name}"),
+                    &weight,
+                    "a finite weight >= 0",
+                ));
+            }
+        }
+        count("sh_degree_every", self.sh_degree_every, 1, usize::MAX)?;
+        count("checkpoint_every", self.checkpoint_every, 1, usize::MAX)?;
+        count("log_every", self.log_every, 1, usize::MAX)?;
+        if !self.val_every.is_multiple_of(self.log_every) {
+            return Err(bad(
+                "val_every",
+                &self.val_every,
+                &format!(
+                    "0 or a multiple of log_every = {} (validation goes on a log row)",
+                    self.log_every
+                ),
+            ));
+        }
+        if self.val_every > 0 {
+            count("val_views", self.val_views, 1, 10_000)?;
+        }
+        in_range("max_skipped_fraction", self.max_skipped_fraction, 0.0, 1.0)?;
+        let d = &self.densify;
+        if d.from > d.until {
+            return Err(bad(
+                "densify.from",
+                &d.from,
+                &format!("<= densify.until = {}", d.until),
+            ));
+        }
+        let positive = [
+            ("densify.grad_threshold", d.grad_threshold),
+            ("densify.percent_dense", d.percent_dense),
+        ];
+        for (field, v) in positive {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(bad(field, &v, "a finite number > 0"));
+            }
+        }
+        let off_or_positive = [
+            ("densify.max_world_size", d.max_world_size),
+            ("densify.max_screen_size", d.max_screen_size),
+        ];
+        for (field, v) in off_or_positive {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(bad(field, &v, "a finite number >= 0 (0 = off)"));
+            }
+        }
+        in_range("densify.min_opacity", d.min_opacity, 0.0, 1.0)?;
+        count(
+            "densify.max_gaussians",
+            d.max_gaussians,
+            self.init_points,
+            MAX_GAUSSIANS_CAP,
+        )
+        .map_err(|_| {
+            bad(
+                "densify.max_gaussians",
+                &d.max_gaussians,
+                &format!(
+                    "in init_points ({})..={MAX_GAUSSIANS_CAP}",
+                    self.init_points
+                ),
+            )
+        })?;
+        let p = &self.prune;
+        if p.every > 0 && p.from > p.until {
+            return Err(bad(
+                "prune.from",
+                &p.from,
+                &format!("<= prune.until = {}", p.until),
+            ));
+        }
+        in_range("prune.ratio_densifying", p.ratio_densifying, 0.0, 0.99)?;
+        in_range("prune.ratio_after", p.ratio_after, 0.0, 0.99)?;
+        self.model
+            .validate()
+            .map_err(|e| Error::Input(format!("config: {e}")))?;
+        self.filter
+            .validate()
+            .map_err(|e| Error::Input(format!("config: filter: {e}")))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Each bad value is refused with its field's name; the defaults pass.
+    #[test]
+    fn every_bad_setting_names_its_field() {
+        TrainConfig::default()
+            .validate()
+            .expect("defaults are valid");
+        type Change = Box<dyn Fn(&mut TrainConfig)>;
+        let cases: Vec<(&str, Change)> = vec![
+            ("iterations", Box::new(|c| c.iterations = 0)),
+            ("batch", Box::new(|c| c.batch = 0)),
+            ("train_scale", Box::new(|c| c.train_scale = -1.0)),
+            ("train_scale", Box::new(|c| c.train_scale = f64::NAN)),
+            ("init_points", Box::new(|c| c.init_points = 0)),
+            ("hull_fraction", Box::new(|c| c.hull_fraction = 1.5)),
+            ("lambda_dssim", Box::new(|c| c.lambda_dssim = 2.0)),
+            (
+                "terms.depth_tv",
+                Box::new(|c| {
+                    c.terms.insert("depth_tv".into(), f64::NAN);
+                }),
+            ),
+            ("checkpoint_every", Box::new(|c| c.checkpoint_every = 0)),
+            ("log_every", Box::new(|c| c.log_every = 0)),
+            ("val_every", Box::new(|c| c.val_every = 150)),
+            (
+                "max_skipped_fraction",
+                Box::new(|c| c.max_skipped_fraction = 1.5),
+            ),
+            (
+                "densify.max_gaussians",
+                Box::new(|c| c.densify.max_gaussians = 0),
+            ),
+            ("densify.from", Box::new(|c| c.densify.from = 20_000)),
+            (
+                "prune.from",
+                Box::new(|c| {
+                    c.prune.every = 100;
+                    c.prune.from = 40_000;
+                }),
+            ),
+            (
+                "prune.ratio_densifying",
+                Box::new(|c| c.prune.ratio_densifying = 1.0),
+            ),
+            (
+                "prune.ratio_after",
+                Box::new(|c| c.prune.ratio_after = -0.1),
+            ),
+            (
+                "densify.min_opacity",
+                Box::new(|c| c.densify.min_opacity = -0.1),
+            ),
+        ];
+        for (field, change) in cases {
+            let mut c = TrainConfig::default();
+            change(&mut c);
+            let msg = c.validate().expect_err(field).to_string();
+            assert!(
+                msg.starts_with(&format!("config: {field} = ")),
+                "{field}: {msg}"
+            );
+            assert!(!msg.contains('\n'), "{msg}");
+        }
+    }
+
+    #[test]
+    fn a_term_name_must_be_a_log_column_of_its_own() {
+        for (name, says) in [
+            ("l1", "reserved"),
+            ("total", "reserved"),
+            ("a,b", "not a term name"),
+            ("", "not a term name"),
+        ] {
+            let mut c = TrainConfig::default();
+            c.terms.insert(name.into(), 0.1);
+            let msg = c.validate().expect_err(name).to_string();
+            assert!(msg.starts_with("config: terms: "), "{msg}");
+            assert!(msg.contains(says), "{name}: {msg}");
+        }
+        let mut c = TrainConfig::default();
+        c.terms.insert("my_term_2".into(), 0.0);
+        c.validate()
+            .expect("any registered-looking name with a weight >= 0");
+    }
+}

@@ -1,0 +1,289 @@
+//! maaf-scene: what a trained run is and how to read it, without the trainer. The
+//! run's configuration ([`TrainConfig`]), the checkpoint reader ([`checkpoint_read`],
+//! the one reader behind the trainer's restore and [`TrainedScene::load`]), what a
+//! run starts from ([`model_init`]), the pipeline of one forward pass ([`forward`]),
+//! and the trained scene as a value.
+//!
+//! A trained scene: the representation, the filter state it renders with
+//! (the motion-aware nu(t) included) and its observations, the run's configuration
+//! and iteration (SH degree, 2D filter), and the [`SceneRecord`] (training cameras,
+//! background, time range). [`TrainedScene::load`] reads `RUN/model` without the
+//! data set, rebuilding the representation through a [`ModelRegistry`];
+//! [`TrainedScene::render`] draws any camera at any time through the training
+//! pipeline ([`crate::forward::forward`]). Evaluation, rendering and export work on
+//! this type; a trainer becomes one with `maaf_train::trainer::Trainer::into_scene`.
+//! `docs/architecture.md` says where this crate sits.
+
+pub mod checkpoint_read;
+pub mod config;
+mod error;
+pub mod forward;
+mod init;
+mod observed;
+mod record;
+mod registry;
+mod run_dir;
+mod term_name;
+mod timings;
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use maaf_autodiff::{PerGaussian, Tensor};
+use maaf_filter::{
+    FilterError, FilterKind, FilterRegistry, FilterState, ObservationTable, static_nu,
+};
+use maaf_splat::{Camera, Filter2d, RenderSettings};
+
+pub use checkpoint_read::Opened;
+pub use config::{DensifyConfig, MAX_BATCH, OpacityReset, PruneConfig, TrainConfig};
+pub use error::{Error, write_atomic};
+pub use init::{camera_extent, model_init, training_views};
+pub use observed::{centres, observed_views};
+pub use record::{RawTensor, SceneRecord};
+pub use registry::{ModelLoader, ModelRegistry};
+pub use run_dir::repair_run_dir;
+pub use term_name::{RESERVED, name_problem};
+pub use timings::Timings;
+
+use maaf_data::Dataset;
+use maaf_models::Representation;
+
+use crate::forward::{forward, gaussians_at};
+
+/// A trained run's model and everything needed to render it (see the module
+/// documentation).
+pub struct TrainedScene {
+    /// The 4D representation, at the run's stage (`set_iteration` applied).
+    pub model: Box<dyn Representation<f32>>,
+    /// The 3D filter of every Gaussian (static nu, or the motion-aware nu(t) curves).
+    pub filter: FilterState,
+    /// The f/d observations the motion filter's curves were computed from (no frames
+    /// for the other filters).
+    pub observations: ObservationTable,
+    /// The run's configuration.
+    pub config: TrainConfig,
+    /// Iterations the model was trained for.
+    pub iteration: usize,
+    /// Training wall time, seconds ([`Timings::total`]).
+    pub train_seconds: f64,
+    /// Training cameras and times, initial cloud box, time range, background.
+    pub record: SceneRecord,
+}
+
+/// Render settings of a run of `config` on `background` at `iteration`: the 2D Mip
+/// filter (0.1 px^2 with compensation) whenever the run's 3D filter `smooths`
+/// ([`maaf_filter::SamplingFilter::smooths`]), as in the paper; the classic 3DGS
+/// dilation (0.3 px^2) otherwise. The SH degree grows by one every
+/// `sh_degree_every` iterations up to the model's.
+pub fn render_settings(
+    config: &TrainConfig,
+    background: [f32; 3],
+    iteration: usize,
+    smooths: bool,
+) -> RenderSettings {
+    let filter2d = if smooths {
+        Filter2d::Mip
+    } else {
+        Filter2d::Classic
+    };
+    let grown = iteration / config.sh_degree_every.max(1);
+    RenderSettings {
+        background: background.map(f64::from),
+        filter2d,
+        sh_degree: grown.min(config.model.sh_degree()),
+        ..RenderSettings::default()
+    }
+}
+
+/// The folder holding the trained model of `run` (`RUN/model`, or its parked old
+/// version when a swap was cut short), or a one-line error for a missing run or model.
+pub fn model_dir(run: &Path) -> Result<PathBuf, Error> {
+    if !run.is_dir() {
+        return Err(Error::Input(format!(
+            "{}: run directory does not exist",
+            run.display()
+        )));
+    }
+    let model = maaf_io::readable_dir(&run.join("model")).unwrap_or_else(|| run.join("model"));
+    if !model.join("state.json").is_file() || !model.join("tensors.safetensors").is_file() {
+        return Err(Error::Input(format!(
+            "{}: no trained model (expected {}/state.json and tensors.safetensors; train with `maaf train --out {}`)",
+            run.display(),
+            model.display(),
+            run.display()
+        )));
+    }
+    Ok(model)
+}
+
+impl TrainedScene {
+    /// Loads the trained model of `run` (`RUN/model`) without its data set. A run
+    /// whose checkpoints predate the scene record needs its data set
+    /// ([`Self::load_with`]); the error says so.
+    pub fn load(run: &Path, registry: &ModelRegistry) -> Result<Self, Error> {
+        Self::load_with(run, registry, None)
+    }
+
+    /// [`Self::load`], taking what a checkpoint without a scene record lacks from
+    /// `data` (the data set the run was trained on) when given.
+    pub fn load_with(
+        run: &Path,
+        registry: &ModelRegistry,
+        data: Option<&Dataset>,
+    ) -> Result<Self, Error> {
+        Self::from_checkpoint(&model_dir(run)?, registry, data)
+    }
+
+    /// [`Self::load`], calling `fallback` with the run's configuration for the scene
+    /// record only when the checkpoint has none (a run saved before it existed: the
+    /// caller opens the data set then, [`SceneRecord::of_data`]).
+    pub fn load_or(
+        run: &Path,
+        registry: &ModelRegistry,
+        fallback: impl FnOnce(&TrainConfig) -> Result<SceneRecord, Error>,
+    ) -> Result<Self, Error> {
+        Self::from_checkpoint_or(&model_dir(run)?, registry, fallback)
+    }
+
+    /// Loads a checkpoint folder (`RUN/model` or `RUN/checkpoints/iter_N`), taking the
+    /// scene record from `data` when the checkpoint has none
+    /// ([`Self::from_checkpoint_or`]).
+    pub fn from_checkpoint(
+        dir: &Path,
+        registry: &ModelRegistry,
+        data: Option<&Dataset>,
+    ) -> Result<Self, Error> {
+        Self::from_checkpoint_or(dir, registry, |config| match data {
+            Some(data) => SceneRecord::of_data(data, config),
+            None => Err(Error::Input(format!(
+                "{}: saved before checkpoints recorded their training cameras: this run loads only with its data set (--data DIR)",
+                dir.display()
+            ))),
+        })
+    }
+
+    /// Loads a checkpoint folder: rebuilds the representation its `state.json` names
+    /// through `registry` from the run's configuration and
+    /// [`SceneRecord::model_init`], then loads its tensors, buffers, filter and
+    /// observations with the trainer's own reader. `fallback` gives the scene record
+    /// of a checkpoint without one. Errors name the folder.
+    pub fn from_checkpoint_or(
+        dir: &Path,
+        registry: &ModelRegistry,
+        fallback: impl FnOnce(&TrainConfig) -> Result<SceneRecord, Error>,
+    ) -> Result<Self, Error> {
+        let opened = Opened::open(dir)?;
+        let record = match opened.scene_record()? {
+            Some(record) => record,
+            None => fallback(&opened.state.config)?,
+        };
+        let config = &opened.state.config;
+        let init = record.model_init(config.seed);
+        let mut model = registry
+            .build(&opened.state.model, config, &init)
+            .map_err(|e| Error::Input(format!("{}: {e}", dir.display())))?;
+        opened.load_model(model.as_mut(), dir, HashMap::new())?;
+        let observes = match FilterRegistry::builtin().for_config(&config.filter) {
+            Ok(filter) => filter.observes(),
+            // A program's own filter (the scene needs its state, not its code): it
+            // observed when the checkpoint holds observations.
+            Err(_) => opened.tensors()?.names().contains(&"observations"),
+        };
+        let (observed, _) = observed_views(&record.times, observes, config.filter.max_views);
+        let observations = opened.observations(&observed, record.times.len())?;
+        let state = opened.state;
+        Ok(TrainedScene {
+            model,
+            filter: state.filter,
+            observations,
+            config: state.config,
+            iteration: state.iteration,
+            train_seconds: state.timings.total(),
+            record,
+        })
+    }
+
+    /// Number of Gaussians.
+    pub fn num_gaussians(&self) -> usize {
+        self.model.rows()
+    }
+
+    /// Number of stored model scalars: the parameters plus the state the model keeps
+    /// outside its store ([`TrainingHooks::state_scalars`](crate::models::TrainingHooks::state_scalars), e.g. GroupFlow's tables).
+    pub fn num_scalars(&self) -> usize {
+        let extra = self.model.hooks().map_or(0, |h| h.state_scalars());
+        self.model.params().num_scalars() + extra
+    }
+
+    /// The settings the run renders with ([`render_settings`] at its iteration, on
+    /// its background).
+    pub fn render_settings(&self) -> RenderSettings {
+        // A program's own filter smooths unless its state is no filter.
+        let smooths = match &self.config.filter.kind {
+            FilterKind::None => false,
+            FilterKind::Custom(_) => !matches!(self.filter, FilterState::None { .. }),
+            _ => true,
+        };
+        render_settings(
+            &self.config,
+            self.record.background,
+            self.iteration,
+            smooths,
+        )
+    }
+
+    /// Renders the scene at `time` from `camera` (float `[H, W, 3]`) with the run's
+    /// settings.
+    pub fn render(&self, camera: &Camera, time: f64) -> Tensor<f32> {
+        self.render_with(camera, time, &self.render_settings())
+    }
+
+    /// Renders the scene at `time` from `camera` with `settings`, through the training
+    /// pipeline ([`forward`]) with the parameters as constants.
+    pub fn render_with(
+        &self,
+        camera: &Camera,
+        time: f64,
+        settings: &RenderSettings,
+    ) -> Tensor<f32> {
+        let tape = maaf_autodiff::Tape::new();
+        let params = self.model.params().bind_constants(&tape);
+        let out = forward(
+            self.model.as_ref(),
+            &params,
+            &self.filter,
+            camera,
+            time,
+            settings,
+        );
+        // The binding ends the borrow of the tape before the tape is dropped.
+        #[allow(clippy::let_and_return)]
+        let image = out.render.image.value().clone();
+        image
+    }
+
+    /// The deformed, filtered Gaussians at `time` as plain tensors
+    /// `[means, scales, quats, opacity, sh]`: what the renderer draws.
+    pub fn gaussians_at(&self, time: f64) -> [Tensor<f32>; 5] {
+        gaussians_at(self.model.as_ref(), &self.filter, time)
+    }
+
+    /// Training cameras, at the training scale, one per training view.
+    pub fn cameras(&self) -> &[Camera] {
+        &self.record.cameras
+    }
+
+    /// The training cameras' extent ([`camera_extent`]).
+    pub fn extent(&self) -> f64 {
+        camera_extent(&self.record.cameras)
+    }
+
+    /// Mip-Splatting's static nu (paper Eq. 2) of the canonical centres from the
+    /// training cameras, with the run's filter settings.
+    pub fn static_nu(&self) -> Result<Vec<f32>, FilterError> {
+        let ids = self.model.canonical_ids();
+        let centres = centres(self.model.params().value(ids.means));
+        static_nu(&centres, &self.record.cameras, &self.config.filter)
+    }
+}

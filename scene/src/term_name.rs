@@ -1,0 +1,34 @@
+//! Which names a loss term may have: a config's `terms` keys are checked with it
+//! ([`crate::TrainConfig::validate`]), before the trainer's term registry looks them up.
+
+/// Names a config may not give a term: the photometric terms and the other columns
+/// of `log.csv`.
+pub const RESERVED: [&str; 8] = [
+    "l1",
+    "dssim",
+    "iteration",
+    "total",
+    "num_gaussians",
+    "elapsed_seconds",
+    "skipped_steps",
+    "val_psnr",
+];
+
+/// Why `name` cannot name a term, if it cannot: it must be 1 to 64 ASCII letters,
+/// digits or `_` (it becomes a `log.csv` column) and not one of [`RESERVED`].
+pub fn name_problem(name: &str) -> Option<String> {
+    let ok = !name.is_empty()
+        && name.len() <= 64
+        && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
+    if !ok {
+        Some(format!(
+            "`{name}` is not a term name (1 to 64 letters, digits or _)"
+        ))
+    } else if RESERVED.contains(&name) {
+        Some(format!(
+            "`{name}` is reserved (the photometric loss or a log.csv column)"
+        ))
+    } else {
+        None
+    }
+}
