@@ -1,36 +1,34 @@
-//! A representation of your own, trained by the normal trainer: a small
+//! A representation of your own in the whole `maaf` command line: a small
 //! Deformable-3DGS-style model (canonical 3D Gaussians plus one MLP that maps the
 //! positional encodings of the detached canonical centre and of t to residuals of
 //! position, rotation and log-scale; Yang et al. 2024), written only against maaf's
-//! public API. It trains on the built-in scene with the motion-aware filter and a
-//! custom regulariser, checkpoints, resumes bit-identically from a checkpoint, resumes
-//! its run directory with the term re-supplied, is registered by name so that its run
-//! loads as a trained scene without the training code's trainer (rendering exactly as
-//! the trainer does), and is evaluated at three scales; the same registration in
-//! `maaf::cli::Maaf` lets `maaf eval` and `export-ply` load the run.
+//! public API and registered under the name `tiny_deform`. A training config names
+//! it with its own options, which its factory reads and checks, naming the field:
 //!
-//! Run: `cargo run --release --example custom_representation [-- OUT_DIR]`
-//! (default `target/custom_representation`; also runs as a test).
-
-use std::path::{Path, PathBuf};
+//! ```text
+//! # "model": {"kind": "tiny_deform", "width": 32, "warm_up": 100} in C.json
+//! cargo run --release --example custom_representation -- train --data DATA --out RUN --config C.json
+//! cargo run --release --example custom_representation -- train --resume RUN
+//! cargo run --release --example custom_representation -- eval --run RUN
+//! ```
+//!
+//! The same registration lets `eval`, `render`, `render-video` and `export-ply` load
+//! its runs; plain `maaf` refuses them, naming the representation.
+//! `tests/cli/custom_plugins.rs` runs it: trains, is killed, resumes bit-identical,
+//! evaluates, exports.
 
 use maaf::autodiff::nn::Mlp;
 use maaf::autodiff::ops::concat;
 use maaf::autodiff::optim::LrSchedule;
 use maaf::autodiff::scalar::logit;
 use maaf::autodiff::{Tensor, Var};
-use maaf::cli::Maaf;
-use maaf::filter::FilterKind;
 use maaf::splat::GaussianVars;
-use maaf::train::data::synthetic::{self, GenerateOptions};
-use maaf::train::data::{Dataset, DatasetOptions, Split};
-use maaf::train::eval::{EvalOptions, evaluate_scene};
 use maaf::train::models::{
     Bound, CanonicalIds, ModelInit, Representation, knn_mean_sq_dist, rgb_to_sh_dc,
 };
 use maaf::train::params::{BoundParams, MlpParams, ParamId, ParamStore, Rows};
-use maaf::train::scene::{ModelRegistry, TrainedScene};
-use maaf::train::trainer::{TrainConfig, Trainer, checkpoint_dir, model_init, train_run_with};
+use maaf::train::trainer::TrainConfig;
+use serde_json::{Map, Value};
 
 // ---- the user's representation: about 120 lines ----
 
@@ -162,7 +160,7 @@ impl<'t> Bound<'t, f32> for DeformBound<'t> {
 /// scales, temporal pruning) are not needed.
 impl Representation<f32> for Deform {
     fn name(&self) -> &str {
-        "deform-example"
+        "tiny_deform"
     }
     fn params(&self) -> &ParamStore<f32> {
         &self.params
@@ -196,199 +194,49 @@ impl Representation<f32> for Deform {
 
 // ---- end of the user's representation ----
 
-/// The same trainer every time (fresh run, resume): the model and a custom term,
-/// a displacement regulariser that reads the deformed Gaussians.
-fn build(data: &Dataset, config: &TrainConfig) -> Result<Trainer, Box<dyn std::error::Error>> {
-    let init = model_init(data, config)?;
-    let model = Deform::new(&init, 32, config.iterations / 4);
-    let mut trainer = Trainer::with_model(data, config.clone(), Box::new(model))?;
-    trainer
-        .objective
-        .push_fn("opacity_mean", 1e-3, |ctx| ctx.gaussians().opacity.mean());
-    Ok(trainer)
-}
-
-fn params(t: &Trainer) -> Vec<(String, Tensor<f32>)> {
-    t.model
-        .params()
-        .named_tensors()
-        .map(|(n, v)| (n.to_string(), v.clone()))
-        .collect()
-}
-
-fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let out = std::env::args().nth(1).map_or_else(
-        || PathBuf::from("target/custom_representation"),
-        PathBuf::from,
-    );
-    run_in(&out)
-}
-
-/// Generates the scene into `out/data` and runs everything in `out/run`.
-fn run_in(out: &Path) -> Result<(), Box<dyn std::error::Error>> {
-    std::fs::create_dir_all(out)?;
-    let data_dir = out.join("data");
-    if !data_dir.join("transforms_train.json").exists() {
-        let opts = GenerateOptions {
-            size: 96,
-            frames: Some(24),
-            samples: 2,
-            test_frames: 4,
-            val_frames: 2,
-            video_frames: 4,
-            force: true,
-            ..GenerateOptions::default()
-        };
-        synthetic::generate(&data_dir, &opts, &mut |_, _| {})?;
-    }
-    let data = Dataset::open(&data_dir, DatasetOptions::default())?;
-    let mut config = TrainConfig {
-        iterations: 300,
-        train_scale: 0.5,
-        init_points: 1500,
-        checkpoint_every: 100,
-        log_every: 10,
-        ..TrainConfig::default()
-    };
-    config.filter.kind = FilterKind::Motion;
-    config.filter.refresh.start = 60;
-    config.densify.from = 50;
-    config.densify.until = 250;
-    config.densify.every = 50;
-    config.densify.opacity_reset_every = 0;
-
-    // 1. A whole run in a run directory, through the library's run entry point.
-    let run = out.join("run");
-    let _ = std::fs::remove_dir_all(&run);
-    let summary = train_run_with(build(&data, &config)?, &run, false)?;
-    println!(
-        "trained {} iterations: {} Gaussians",
-        summary.iterations, summary.num_gaussians
-    );
-
-    // 2. Resume from the checkpoint at iteration 200: bit-identical to the run.
-    let mut resumed = build(&data, &config)?;
-    resumed.restore(&checkpoint_dir(&run, 200))?;
-    while resumed.iteration < config.iterations {
-        resumed.step();
-    }
-    let mut finished = build(&data, &config)?;
-    finished.restore(&run.join("model"))?;
-    let identical = params(&resumed) == params(&finished);
-    println!("resumed from iteration 200: parameters bit-identical: {identical}");
-    if !identical {
-        return Err("the resumed run differs from the uninterrupted one".into());
-    }
-
-    // 3. Continue the run directory for 50 more iterations, the term re-supplied.
-    let more = TrainConfig {
-        iterations: 350,
-        ..config.clone()
-    };
-    let summary = train_run_with(build(&data, &more)?, &run, true)?;
-    let log = std::fs::read_to_string(run.join("log.csv"))?;
-    let header = log.lines().next().unwrap_or("");
-    println!(
-        "resumed to {} iterations; log.csv: {header}",
-        summary.iterations
-    );
-    if !header.contains("opacity_mean") {
-        return Err("the custom term is missing from log.csv".into());
-    }
-
-    // 4. Register the representation by name: its run then loads as a trained scene
-    // (no trainer, no data set), which renders exactly as the trainer does.
-    let mut registry = ModelRegistry::builtin();
-    registry.register("deform-example", |config, init| {
-        let model = Deform::new(init, 32, config.iterations / 4);
-        Ok(Box::new(model) as Box<dyn Representation<f32>>)
-    });
-    let scene = TrainedScene::load(&run, &registry)?;
-    let mut trainer = build(&data, &more)?;
-    trainer.restore(&run.join("model"))?;
-    let camera = data.camera(Split::Test, 0, more.train_scale)?;
-    let same = scene.render(&camera, 0.5) == trainer.into_scene().render(&camera, 0.5);
-    println!("the registered run loads as a scene; renders as the trainer does: {same}");
-    if !same {
-        return Err("the loaded scene renders differently from the trainer".into());
-    }
-
-    // 5. Evaluate like any run.
-    let options = EvalOptions {
-        scales: vec![0.5, 1.0, 2.0],
-        save_images: false,
-        ..EvalOptions::default()
-    };
-    let report = evaluate_scene(&scene, &run, &data, &options)?;
-    for s in &report.scales {
-        println!("  {}x: PSNR {:.2} dB, SSIM {:.3}", s.scale, s.psnr, s.ssim);
-    }
-    ensure_finite(&run)?;
-
-    // 6. The same registration gives the whole command line (`maaf::cli::Maaf`):
-    // `eval` and `export-ply` load the run by its representation's name, which plain
-    // `maaf` does not know.
-    let cli = Maaf::new().representation("deform-example", |config, init| {
-        let model = Deform::new(init, 32, config.iterations / 4);
-        Ok(Box::new(model) as Box<dyn Representation<f32>>)
-    });
-    let run_arg = run.display().to_string();
-    let ply = out.join("frame.ply").display().to_string();
-    let data_arg = data_dir.display().to_string();
-    let eval = [
-        "maaf",
-        "eval",
-        "--run",
-        &run_arg,
-        "--data",
-        &data_arg,
-        "--scales",
-        "1",
-        "--no-images",
-    ];
-    cli.run_args(eval)?;
-    cli.run_args([
-        "maaf",
-        "export-ply",
-        "--run",
-        &run_arg,
-        "--time",
-        "0.5",
-        "--out",
-        &ply,
-    ])?;
-    ensure_finite(&run)?;
-    match Maaf::new().run_args(eval) {
-        Err(e) if e.to_string().contains("deform-example") => {
-            println!("plain maaf refuses the run: {e}")
-        }
-        other => return Err(format!("plain maaf should refuse the run: {other:?}").into()),
-    }
-    Ok(())
-}
-
-/// The evaluation wrote finite numbers (a diverged model would not).
-fn ensure_finite(run: &Path) -> Result<(), Box<dyn std::error::Error>> {
-    let text = std::fs::read_to_string(run.join("eval.json"))?;
-    let v: serde_json::Value = serde_json::from_str(&text)?;
-    let ok = v["scales"].as_array().is_some_and(|s| {
-        s.iter()
-            .all(|e| e["psnr"].as_f64().is_some_and(f64::is_finite))
-    });
-    if ok {
-        Ok(())
-    } else {
-        Err("eval.json holds a non-finite PSNR".into())
+/// A count option of the model section: `default` when absent, else an integer in
+/// `lo..=hi`; the error names the field.
+fn count(
+    options: &Map<String, Value>,
+    key: &str,
+    default: usize,
+    lo: usize,
+    hi: usize,
+) -> Result<usize, String> {
+    match options.get(key) {
+        None => Ok(default),
+        Some(v) => v
+            .as_u64()
+            .map(|n| n as usize)
+            .filter(|n| (lo..=hi).contains(n))
+            .ok_or_else(|| format!("model.{key} = {v}: must be an integer in {lo}..={hi}")),
     }
 }
 
-#[cfg(test)]
-mod tests {
-    #[test]
-    fn trains_resumes_and_evaluates() {
-        let dir = std::env::temp_dir().join(format!("maaf-custom-rep-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        super::run_in(&dir).expect("the example runs");
-        let _ = std::fs::remove_dir_all(&dir);
+/// Builds the model from the run's config: its options are `width` (hidden units
+/// of the deformation MLP, 32) and `warm_up` (static iterations, a quarter of the
+/// run); any other key is refused, naming it.
+fn tiny_deform(
+    config: &TrainConfig,
+    init: &ModelInit,
+) -> Result<Box<dyn Representation<f32>>, String> {
+    let empty = Map::new();
+    let options = config.model.options().unwrap_or(&empty);
+    if let Some(key) = options
+        .keys()
+        .find(|k| !["width", "warm_up"].contains(&k.as_str()))
+    {
+        return Err(format!(
+            "model.{key}: unknown option of tiny_deform (width, warm_up)"
+        ));
     }
+    let width = count(options, "width", 32, 1, 1024)?;
+    let warm_up = count(options, "warm_up", config.iterations / 4, 0, usize::MAX)?;
+    Ok(Box::new(Deform::new(init, width, warm_up)))
+}
+
+fn main() {
+    maaf::cli::Maaf::new()
+        .representation("tiny_deform", tiny_deform)
+        .run()
 }

@@ -1,42 +1,39 @@
-//! A densification strategy of your own, run by the normal trainer and written only
-//! against maaf's public API: "budgeted growth", which every `every` iterations
-//! removes the Gaussians whose opacity is below `min_opacity` and clones the
-//! `budget` Gaussians with the largest mean screen-space gradient (no split, no
-//! opacity reset). It keeps the trainer's statistics with
-//! `DensifyStats::record_views` after every backward pass, changes the Gaussians
-//! through one `DensifyPlan` applied by `Trainer::apply_plan` (the model, its Adam
-//! moments, the filter state and the statistics move together), and tallies what
-//! it did, which the example then checks against the trained model.
+//! A densification strategy of your own in the whole `maaf` command line, written
+//! only against maaf's public API: "budgeted growth", which every `densify.every`
+//! iterations removes the Gaussians whose opacity is below `densify.min_opacity` and
+//! clones the Gaussians with the largest mean screen-space gradient, at most
+//! `BUDGET` per refinement and `LIFETIME` over the whole run (no split, no opacity
+//! reset). How many it has cloned so far is its own state: `Strategy::state` saves
+//! it in every checkpoint and `Strategy::load_state` restores it, so a resumed run
+//! clones exactly what the uninterrupted one would. It keeps the trainer's
+//! statistics with `DensifyStats::record_views` after every backward pass and changes
+//! the Gaussians through one `DensifyPlan` applied by `Trainer::apply_plan` (the
+//! model, its Adam moments, the filter state and the statistics move together).
 //!
-//! Run: `cargo run --release --example custom_strategy [-- OUT_DIR]`
-//! (default `target/custom_strategy`; also runs as a test).
+//! ```text
+//! # "densify": {"strategy": "budgeted_growth", "every": 2} in C.json
+//! cargo run --release --example custom_strategy -- train --data DATA --out RUN --config C.json
+//! cargo run --release --example custom_strategy -- train --resume RUN
+//! ```
+//!
+//! `maaf train --resume RUN` refuses the run, naming the strategy.
+//! `tests/cli/custom_plugins.rs` runs it: trains, is killed, resumes bit-identical,
+//! evaluates.
 
-use std::path::{Path, PathBuf};
-use std::sync::{Arc, Mutex};
-
-use maaf::autodiff::PerGaussian;
-use maaf::train::data::synthetic::{self, GenerateOptions};
-use maaf::train::data::{Dataset, DatasetOptions};
 use maaf::train::trainer::{DensifyPlan, DensifyStats, StepInfo, Strategy, TrainConfig, Trainer};
+use serde_json::{Value, json};
 
-// ---- the user's strategy ----
+/// Most Gaussians cloned at one refinement.
+const BUDGET: usize = 20;
+/// Most Gaussians cloned over the run.
+const LIFETIME: usize = 50;
 
-/// What the strategy did, shared with the caller.
-#[derive(Debug, Default)]
-struct Tally {
-    /// Steps whose statistics were recorded.
-    steps: usize,
-    /// Gaussians cloned and pruned over the run.
-    cloned: usize,
-    pruned: usize,
-}
-
-/// Prune below `min_opacity`, then clone the `budget` largest mean gradients.
+/// Prune below `min_opacity`, then clone the largest mean gradients within budget.
 struct BudgetedGrowth {
     every: usize,
-    budget: usize,
     min_opacity: f32,
-    tally: Arc<Mutex<Tally>>,
+    /// Gaussians cloned so far (the checkpointed state).
+    cloned: usize,
 }
 
 impl Strategy for BudgetedGrowth {
@@ -46,9 +43,6 @@ impl Strategy for BudgetedGrowth {
 
     fn after_backward(&mut self, trainer: &mut Trainer, info: &StepInfo<'_>) {
         trainer.stats.record_views(info.views, info.loss_scale);
-        if let Ok(mut t) = self.tally.lock() {
-            t.steps += 1;
-        }
     }
 
     fn refine(&mut self, trainer: &mut Trainer, iteration: usize) -> bool {
@@ -62,7 +56,7 @@ impl Strategy for BudgetedGrowth {
             .collect();
         let mut by_grad = keep.clone();
         by_grad.sort_by(|&a, &b| grad[b].total_cmp(&grad[a]).then(a.cmp(&b)));
-        by_grad.truncate(self.budget);
+        by_grad.truncate(BUDGET.min(LIFETIME.saturating_sub(self.cloned)));
         by_grad.sort_unstable();
         let plan = DensifyPlan {
             pruned: grad.len() - keep.len(),
@@ -73,97 +67,37 @@ impl Strategy for BudgetedGrowth {
         };
         trainer.apply_plan(&plan);
         trainer.stats = DensifyStats::new(plan.index.len());
-        if let Ok(mut t) = self.tally.lock() {
-            t.cloned += plan.cloned;
-            t.pruned += plan.pruned;
-        }
+        self.cloned += plan.cloned;
         plan.cloned + plan.pruned > 0
     }
+
+    fn state(&self) -> Value {
+        json!({ "cloned": self.cloned })
+    }
+
+    fn load_state(&mut self, state: &Value) -> Result<(), String> {
+        let cloned = state["cloned"]
+            .as_u64()
+            .ok_or_else(|| format!("`cloned`: expected a count, got {}", state["cloned"]))?;
+        self.cloned = cloned as usize;
+        Ok(())
+    }
 }
 
-// ---- a run with it ----
-
-fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let out = std::env::args()
-        .nth(1)
-        .map_or_else(|| PathBuf::from("target/custom_strategy"), PathBuf::from);
-    run_in(&out)
+/// The strategy for a run: its interval and threshold are the config's `densify`.
+fn budgeted_growth(config: &TrainConfig) -> Result<Box<dyn Strategy>, String> {
+    if config.densify.every == 0 {
+        return Err("densify.every = 0: budgeted growth needs a refinement interval".into());
+    }
+    Ok(Box::new(BudgetedGrowth {
+        every: config.densify.every,
+        min_opacity: config.densify.min_opacity as f32,
+        cloned: 0,
+    }))
 }
 
-/// Generates a small scene into `out/data`, trains 60 iterations with the strategy
-/// and checks the model against the strategy's tally.
-fn run_in(out: &Path) -> Result<(), Box<dyn std::error::Error>> {
-    std::fs::create_dir_all(out)?;
-    let data_dir = out.join("data");
-    if !data_dir.join("transforms_train.json").exists() {
-        let opts = GenerateOptions {
-            size: 64,
-            frames: Some(12),
-            samples: 1,
-            test_frames: 2,
-            val_frames: 2,
-            video_frames: 2,
-            force: true,
-            ..GenerateOptions::default()
-        };
-        synthetic::generate(&data_dir, &opts, &mut |_, _| {})?;
-    }
-    let data = Dataset::open(&data_dir, DatasetOptions::default())?;
-    let config = TrainConfig {
-        iterations: 60,
-        train_scale: 0.5,
-        init_points: 800,
-        ..TrainConfig::default()
-    };
-    let mut trainer = Trainer::new(&data, config.clone())?;
-    let start = trainer.num_gaussians();
-    let tally = Arc::new(Mutex::new(Tally::default()));
-    trainer.set_strategy(Box::new(BudgetedGrowth {
-        every: 20,
-        budget: 50,
-        min_opacity: 0.05,
-        tally: Arc::clone(&tally),
-    }));
-    while trainer.iteration < config.iterations {
-        trainer.step();
-    }
-    let t = tally.lock().map_err(|_| "tally poisoned")?;
-    let end = trainer.num_gaussians();
-    println!(
-        "{start} -> {end} Gaussians: {} cloned, {} pruned over {} recorded steps",
-        t.cloned, t.pruned, t.steps
-    );
-    // Two refinements (20, 40; none at the last iteration), each cloning the budget.
-    if t.cloned != 2 * 50 {
-        return Err(format!("cloned {} Gaussians, expected 100", t.cloned).into());
-    }
-    if end != start + t.cloned - t.pruned {
-        return Err(format!(
-            "{end} Gaussians, the tally says {}",
-            start + t.cloned - t.pruned
-        )
-        .into());
-    }
-    if t.steps != config.iterations - trainer.skipped_steps {
-        return Err(format!(
-            "statistics recorded at {} of {} steps",
-            t.steps, config.iterations
-        )
-        .into());
-    }
-    if trainer.filter.rows() != end || trainer.stats.denom.len() != end {
-        return Err("the filter or the statistics were not resized with the Gaussians".into());
-    }
-    Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    #[test]
-    fn trains_with_a_custom_strategy() {
-        let dir = std::env::temp_dir().join(format!("maaf-custom-strategy-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        super::run_in(&dir).expect("the example runs");
-        let _ = std::fs::remove_dir_all(&dir);
-    }
+fn main() {
+    maaf::cli::Maaf::new()
+        .strategy("budgeted_growth", budgeted_growth)
+        .run()
 }

@@ -36,7 +36,7 @@ use std::time::Instant;
 
 use maaf_autodiff::Tensor;
 use maaf_data::{Dataset, Image, Split};
-use maaf_filter::FilterState;
+use maaf_filter::{FilterKind, FilterState};
 use maaf_lpips::Lpips;
 use maaf_scene::{ModelRegistry, TrainedScene};
 use rayon::prelude::*;
@@ -305,7 +305,7 @@ pub fn run_report(scene: &TrainedScene, data: &Dataset) -> EvalReport {
     let n = scene.num_gaussians();
     EvalReport {
         model: scene.model.label(),
-        filter: filter_name(&scene.filter),
+        filter: filter_name(scene),
         train_scale: scene.config.train_scale,
         iterations: scene.iteration,
         train_seconds: scene.train_seconds,
@@ -319,8 +319,14 @@ pub fn run_report(scene: &TrainedScene, data: &Dataset) -> EvalReport {
     }
 }
 
-fn filter_name(f: &FilterState) -> String {
-    match f {
+/// The run's filter as eval.json and the report name it: a program's own filter by
+/// its registered name, a built-in by the state it draws (`window_max` draws motion
+/// curves, `motion`; the report tells the estimators apart).
+fn filter_name(scene: &TrainedScene) -> String {
+    if let FilterKind::Custom(name) = &scene.config.filter.kind {
+        return name.clone();
+    }
+    match &scene.filter {
         FilterState::None { .. } => "none",
         FilterState::Mip3d { .. } => "mip3d",
         FilterState::Motion { .. } => "motion",

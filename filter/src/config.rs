@@ -33,9 +33,11 @@ pub enum FilterError {
     },
 }
 
-/// Which 3D smoothing filter the trainer applies.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
+/// Which 3D smoothing filter the trainer applies: a built-in one, or a filter a
+/// program registered under a name of its own in a [`crate::FilterRegistry`]. In
+/// JSON the name as a string (`"motion"`, `"median"`), so configs written before
+/// custom filters read unchanged.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub enum FilterKind {
     /// No 3D filter (variance 0).
     None,
@@ -45,16 +47,44 @@ pub enum FilterKind {
     /// The paper's motion-aware filter nu(t) (Sec. 4, Algorithm 1).
     #[default]
     Motion,
+    /// A filter registered under this name by the program that trains the run
+    /// (`maaf::cli::Maaf::filter`, docs/extending.md).
+    Custom(String),
 }
 
 impl FilterKind {
-    /// The config name (`"none"`, `"mip3d"`, `"motion"`), as `filter.kind` spells it.
-    pub fn name(self) -> &'static str {
+    /// The config name (`"none"`, `"mip3d"`, `"motion"`, or the custom filter's), as
+    /// `filter.kind` spells it.
+    pub fn name(&self) -> &str {
         match self {
             FilterKind::None => "none",
             FilterKind::Mip3d => "mip3d",
             FilterKind::Motion => "motion",
+            FilterKind::Custom(name) => name,
         }
+    }
+
+    /// The kind `filter.kind = name` selects: a built-in by its name, any other name
+    /// a custom filter.
+    pub fn from_name(name: &str) -> Self {
+        match name {
+            "none" => FilterKind::None,
+            "mip3d" => FilterKind::Mip3d,
+            "motion" => FilterKind::Motion,
+            other => FilterKind::Custom(other.to_string()),
+        }
+    }
+}
+
+impl Serialize for FilterKind {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.name())
+    }
+}
+
+impl<'de> Deserialize<'de> for FilterKind {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        Ok(FilterKind::from_name(&String::deserialize(d)?))
     }
 }
 
@@ -230,12 +260,33 @@ impl Default for FilterConfig {
     }
 }
 
+/// Why `name` cannot name a custom filter, if it cannot: 1 to 64 ASCII letters,
+/// digits or `_`, and not `window_max` (the built-in spelled `"kind": "motion",
+/// "estimator": "window_max"`).
+pub fn name_problem(name: &str) -> Option<String> {
+    let ok = !name.is_empty()
+        && name.len() <= 64
+        && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
+    if !ok {
+        Some(format!(
+            "`{name}` is not a filter name (1 to 64 letters, digits or _)"
+        ))
+    } else if name == "window_max" {
+        Some(
+            "`window_max` is the motion filter's estimator: \"kind\": \"motion\", \"estimator\": \"window_max\""
+                .to_string(),
+        )
+    } else {
+        None
+    }
+}
+
 impl FilterConfig {
     /// The name of the filter this config selects in a [`crate::FilterRegistry`]:
     /// `filter.kind`, except that the motion filter with the windowed maximum is
     /// `"window_max"` (the KDE keeps `"motion"`).
-    pub fn filter_name(&self) -> &'static str {
-        match (self.kind, self.estimator) {
+    pub fn filter_name(&self) -> &str {
+        match (&self.kind, self.estimator) {
             (FilterKind::Motion, MotionEstimator::WindowMax) => "window_max",
             (kind, _) => kind.name(),
         }
@@ -254,6 +305,11 @@ impl FilterConfig {
     /// bad value never surfaces mid-training.
     pub fn validate(&self) -> Result<(), FilterError> {
         let bad = |field: &'static str, message: String| FilterError::Config { field, message };
+        if let FilterKind::Custom(name) = &self.kind
+            && let Some(problem) = name_problem(name)
+        {
+            return Err(bad("kind", problem));
+        }
         let positive = [
             ("s3d", self.s3d),
             ("h_x", self.h_x),
@@ -395,6 +451,16 @@ mod tests {
             edit(&mut cfg);
             let err = cfg.validate().expect_err(field).to_string();
             assert!(err.contains(&format!("`{field}`")), "{field}: {err}");
+        }
+    }
+
+    #[test]
+    fn a_custom_kind_is_a_name_and_window_max_is_the_estimators() {
+        let cfg = FilterConfig::from_json_str(r#"{"kind": "median"}"#).expect("custom");
+        assert_eq!((cfg.kind.name(), cfg.filter_name()), ("median", "median"));
+        for bad in [r#"{"kind": "window_max"}"#, r#"{"kind": "a b"}"#] {
+            let err = FilterConfig::from_json_str(bad).expect_err(bad).to_string();
+            assert!(err.contains("field `kind`"), "{err}");
         }
     }
 

@@ -1,41 +1,70 @@
 //! Sampling-rate filters by name: the config's choice ([`FilterConfig::filter_name`])
-//! and any filter a user registers under a name of their own.
+//! and any filter a user registers under a name of their own, which `filter.kind`
+//! then names.
+
+use std::sync::Arc;
 
 use crate::config::{FilterConfig, FilterError};
 use crate::motion::{MotionKdeFilter, WindowMaxFilter};
 use crate::sampling::{NoFilter, SamplingFilter, StaticFilter};
 
 /// Builds a filter from the run's filter config.
-pub type FilterConstructor = fn(&FilterConfig) -> Box<dyn SamplingFilter>;
+pub type FilterConstructor = dyn Fn(&FilterConfig) -> Box<dyn SamplingFilter> + Send + Sync;
 
 /// Filter constructors by name. [`FilterRegistry::builtin`] holds `none`, `mip3d`,
-/// `motion` (the paper's KDE) and `window_max` (ours).
-#[derive(Clone, Debug)]
+/// `motion` (the paper's KDE) and `window_max` (ours). Cloning shares the
+/// constructors.
+#[derive(Clone)]
 pub struct FilterRegistry {
-    entries: Vec<(String, FilterConstructor)>,
+    entries: Vec<(String, Arc<FilterConstructor>)>,
+}
+
+impl std::fmt::Debug for FilterRegistry {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("FilterRegistry")
+            .field("names", &self.names())
+            .finish()
+    }
 }
 
 impl FilterRegistry {
     /// The built-in filters under their config names.
     pub fn builtin() -> Self {
-        let entries: Vec<(String, FilterConstructor)> = vec![
-            ("none".into(), |_| Box::new(NoFilter)),
-            ("mip3d".into(), |_| Box::new(StaticFilter)),
-            ("motion".into(), |_| Box::new(MotionKdeFilter)),
-            ("window_max".into(), |_| Box::new(WindowMaxFilter)),
-        ];
-        FilterRegistry { entries }
+        let mut r = FilterRegistry {
+            entries: Vec::new(),
+        };
+        r.entries
+            .push(("none".into(), Arc::new(|_| Box::new(NoFilter))));
+        r.entries
+            .push(("mip3d".into(), Arc::new(|_| Box::new(StaticFilter))));
+        r.entries
+            .push(("motion".into(), Arc::new(|_| Box::new(MotionKdeFilter))));
+        r.entries
+            .push(("window_max".into(), Arc::new(|_| Box::new(WindowMaxFilter))));
+        r
     }
 
-    /// Adds a filter under `name`; refuses a name already registered.
-    pub fn register(&mut self, name: &str, make: FilterConstructor) -> Result<(), FilterError> {
-        if self.entries.iter().any(|(n, _)| n == name) {
+    /// Adds a filter under `name` (1 to 64 letters, digits or `_`); refuses a name
+    /// already registered or not a filter name.
+    pub fn register<F>(&mut self, name: &str, make: F) -> Result<(), FilterError>
+    where
+        F: Fn(&FilterConfig) -> Box<dyn SamplingFilter> + Send + Sync + 'static,
+    {
+        if self.contains(name) {
             return Err(FilterError::Shape(format!(
                 "filter `{name}` is already registered"
             )));
         }
-        self.entries.push((name.to_string(), make));
+        if let Some(problem) = crate::config::name_problem(name) {
+            return Err(FilterError::Shape(problem));
+        }
+        self.entries.push((name.to_string(), Arc::new(make)));
         Ok(())
+    }
+
+    /// Whether a filter is registered as `name`.
+    pub fn contains(&self, name: &str) -> bool {
+        self.entries.iter().any(|(n, _)| n == name)
     }
 
     /// The registered names, in registration order.
@@ -55,7 +84,7 @@ impl FilterRegistry {
             None => Err(FilterError::Config {
                 field: "kind",
                 message: format!(
-                    "unknown filter `{name}` (known: {})",
+                    "filter `{name}` is not registered (registered: {})",
                     self.names().join(", ")
                 ),
             }),
@@ -107,7 +136,10 @@ mod tests {
             .build("nope", &FilterConfig::default())
             .err()
             .expect("unknown name");
-        assert!(err.to_string().contains("unknown filter `nope`"), "{err}");
+        assert!(
+            err.to_string().contains("filter `nope` is not registered"),
+            "{err}"
+        );
         assert!(reg.register("mip3d", |_| Box::new(NoFilter)).is_err());
         reg.register("mine", |_| Box::new(NoFilter))
             .expect("new name");
@@ -115,5 +147,11 @@ mod tests {
             .build("mine", &FilterConfig::default())
             .expect("registered");
         assert_eq!(f.name(), "none");
+        assert!(reg.register("bad name", |_| Box::new(NoFilter)).is_err());
+        // A config names it by `kind`, and records the name as it is.
+        let cfg: FilterConfig = serde_json::from_str(r#"{"kind": "mine"}"#).expect("json");
+        assert_eq!(cfg.kind, crate::FilterKind::Custom("mine".into()));
+        assert_eq!(reg.for_config(&cfg).expect("registered").name(), "none");
+        assert_eq!(serde_json::to_value(&cfg).expect("json")["kind"], "mine");
     }
 }

@@ -2,23 +2,32 @@
 //! checkpoint, and the one function that builds a representation from it.
 //!
 //! JSON: `"model": {"kind": "saro", "hidden": 64, ...}`; a config without `kind` is
-//! read as `saro` (configs written before the kind existed). A representation the
-//! library does not know is trained by handing the trainer a
-//! `Box<dyn Representation<f32>>` directly (`Trainer::with_model`).
+//! read as `saro` (configs written before the kind existed). Any other kind is a
+//! representation a program registers under that name (`maaf::cli::Maaf::representation`,
+//! docs/extending.md): its options are the section's other keys, kept as JSON for
+//! its factory to read ([`ModelConfig::options`]).
 
-use serde::{Deserialize, Deserializer, Serialize};
+use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
 use super::{DeformConfig, DeformModel, PointCloud, Representation, SaroConfig, SaroModel};
 
 /// Which representation to train, with its settings (`--model`).
-#[derive(Clone, Debug, PartialEq, Serialize)]
-#[serde(tag = "kind", rename_all = "lowercase")]
+#[derive(Clone, Debug, PartialEq)]
 pub enum ModelConfig {
     /// SaRO-GS (Sec. 3.2 of the paper): 4D Gaussians plus a scale-aware residual field.
     Saro(SaroConfig),
     /// Deformable 3D Gaussians (Yang et al. 2024): canonical Gaussians plus a
     /// deformation MLP on the encoded centre and time (the paper's plug-in base).
     Deform(DeformConfig),
+    /// A representation registered by name by the program that trains it, with its
+    /// own options (the `model` section's keys other than `kind`), which its factory
+    /// reads and validates.
+    Custom {
+        /// The registered name (the representation's `name()`).
+        kind: String,
+        /// Its options as JSON.
+        options: serde_json::Map<String, serde_json::Value>,
+    },
 }
 
 impl Default for ModelConfig {
@@ -36,10 +45,19 @@ impl<'de> Deserialize<'de> for ModelConfig {
             Deform(DeformConfig),
         }
         let mut value = serde_json::Value::deserialize(d)?;
-        if let Some(obj) = value.as_object_mut()
-            && !obj.contains_key("kind")
-        {
-            obj.insert("kind".into(), "saro".into());
+        if let Some(obj) = value.as_object_mut() {
+            match obj.get("kind") {
+                None => {
+                    obj.insert("kind".into(), "saro".into());
+                }
+                Some(serde_json::Value::String(k)) if !Self::KINDS.contains(&k.as_str()) => {
+                    let kind = k.clone();
+                    let mut options = obj.clone();
+                    options.remove("kind");
+                    return Ok(ModelConfig::Custom { kind, options });
+                }
+                Some(_) => {}
+            }
         }
         match serde_json::from_value(value).map_err(serde::de::Error::custom)? {
             Tagged::Saro(c) => Ok(ModelConfig::Saro(c)),
@@ -48,52 +66,112 @@ impl<'de> Deserialize<'de> for ModelConfig {
     }
 }
 
+impl Serialize for ModelConfig {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        #[derive(Serialize)]
+        #[serde(tag = "kind", rename_all = "lowercase")]
+        enum Tagged<'a> {
+            Saro(&'a SaroConfig),
+            Deform(&'a DeformConfig),
+        }
+        match self {
+            ModelConfig::Saro(c) => Tagged::Saro(c).serialize(s),
+            ModelConfig::Deform(c) => Tagged::Deform(c).serialize(s),
+            ModelConfig::Custom { kind, options } => {
+                let mut map = serde_json::Map::new();
+                map.insert("kind".into(), kind.clone().into());
+                map.extend(options.clone());
+                map.serialize(s)
+            }
+        }
+    }
+}
+
 impl ModelConfig {
-    /// The names `--model` accepts.
+    /// The built-in kinds.
     pub const KINDS: [&'static str; 2] = ["saro", "deform"];
 
-    /// The kind's name (`"saro"`), as the built representation's `name()`.
-    pub fn kind(&self) -> &'static str {
+    /// SH degree of a custom representation whose options give no `sh_degree`.
+    pub const CUSTOM_SH_DEGREE: usize = 3;
+
+    /// The kind's name (`"saro"`, or a custom representation's), as the built
+    /// representation's `name()`.
+    pub fn kind(&self) -> &str {
         match self {
             ModelConfig::Saro(_) => "saro",
             ModelConfig::Deform(_) => "deform",
+            ModelConfig::Custom { kind, .. } => kind,
         }
     }
 
-    /// The default config of the kind called `name`.
+    /// The default config of the kind called `name`: a built-in's defaults, or a
+    /// custom representation with no options (its factory's defaults). Refuses a
+    /// name that is not 1 to 64 letters, digits or `_`.
     pub fn default_of(name: &str) -> Result<Self, String> {
         match name {
             "saro" => Ok(ModelConfig::Saro(SaroConfig::default())),
             "deform" => Ok(ModelConfig::Deform(DeformConfig::default())),
-            other => Err(format!(
-                "--model {other}: unknown representation (known: {})",
-                Self::KINDS.join(", ")
-            )),
+            other => {
+                let custom = ModelConfig::Custom {
+                    kind: other.to_string(),
+                    options: serde_json::Map::new(),
+                };
+                custom.validate().map(|()| custom)
+            }
         }
     }
 
-    /// Checks every value, naming the field.
+    /// A custom representation's options (the `model` section without `kind`), for
+    /// its factory to deserialize and validate; `None` for a built-in kind.
+    pub fn options(&self) -> Option<&serde_json::Map<String, serde_json::Value>> {
+        match self {
+            ModelConfig::Custom { options, .. } => Some(options),
+            _ => None,
+        }
+    }
+
+    /// Checks every value, naming the field (a custom representation: its name;
+    /// its factory checks its options).
     pub fn validate(&self) -> Result<(), String> {
         match self {
             ModelConfig::Saro(c) => c.validate(),
             ModelConfig::Deform(c) => c.validate(),
+            ModelConfig::Custom { kind, .. } => {
+                let ok = !kind.is_empty()
+                    && kind.len() <= 64
+                    && kind.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
+                if ok {
+                    Ok(())
+                } else {
+                    Err(format!(
+                        "model.kind: `{kind}` is not a representation name (1 to 64 letters, digits or _)"
+                    ))
+                }
+            }
         }
     }
 
-    /// Highest SH degree the model stores (the renderer's degree grows up to it).
+    /// Highest SH degree the model stores (the renderer's degree grows up to it): a
+    /// custom representation's `sh_degree` option, else [`Self::CUSTOM_SH_DEGREE`].
     pub fn sh_degree(&self) -> usize {
         match self {
             ModelConfig::Saro(c) => c.sh_degree,
             ModelConfig::Deform(c) => c.sh_degree,
+            ModelConfig::Custom { options, .. } => options
+                .get("sh_degree")
+                .and_then(serde_json::Value::as_u64)
+                .map_or(Self::CUSTOM_SH_DEGREE, |d| d as usize),
         }
     }
 
     /// Iterations rendered as plain 3D Gaussians before the dynamic stage, mutably:
-    /// SaRO's `static_iterations`, deform's `warm_up` (demos and tests shorten it).
-    pub fn warm_up_mut(&mut self) -> &mut usize {
+    /// SaRO's `static_iterations`, deform's `warm_up` (demos and tests shorten it);
+    /// `None` for a custom representation.
+    pub fn warm_up_mut(&mut self) -> Option<&mut usize> {
         match self {
-            ModelConfig::Saro(c) => &mut c.static_iterations,
-            ModelConfig::Deform(c) => &mut c.warm_up,
+            ModelConfig::Saro(c) => Some(&mut c.static_iterations),
+            ModelConfig::Deform(c) => Some(&mut c.warm_up),
+            ModelConfig::Custom { .. } => None,
         }
     }
 
@@ -105,7 +183,7 @@ impl ModelConfig {
             ModelConfig::Saro(c) => {
                 c.duration.get_or_insert(init.frames as f64);
             }
-            ModelConfig::Deform(_) => {}
+            ModelConfig::Deform(_) | ModelConfig::Custom { .. } => {}
         }
     }
 }
@@ -123,20 +201,28 @@ pub struct ModelInit {
     pub frames: usize,
 }
 
-/// Builds the representation `config` describes (config already resolved).
-pub fn build_model(config: &ModelConfig, init: &ModelInit) -> Box<dyn Representation<f32>> {
+/// Builds the built-in representation `config` describes (config already resolved);
+/// a custom kind is an error naming it (its program's factory builds it).
+pub fn build_model(
+    config: &ModelConfig,
+    init: &ModelInit,
+) -> Result<Box<dyn Representation<f32>>, String> {
     match config {
-        ModelConfig::Saro(c) => Box::new(SaroModel::<f32>::from_point_cloud(
+        ModelConfig::Saro(c) => Ok(Box::new(SaroModel::<f32>::from_point_cloud(
             &init.cloud,
             c.clone(),
             init.extent,
             init.seed,
-        )),
+        ))),
         ModelConfig::Deform(c) => {
             let mut m = DeformModel::<f32>::from_point_cloud(&init.cloud, c.clone(), init.seed);
             m.set_frames(init.frames);
-            Box::new(m)
+            Ok(Box::new(m))
         }
+        ModelConfig::Custom { kind, .. } => Err(format!(
+            "model.kind `{kind}` is not a built-in representation ({})",
+            ModelConfig::KINDS.join(", ")
+        )),
     }
 }
 
@@ -153,12 +239,39 @@ mod tests {
             panic!("saro")
         };
         assert_eq!(c.hidden, 32);
-        let bad = serde_json::from_str::<ModelConfig>(r#"{"kind": "nerf"}"#);
-        assert!(bad.expect_err("unknown").to_string().contains("nerf"));
-        assert!(ModelConfig::default_of("nerf").is_err());
+        assert!(ModelConfig::default_of("ne rf").is_err());
         let d: ModelConfig =
             serde_json::from_str(r#"{"kind": "deform", "width": 32}"#).expect("deform");
         assert!(matches!(&d, ModelConfig::Deform(c) if c.width == 32 && c.depth == 4));
+    }
+
+    #[test]
+    fn another_kind_keeps_its_options_as_json_and_writes_them_back() {
+        let text = r#"{"kind": "nerf", "width": 8, "note": "x"}"#;
+        let c: ModelConfig = serde_json::from_str(text).expect("custom");
+        assert_eq!(c.kind(), "nerf");
+        let options = c.options().expect("options");
+        assert_eq!(
+            (options.len(), &options["width"]),
+            (2, &serde_json::json!(8))
+        );
+        assert!(!options.contains_key("kind"));
+        let back: serde_json::Value = serde_json::to_value(&c).expect("json");
+        let want: serde_json::Value = serde_json::from_str(text).expect("json");
+        assert_eq!(back, want);
+        assert_eq!(c.sh_degree(), ModelConfig::CUSTOM_SH_DEGREE);
+        assert!(build_model(&c, &init()).is_err());
+        let bad: ModelConfig = serde_json::from_str(r#"{"kind": "a b"}"#).expect("parses");
+        assert!(bad.validate().expect_err("bad name").contains("model.kind"));
+    }
+
+    fn init() -> ModelInit {
+        ModelInit {
+            cloud: PointCloud::random_in_box(4, -1.0, 1.0, 0),
+            extent: 1.0,
+            seed: 0,
+            frames: 5,
+        }
     }
 
     #[test]

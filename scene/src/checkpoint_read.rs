@@ -36,6 +36,10 @@ pub struct State {
     pub timings: Timings,
     /// Adam steps taken per parameter.
     pub adam_steps: HashMap<String, u64>,
+    /// The densification strategy's own state (the trainer's `Strategy::state`);
+    /// absent when it keeps none, and in checkpoints written before it existed.
+    #[serde(default, skip_serializing_if = "serde_json::Value::is_null")]
+    pub strategy: serde_json::Value,
     /// CRC-32 of `tensors.safetensors` as 8 hex digits; absent in checkpoints written
     /// before it existed (loaded unchecked).
     #[serde(default, skip_serializing_if = "Option::is_none")]

@@ -47,6 +47,10 @@ pub struct DensifyConfig {
     pub max_screen_size: f64,
     /// Hard cap on the number of Gaussians (CPU budget); growth stops there.
     pub max_gaussians: usize,
+    /// The densification strategy by its registered name (`"default"`,
+    /// `"sensitivity"`, or a program's own: `maaf::cli::Maaf::strategy`); `null`
+    /// chooses `"sensitivity"` when `prune.every` > 0, else `"default"`.
+    pub strategy: Option<String>,
 }
 
 impl Default for DensifyConfig {
@@ -63,6 +67,7 @@ impl Default for DensifyConfig {
             max_world_size: 0.1,
             max_screen_size: 0.0,
             max_gaussians: 60_000,
+            strategy: None,
         }
     }
 }

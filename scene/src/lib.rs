@@ -184,10 +184,12 @@ impl TrainedScene {
             .build(&opened.state.model, config, &init)
             .map_err(|e| Error::Input(format!("{}: {e}", dir.display())))?;
         opened.load_model(model.as_mut(), dir, HashMap::new())?;
-        let observes = FilterRegistry::builtin()
-            .for_config(&config.filter)
-            .map_err(|e| Error::Input(format!("{}: {e}", dir.display())))?
-            .observes();
+        let observes = match FilterRegistry::builtin().for_config(&config.filter) {
+            Ok(filter) => filter.observes(),
+            // A program's own filter (the scene needs its state, not its code): it
+            // observed when the checkpoint holds observations.
+            Err(_) => opened.tensors()?.names().contains(&"observations"),
+        };
         let (observed, _) = observed_views(&record.times, observes, config.filter.max_views);
         let observations = opened.observations(&observed, record.times.len())?;
         let state = opened.state;
@@ -217,7 +219,12 @@ impl TrainedScene {
     /// The settings the run renders with ([`render_settings`] at its iteration, on
     /// its background).
     pub fn render_settings(&self) -> RenderSettings {
-        let smooths = self.config.filter.kind != FilterKind::None;
+        // A program's own filter smooths unless its state is no filter.
+        let smooths = match &self.config.filter.kind {
+            FilterKind::None => false,
+            FilterKind::Custom(_) => !matches!(self.filter, FilterState::None { .. }),
+            _ => true,
+        };
         render_settings(
             &self.config,
             self.record.background,

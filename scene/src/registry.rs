@@ -41,7 +41,7 @@ impl ModelRegistry {
             r.register(name, |config, init| {
                 let mut model = config.model.clone();
                 model.resolve(init);
-                Ok(build_model(&model, init))
+                build_model(&model, init)
             });
         }
         r

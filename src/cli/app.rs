@@ -1,12 +1,15 @@
-//! The `maaf` command line as a value a program of one's own runs, with loss terms of
-//! its own registered by name (docs/architecture.md, "The CLI as a library").
+//! The `maaf` command line as a value a program of one's own runs, with loss terms,
+//! representations, filters and densification strategies of its own registered by
+//! name (docs/architecture.md, "The CLI as a library"; docs/extending.md).
 
 use clap::Parser;
 use maaf_autodiff::Var;
-use maaf_scene::ModelRegistry;
+use maaf_filter::{FilterConfig, SamplingFilter};
 use maaf_scene::TrainConfig;
-use maaf_train::loss::{Term, TermCtx, TermRegistry};
+use maaf_train::Plugins;
+use maaf_train::loss::{Term, TermCtx};
 use maaf_train::models::{ModelInit, Representation};
+use maaf_train::trainer::Strategy;
 
 use super::command::{self, Cli};
 use crate::alloc;
@@ -33,13 +36,14 @@ const WORKER_STACK: usize = 8 << 20;
 /// }
 /// ```
 ///
-/// The built-in terms ([`maaf_train::loss::builtin`]) are always registered. A run
-/// records its terms in `config.json`; `train --resume` continues it when this
-/// program registers them all and refuses it with one line naming those it lacks.
-/// The other commands (eval, render, export-ply, ...) read such runs without them.
+/// The built-in terms ([`maaf_train::loss::builtin`]), representations, filters and
+/// strategies are always registered. A run records the names it uses in
+/// `config.json`; `train --resume` continues it when this program registers them all
+/// and refuses it with one line naming what it lacks. The other commands (eval,
+/// render, export-ply, ...) read such runs without the terms, filters and
+/// strategies; a custom representation they need ([`Maaf::representation`]).
 pub struct Maaf {
-    terms: TermRegistry<f32>,
-    models: ModelRegistry,
+    plugins: Plugins,
 }
 
 impl Default for Maaf {
@@ -53,8 +57,7 @@ impl Maaf {
     /// The command line with the built-in terms only: what the `maaf` binary runs.
     pub fn new() -> Self {
         Maaf {
-            terms: TermRegistry::builtin(),
-            models: ModelRegistry::builtin(),
+            plugins: Plugins::builtin(),
         }
     }
 
@@ -66,7 +69,7 @@ impl Maaf {
     where
         F: for<'a, 't> Fn(&'a TermCtx<'t, f32>) -> Var<'t, f32> + Send + Sync + 'static,
     {
-        self.terms.register_fn(name, f);
+        self.plugins.terms.register_fn(name, f);
         self
     }
 
@@ -77,24 +80,60 @@ impl Maaf {
     where
         F: Fn(f64) -> Box<dyn Term<f32>> + Send + Sync + 'static,
     {
-        self.terms.register(name, maker);
+        self.plugins.terms.register(name, maker);
         self
     }
 
-    /// Registers the loader of a representation of one's own under `name` (its
-    /// [`Representation::name`], recorded in every checkpoint), so that `eval`,
-    /// `render`, `render-video`, `export-ply` and the test PSNR after `train` load its
-    /// runs as a [`maaf_scene::TrainedScene`]. The loader builds the model
-    /// (empty parameters of the right names; the checkpoint fills them) from the run's
-    /// config and initial values, as `examples/custom_representation.rs` does.
-    pub fn representation<F>(mut self, name: &str, loader: F) -> Self
+    /// Registers the factory of a representation of one's own under `name` (its
+    /// [`Representation::name`], recorded in every checkpoint). `maaf train` builds
+    /// it for a config whose `"model": {"kind": "NAME", ...}` names it: the factory
+    /// gets the run's config (its own options, the section's other keys, as JSON:
+    /// `config.model.options()`, which it validates, naming the field) and the
+    /// initial cloud. `eval`, `render`, `render-video`, `export-ply` and the test
+    /// PSNR after `train` rebuild it the same way from a checkpoint (whose tensors
+    /// then replace the parameters) to load its runs as a
+    /// [`maaf_scene::TrainedScene`]; `examples/custom_representation.rs`.
+    pub fn representation<F>(mut self, name: &str, factory: F) -> Self
     where
         F: Fn(&TrainConfig, &ModelInit) -> Result<Box<dyn Representation<f32>>, String>
             + Send
             + Sync
             + 'static,
     {
-        self.models.register(name, loader);
+        self.plugins.models.register(name, factory);
+        self
+    }
+
+    /// Registers a sampling-rate filter of one's own under `name`, made by `factory`
+    /// from the run's filter settings: `maaf train --filter NAME` or a config's
+    /// `"filter": {"kind": "NAME"}` trains with it, `config.json` and every
+    /// checkpoint record the name, `train --resume` of such a run needs a program
+    /// that registers it, and `eval` and `report` label the run by it
+    /// (`examples/custom_filter.rs`). Panics if `name` is taken (a built-in filter)
+    /// or is not 1 to 64 letters, digits or `_`.
+    pub fn filter<F>(mut self, name: &str, factory: F) -> Self
+    where
+        F: Fn(&FilterConfig) -> Box<dyn SamplingFilter> + Send + Sync + 'static,
+    {
+        if let Err(e) = self.plugins.filters.register(name, factory) {
+            panic!("Maaf::filter: {e}");
+        }
+        self
+    }
+
+    /// Registers a densification strategy of one's own under `name`, made by
+    /// `factory` from the run's config (an error names the field): a config's
+    /// `"densify": {"strategy": "NAME"}` trains with it, and its
+    /// [`Strategy::state`] is saved in every checkpoint so that `train --resume`
+    /// continues it bit for bit (`examples/custom_strategy.rs`). Panics if `name` is
+    /// taken (`default`, `sensitivity`) or is not 1 to 64 letters, digits or `_`.
+    pub fn strategy<F>(mut self, name: &str, factory: F) -> Self
+    where
+        F: Fn(&TrainConfig) -> Result<Box<dyn Strategy>, String> + Send + Sync + 'static,
+    {
+        if let Err(e) = self.plugins.strategies.register(name, factory) {
+            panic!("Maaf::strategy: {e}");
+        }
         self
     }
 
@@ -135,7 +174,7 @@ impl Maaf {
             .stack_size(WORKER_STACK)
             .build()
         {
-            Ok(pool) => pool.install(|| command::run(cli, &self.terms, &self.models)),
+            Ok(pool) => pool.install(|| command::run(cli, &self.plugins)),
             Err(e) => Err(anyhow::anyhow!("cannot start the worker threads: {e}")),
         }
     }

@@ -204,7 +204,7 @@ fn plan(args: &BenchSuiteArgs, out: &Path) -> anyhow::Result<SuiteSpec> {
             let settings = SettingsArgs {
                 data: None,
                 model: None,
-                filter: Some(f),
+                filter: Some(FilterKind::from(f).name().to_string()),
                 train_scale: None,
                 iters: args.iters,
                 batch: None,

@@ -1,8 +1,7 @@
 //! The command line: every subcommand and its dispatch (docs/cli.md).
 
 use clap::{Parser, Subcommand};
-use maaf_scene::ModelRegistry;
-use maaf_train::loss::TermRegistry;
+use maaf_train::Plugins;
 
 use crate::cli;
 
@@ -57,17 +56,16 @@ enum Command {
     BenchSuite(cli::bench_suite::BenchSuiteArgs),
 }
 
-/// Runs the parsed command; `terms` are the loss terms `maaf train` can name.
-pub(super) fn run(
-    cli: Cli,
-    terms: &TermRegistry<f32>,
-    models: &ModelRegistry,
-) -> anyhow::Result<()> {
+/// Runs the parsed command; `plugins` are the terms, representations, filters and
+/// strategies a run may name (the other commands load runs through its
+/// representations).
+pub(super) fn run(cli: Cli, plugins: &Plugins) -> anyhow::Result<()> {
+    let models = &plugins.models;
     match cli.command {
         Command::Demo(args) => cli::demo::run(&args)?,
         Command::Generate(args) => cli::generate::run(&args)?,
         Command::Inspect(args) => cli::inspect::run(&args)?,
-        Command::Train(args) => cli::train::run(&args, terms, models)?,
+        Command::Train(args) => cli::train::run(&args, plugins)?,
         Command::RenderPly(args) => cli::render_ply::run(&args)?,
         Command::Eval(args) => cli::eval::run(&args, models)?,
         Command::Render(args) => cli::render::run(&args, models)?,

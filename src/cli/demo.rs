@@ -97,8 +97,9 @@ impl Plan {
         let frac = |f: f64| ((iterations as f64 * f) as usize).max(1);
         // The warm-up keeps its share of the full schedule (SaRO 1000, deform 3000 of
         // 20 000 iterations).
-        let warm_up = c.model.warm_up_mut();
-        *warm_up = frac(*warm_up as f64 / TrainConfig::default().iterations as f64);
+        if let Some(warm_up) = c.model.warm_up_mut() {
+            *warm_up = frac(*warm_up as f64 / TrainConfig::default().iterations as f64);
+        }
         c.densify.from = frac(0.025);
         c.densify.until = frac(0.75);
         // Statistics need many views per Gaussian before they mean anything: keep the

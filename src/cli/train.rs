@@ -6,12 +6,11 @@ use anyhow::{Context, bail};
 use maaf_eval::metrics::psnr;
 use maaf_eval::render::recorded_data;
 use maaf_filter::FilterKind;
-use maaf_scene::TrainConfig;
-use maaf_scene::{ModelRegistry, TrainedScene};
+use maaf_scene::{TrainConfig, TrainedScene};
+use maaf_train::Plugins;
 use maaf_train::data::{Dataset, DatasetOptions, Split};
-use maaf_train::loss::TermRegistry;
 use maaf_train::models::ModelConfig;
-use maaf_train::trainer::{branch_run_with_terms, train_run_with_terms};
+use maaf_train::trainer::{branch_run_with_plugins, train_run_with_plugins};
 
 use super::Background;
 
@@ -46,13 +45,17 @@ pub struct SettingsArgs {
     /// RUN/data.json].
     #[arg(long)]
     pub data: Option<PathBuf>,
-    /// 4D representation: `saro` (SaRO-GS) or `deform` (Deformable-3DGS); its settings:
-    /// the `model` section of --config [default: the config's, else saro].
-    #[arg(long, value_parser = ModelConfig::KINDS)]
+    /// 4D representation: `saro` (SaRO-GS), `deform` (Deformable-3DGS) or one the
+    /// program registers (docs/extending.md); its settings: the `model` section of
+    /// --config [default: the config's, else saro].
+    #[arg(long)]
     pub model: Option<String>,
-    /// 3D smoothing filter [default: the config's, else motion].
-    #[arg(long, value_enum)]
-    pub filter: Option<FilterArg>,
+    /// 3D smoothing filter: `none` (classic 0.3 px^2 2D dilation), `mip3d`
+    /// (Mip-Splatting's static 3D filter + 2D Mip filter), `motion` (the motion-aware
+    /// nu(t) + 2D Mip filter) or one the program registers [default: the config's,
+    /// else motion].
+    #[arg(long)]
+    pub filter: Option<String>,
     /// Training scale relative to the source images [default: the config's, else 0.25,
     /// the D-NeRF protocol].
     #[arg(long)]
@@ -93,7 +96,7 @@ impl SettingsArgs {
     }
 }
 
-/// `--filter` values.
+/// The built-in filters, as `maaf bench-suite --filters` takes them.
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
 pub enum FilterArg {
     /// No 3D filter (classic 0.3 px^2 2D dilation).
@@ -139,8 +142,8 @@ pub fn config_from(args: &SettingsArgs) -> anyhow::Result<TrainConfig> {
     {
         config.model = ModelConfig::default_of(kind).map_err(anyhow::Error::msg)?;
     }
-    if let Some(f) = args.filter {
-        config.filter.kind = f.into();
+    if let Some(f) = &args.filter {
+        config.filter.kind = FilterKind::from_name(f);
     }
     if let Some(s) = args.train_scale {
         config.train_scale = s;
@@ -197,13 +200,14 @@ fn resumed_config(args: &SettingsArgs, run: &Path) -> anyhow::Result<TrainConfig
             .filter(|m| m.as_str() != config.model.kind())
             .map(|m| format!("--model {m} (the run's is {})", config.model.kind())),
         args.filter
-            .map(FilterKind::from)
+            .as_deref()
+            .map(FilterKind::from_name)
             .filter(|f| *f != config.filter.kind)
             .map(|f| {
                 format!(
                     "--filter {} (the run's is {})",
-                    format!("{f:?}").to_lowercase(),
-                    format!("{:?}", config.filter.kind).to_lowercase()
+                    f.name(),
+                    config.filter.kind.name()
                 )
             }),
         args.train_scale
@@ -262,12 +266,9 @@ fn resumed_data(settings: &SettingsArgs, run: &Path) -> anyhow::Result<(PathBuf,
     Ok((root, background))
 }
 
-/// Runs `maaf train`; `terms` are the loss terms its config may name.
-pub fn run(
-    args: &TrainArgs,
-    terms: &TermRegistry<f32>,
-    models: &ModelRegistry,
-) -> anyhow::Result<()> {
+/// Runs `maaf train`; `plugins` are the terms, representations, filters and
+/// strategies its config may name.
+pub fn run(args: &TrainArgs, plugins: &Plugins) -> anyhow::Result<()> {
     let settings = &args.settings;
     if let Some(data) = &settings.data
         && data.to_str().is_none()
@@ -318,8 +319,8 @@ pub fn run(
         );
     }
     let mut summary = match &args.from {
-        Some(from) => branch_run_with_terms(&data, config, &out, from, terms)?,
-        None => train_run_with_terms(&data, config, &out, args.resume.is_some(), terms)?,
+        Some(from) => branch_run_with_plugins(&data, config, &out, from, plugins)?,
+        None => train_run_with_plugins(&data, config, &out, args.resume.is_some(), plugins)?,
     };
     let since = summary
         .last_reset
@@ -334,7 +335,7 @@ pub fn run(
         summary.skipped_steps
     );
     print!("{}", summary.timings.report(summary.iterations));
-    let scene = TrainedScene::load(&out, models)?;
+    let scene = TrainedScene::load(&out, &plugins.models)?;
     let scale = scene.config.train_scale;
     let mut total = 0.0;
     let views = data.views(Split::Test, scale)?;

@@ -11,7 +11,7 @@ use super::support::{fixture, maaf, refused, s, succeeded};
 
 /// The example binary: `cargo test` builds every example into `target/PROFILE/examples`,
 /// beside the folder of the `maaf` binary.
-fn example(name: &str) -> PathBuf {
+pub(crate) fn example(name: &str) -> PathBuf {
     let bin = Path::new(env!("CARGO_BIN_EXE_maaf"));
     let path = bin
         .parent()
@@ -27,7 +27,7 @@ fn example(name: &str) -> PathBuf {
 }
 
 /// `PROGRAM ARGS` with two worker threads and extra environment, output captured.
-fn run(program: &Path, args: &[&str], env: &[(&str, &str)]) -> Output {
+pub(crate) fn run(program: &Path, args: &[&str], env: &[(&str, &str)]) -> Output {
     let mut cmd = Command::new(program);
     cmd.args(args).env("RAYON_NUM_THREADS", "2");
     for (k, v) in env {

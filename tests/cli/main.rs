@@ -7,6 +7,7 @@ mod bench_suite;
 mod cli_habits;
 mod compare;
 mod config_doc;
+mod custom_plugins;
 mod custom_terms;
 mod e2e_gradcheck;
 mod export_eval;

@@ -165,11 +165,12 @@ fn deform_mlp_forward_flops(n: usize, c: &DeformConfig, views: usize) -> f64 {
 }
 
 /// Forward FLOPs of every MLP one step of `views` views of `model` evaluates for `n`
-/// Gaussians.
+/// Gaussians (0 for a custom representation, whose networks maaf does not know).
 fn mlp_forward_flops(n: usize, model: &ModelConfig, views: usize) -> f64 {
     match model {
         ModelConfig::Saro(c) => saro_mlp_forward_flops(n, c, views),
         ModelConfig::Deform(c) => deform_mlp_forward_flops(n, c, views),
+        ModelConfig::Custom { .. } => 0.0,
     }
 }
 

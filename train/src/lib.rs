@@ -8,6 +8,7 @@
 pub mod bench;
 mod load_run;
 pub mod loss;
+mod plugins;
 pub mod sweep;
 pub mod trainer;
 
@@ -41,3 +42,4 @@ pub use maaf_eval::metrics;
 pub use maaf_eval::report;
 
 pub use maaf_scene::{Error, write_atomic};
+pub use plugins::Plugins;

@@ -33,7 +33,7 @@ fn tiny_config() -> TrainConfig {
     c.densify.from = 10;
     c.densify.every = 10;
     c.densify.opacity_reset_every = 0;
-    *c.model.warm_up_mut() = 10;
+    *c.model.warm_up_mut().expect("a built-in model") = 10;
     c
 }
 

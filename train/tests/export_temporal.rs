@@ -38,7 +38,7 @@ fn tiny_config() -> TrainConfig {
     c.densify.every = 20;
     c.densify.opacity_reset_every = 0;
     c.sh_degree_every = 10;
-    *c.model.warm_up_mut() = 10;
+    *c.model.warm_up_mut().expect("a built-in model") = 10;
     c
 }
 

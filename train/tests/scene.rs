@@ -41,7 +41,7 @@ fn config(kind: &str, filter: FilterKind) -> TrainConfig {
     c.densify.from = 10;
     c.densify.every = 10;
     c.densify.opacity_reset_every = 0;
-    *c.model.warm_up_mut() = 10;
+    *c.model.warm_up_mut().expect("a built-in model") = 10;
     c
 }
 
@@ -142,7 +142,7 @@ fn a_loaded_scene_renders_bit_identically_to_its_trainer() {
     );
     let mut deform_only = ModelRegistry::empty();
     deform_only.register("deform", |c, init| {
-        Ok(maaf_train::models::build_model(&c.model, init))
+        maaf_train::models::build_model(&c.model, init)
     });
     let err = TrainedScene::from_checkpoint(&tmp.0.join("saro").join("model"), &deform_only, None)
         .err()

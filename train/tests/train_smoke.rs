@@ -43,7 +43,7 @@ fn tiny_config_of(kind: &str, filter: FilterKind) -> TrainConfig {
     c.densify.from = 20;
     c.densify.every = 20;
     c.densify.opacity_reset_every = 0;
-    *c.model.warm_up_mut() = 20;
+    *c.model.warm_up_mut().expect("a built-in model") = 20;
     c
 }
 
@@ -82,7 +82,7 @@ fn loss_falls_with_every_filter_and_representation() {
         ("deform", FilterKind::Motion),
     ];
     for (kind, filter) in runs {
-        let mut t = Trainer::new(&data, tiny_config_of(kind, filter)).expect("trainer");
+        let mut t = Trainer::new(&data, tiny_config_of(kind, filter.clone())).expect("trainer");
         let mut first = Vec::new();
         let mut last = Vec::new();
         for i in 0..60 {

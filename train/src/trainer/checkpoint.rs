@@ -15,11 +15,11 @@ use maaf_autodiff::optim::Moments;
 use safetensors::{Dtype, tensor::TensorView};
 
 use super::{DensifyStats, Liveness, Trainer};
-use crate::Error;
 use crate::data::Dataset;
 use crate::loss::TermRegistry;
 use crate::params::Rows;
 use crate::scene::checkpoint_read::{BUFFER, Opened, State, bytes_of, tensor};
+use crate::{Error, Plugins};
 
 /// Per Gaussian (u32), the last iteration with an opacity gradient
 /// ([`super::Liveness`]); absent in checkpoints written before it existed.
@@ -118,6 +118,7 @@ pub fn save_checkpoint(trainer: &Trainer, dir: &Path) -> Result<(), Error> {
         filter: trainer.filter.clone(),
         timings: trainer.timings.clone(),
         adam_steps,
+        strategy: trainer.strategy_state(),
         tensors_crc32: Some(format!("{:08x}", crc32fast::hash(&blob))),
     };
     let json =
@@ -146,7 +147,8 @@ pub fn checkpoint_iteration(dir: &Path) -> Result<usize, Error> {
     Opened::read_state(dir).map(|s| s.iteration)
 }
 
-/// Restores a trainer of the built-in representation `config.model` names from a
+/// Restores a trainer of the built-in representation, filter and strategy the run's
+/// config names from a
 /// checkpoint folder written by [`save_checkpoint`], on the same data set, for
 /// rendering and evaluation: a term of the run's `config.terms` that is not built in
 /// is left out of its objective ([`crate::loss::Objective::unregistered`]), and
@@ -155,7 +157,7 @@ pub fn checkpoint_iteration(dir: &Path) -> Result<usize, Error> {
 /// malformed entry.
 pub fn load_checkpoint(data: &Dataset, dir: &Path) -> Result<Trainer, Error> {
     let state = Opened::read_state(dir)?;
-    let mut trainer = Trainer::from_config(data, state.config.clone(), &TermRegistry::builtin())?;
+    let mut trainer = Trainer::from_config(data, state.config.clone(), &Plugins::builtin())?;
     trainer.restore_state(dir, state, false)?;
     Ok(trainer)
 }
@@ -168,10 +170,22 @@ pub fn load_checkpoint_with_terms(
     dir: &Path,
     registry: &TermRegistry<f32>,
 ) -> Result<Trainer, Error> {
+    load_checkpoint_with_plugins(data, dir, &Plugins::with_terms(registry))
+}
+
+/// [`load_checkpoint`] with the registries of `plugins`, to continue training: every
+/// term, the representation, the filter and the strategy the run's config names
+/// must be registered there ([`Plugins::check`]: one line naming what is not, and
+/// the checkpoint's `state.json`); the strategy's own state is restored.
+pub fn load_checkpoint_with_plugins(
+    data: &Dataset,
+    dir: &Path,
+    plugins: &Plugins,
+) -> Result<Trainer, Error> {
     let state = Opened::read_state(dir)?;
     let what = dir.join("state.json").display().to_string();
-    registry.check(&state.config.terms, &what)?;
-    let mut trainer = Trainer::from_config(data, state.config.clone(), registry)?;
+    plugins.check(&state.config, &what)?;
+    let mut trainer = Trainer::from_config(data, state.config.clone(), plugins)?;
     trainer.restore_state(dir, state, false)?;
     Ok(trainer)
 }
@@ -202,11 +216,11 @@ impl Trainer {
         let (ours, theirs) = (&self.config, &state.config);
         if ours.filter.kind != theirs.filter.kind || ours.train_scale != theirs.train_scale {
             return Err(Error::Input(format!(
-                "{}: a branch keeps the checkpoint's filter kind and training scale ({:?} at {}), not {:?} at {}",
+                "{}: a branch keeps the checkpoint's filter kind and training scale ({} at {}), not {} at {}",
                 dir.display(),
-                theirs.filter.kind,
+                theirs.filter.kind.name(),
                 theirs.train_scale,
-                ours.filter.kind,
+                ours.filter.kind.name(),
                 ours.train_scale
             )));
         }
@@ -300,6 +314,8 @@ impl Trainer {
         if !branch {
             self.config = state.config;
         }
+        self.load_strategy_state(&state.strategy)
+            .map_err(|e| Error::Input(format!("{}: {e}", dir.join("state.json").display())))?;
         Ok(fresh)
     }
 }

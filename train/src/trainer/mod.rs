@@ -3,8 +3,9 @@
 //! densification and filter refreshes outside the tape.
 //!
 //! A trainer is built from a config ([`Trainer::new`]: the model kind is
-//! `config.model`, the extra loss terms `config.terms`; [`Trainer::with_terms`] with
-//! terms of the program's own) or around any representation ([`Trainer::with_model`]);
+//! `config.model`, the extra loss terms `config.terms`, the filter `filter.kind`, the
+//! strategy `densify.strategy`; [`Trainer::with_plugins`] with those a program
+//! registered) or around any representation ([`Trainer::with_model`]);
 //! terms can also be pushed onto [`Trainer::objective`]. [`train_run`] runs either in
 //! a run directory.
 
@@ -23,11 +24,12 @@ mod validation;
 
 use maaf_autodiff::optim::{Adam, AdamConfig};
 use maaf_autodiff::{OpProfile, PerGaussian, Tensor};
-use maaf_filter::{CameraTime, FilterRegistry, FilterState, ObservationTable, SamplingFilter};
+use maaf_filter::{CameraTime, FilterState, ObservationTable, SamplingFilter};
 use maaf_splat::Camera;
 
 pub use checkpoint::{
-    checkpoint_iteration, load_checkpoint, load_checkpoint_with_terms, save_checkpoint,
+    checkpoint_iteration, load_checkpoint, load_checkpoint_with_plugins,
+    load_checkpoint_with_terms, save_checkpoint,
 };
 pub use densify::{DensifyPlan, DensifyStats, ViewGrad, plan as plan_densify};
 /// The run's configuration, its timings and what it starts from: `maaf-scene` types,
@@ -40,18 +42,19 @@ pub use prune::{keep_highest, removal_sensitivity};
 pub use reset::{Liveness, opacity_caps};
 pub use resume::{checkpoints_newest_first, load_newest, truncate_log};
 pub use run::{
-    RunSummary, branch_run, branch_run_with_terms, checkpoint_dir, train_run, train_run_with,
-    train_run_with_terms,
+    RunSummary, branch_run, branch_run_with_plugins, branch_run_with_terms, checkpoint_dir,
+    train_run, train_run_with, train_run_with_plugins, train_run_with_terms,
 };
 pub use strategy::{
-    DefaultStrategy, SensitivityPruning, StepInfo, Strategy, for_config as strategy_for_config,
+    DefaultStrategy, SensitivityPruning, StepInfo, Strategy, StrategyMaker, StrategyRegistry,
+    for_config as strategy_for_config,
 };
 
-use crate::Error;
 use crate::data::Dataset;
 use crate::loss::{Objective, TermRegistry};
-use crate::models::{Canonical, Representation, build_model};
+use crate::models::{Canonical, Representation};
 use crate::scene::{SceneRecord, TrainedScene, observed_views, training_views};
+use crate::{Error, Plugins};
 
 /// A trainer: the model, its optimiser, the filter and every per-Gaussian container,
 /// resized in lock-step by [`PerGaussian::select_rows`].
@@ -72,7 +75,7 @@ pub struct Trainer {
     pub observations: ObservationTable,
     /// Densification statistics.
     pub stats: DensifyStats,
-    /// The densification strategy (the config's, or a user's:
+    /// The densification strategy (the one `densify.strategy` names, or a user's:
     /// [`Trainer::set_strategy`]); `None` only while one of its hooks runs.
     strategy: Option<Box<dyn Strategy>>,
     /// Objective (named weighted terms): the photometric loss, the model's
@@ -124,13 +127,13 @@ pub struct Trainer {
 }
 
 impl Trainer {
-    /// A new run of the representation `config.model` describes (built by
-    /// [`build_model`]), with the built-in terms ([`TermRegistry::builtin`]); a term
-    /// `config.terms` names that is not built in is refused ([`Trainer::with_terms`]
+    /// A new run of the representation `config.model` describes, with the built-in
+    /// terms, representations, filters and strategies ([`Plugins::builtin`]); a name
+    /// the config gives that is not built in is refused ([`Trainer::with_plugins`]
     /// supplies others). Values the data decides (SaRO's `duration`) are resolved
     /// into the config, so `config.json` records them.
     pub fn new(data: &Dataset, config: TrainConfig) -> Result<Self, Error> {
-        Self::with_terms(data, config, &TermRegistry::builtin())
+        Self::with_plugins(data, config, &Plugins::builtin())
     }
 
     /// [`Trainer::new`] with the terms of `registry`: every name in `config.terms`
@@ -140,23 +143,38 @@ impl Trainer {
         config: TrainConfig,
         registry: &TermRegistry<f32>,
     ) -> Result<Self, Error> {
-        registry.check(&config.terms, "config: terms")?;
-        Self::from_config(data, config, registry)
+        Self::with_plugins(data, config, &Plugins::with_terms(registry))
     }
 
-    /// [`Trainer::with_terms`] without the check: a term no registry knows is left
-    /// out of the objective ([`Objective::unregistered`]), which is what a model
-    /// loaded for rendering needs ([`load_checkpoint`]); training refuses it.
+    /// [`Trainer::new`] with the terms, representations, filters and strategies of
+    /// `plugins`: everything the config names must be registered there
+    /// ([`Plugins::check`]). A custom representation is built by its factory from
+    /// the config (its options: `config.model.options()`) and the initial cloud.
+    pub fn with_plugins(
+        data: &Dataset,
+        config: TrainConfig,
+        plugins: &Plugins,
+    ) -> Result<Self, Error> {
+        plugins.check(&config, "config")?;
+        Self::from_config(data, config, plugins)
+    }
+
+    /// [`Trainer::with_plugins`] without the check of the terms: a term no registry
+    /// knows is left out of the objective ([`Objective::unregistered`]), which is what
+    /// a model loaded for rendering needs ([`load_checkpoint`]); training refuses it.
     fn from_config(
         data: &Dataset,
         mut config: TrainConfig,
-        registry: &TermRegistry<f32>,
+        plugins: &Plugins,
     ) -> Result<Self, Error> {
         config.validate()?;
         let init = model_init(data, &config)?;
         config.model.resolve(&init);
-        let model = build_model(&config.model, &init);
-        let mut trainer = Self::assemble(data, config, model, registry)?;
+        let model = plugins
+            .models
+            .build(config.model.kind(), &config, &init)
+            .map_err(Error::Input)?;
+        let mut trainer = Self::assemble(data, config, model, plugins)?;
         trainer.init_box = init.cloud.bounds();
         Ok(trainer)
     }
@@ -165,30 +183,33 @@ impl Trainer {
     /// the caller's; `config.model` is then only recorded, not used). The filter,
     /// objective, densification, checkpoints and evaluation work unchanged. The
     /// objective is the photometric loss plus the model's declared regularisers and
-    /// the built-in terms `config.terms` names (any other name is refused).
+    /// the built-in terms `config.terms` names (any other name is refused), the
+    /// filter and strategy the built-in ones the config names.
     pub fn with_model(
         data: &Dataset,
         config: TrainConfig,
         model: Box<dyn Representation<f32>>,
     ) -> Result<Self, Error> {
-        let registry = TermRegistry::builtin();
-        registry.check(&config.terms, "config: terms")?;
-        Self::assemble(data, config, model, &registry)
+        let plugins = Plugins::builtin();
+        plugins.terms.check(&config.terms, "config: terms")?;
+        Self::assemble(data, config, model, &plugins)
     }
 
-    /// The trainer around `model`, its objective built by [`Objective::for_run`].
+    /// The trainer around `model`, its objective built by [`Objective::for_run`], its
+    /// filter and strategy the ones the config names in `plugins`.
     fn assemble(
         data: &Dataset,
         config: TrainConfig,
         model: Box<dyn Representation<f32>>,
-        registry: &TermRegistry<f32>,
+        plugins: &Plugins,
     ) -> Result<Self, Error> {
         config.validate()?;
         let views = training_views(data, &config)?;
         let cameras: Vec<Camera> = views.iter().map(|v| v.camera.clone()).collect();
         let extent = camera_extent(&cameras);
         let n = model.rows();
-        let sampling = FilterRegistry::builtin()
+        let sampling = plugins
+            .filters
             .for_config(&config.filter)
             .map_err(|e| Error::Input(e.to_string()))?;
         let view_times: Vec<f64> = views.iter().map(|v| v.time).collect();
@@ -207,8 +228,13 @@ impl Trainer {
         // The tensors are the trainer's copy: the data set's cached one would double
         // the images' memory for the whole run.
         data.evict(crate::data::Split::Train);
-        let objective =
-            Objective::for_run(config.lambda_dssim, model.as_ref(), &config.terms, registry)?;
+        let objective = Objective::for_run(
+            config.lambda_dssim,
+            model.as_ref(),
+            &config.terms,
+            &plugins.terms,
+        )?;
+        let strategy = plugins.strategies.build(&config)?;
         let held_out = validation::held_out_views(data, config.val_views, config.train_scale)?;
         Ok(Trainer {
             adam: Adam::new(AdamConfig::default()),
@@ -216,7 +242,7 @@ impl Trainer {
             sampling,
             observations: ObservationTable::for_frames(&observed, n),
             stats: DensifyStats::new(n),
-            strategy: Some(strategy::for_config(&config)),
+            strategy: Some(strategy),
             objective,
             iteration: 0,
             skipped_steps: 0,

@@ -10,12 +10,12 @@ use serde::{Deserialize, Serialize};
 
 use super::log::{LogLayout, RowStats};
 use super::{
-    Timings, TrainConfig, Trainer, load_checkpoint_with_terms, load_newest, log_line,
+    Timings, TrainConfig, Trainer, load_checkpoint_with_plugins, load_newest, log_line,
     repair_run_dir, save_checkpoint, truncate_log,
 };
 use crate::data::Dataset;
 use crate::loss::TermRegistry;
-use crate::{Error, write_atomic};
+use crate::{Error, Plugins, write_atomic};
 
 /// What a finished run reports (also written as `RUN/summary.json`).
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -76,7 +76,7 @@ pub fn train_run(
     out: &Path,
     resume: bool,
 ) -> Result<RunSummary, Error> {
-    train_run_with_terms(data, config, out, resume, &TermRegistry::builtin())
+    train_run_with_plugins(data, config, out, resume, &Plugins::builtin())
 }
 
 /// [`train_run`] with the loss terms of `registry` (the built-in ones and the
@@ -90,13 +90,28 @@ pub fn train_run_with_terms(
     resume: bool,
     registry: &TermRegistry<f32>,
 ) -> Result<RunSummary, Error> {
+    train_run_with_plugins(data, config, out, resume, &Plugins::with_terms(registry))
+}
+
+/// [`train_run`] with the terms, representations, filters and strategies of
+/// `plugins` (the built-in ones and the program's own): everything `config` names
+/// must be registered there, for a new run and for a resume (the run's
+/// `config.json`), or the call fails with one line naming the run's config, what is
+/// missing and what is registered, before anything changes.
+pub fn train_run_with_plugins(
+    data: &Dataset,
+    config: TrainConfig,
+    out: &Path,
+    resume: bool,
+    plugins: &Plugins,
+) -> Result<RunSummary, Error> {
     let _lock = lock_run(out)?;
     let what = if resume {
         out.join("config.json").display().to_string()
     } else {
-        "config: terms".to_string()
+        "config".to_string()
     };
-    registry.check(&config.terms, &what)?;
+    plugins.check(&config, &what)?;
     if resume {
         crate::eval::render::check_and_record_data(out, data)?;
     } else {
@@ -105,7 +120,7 @@ pub fn train_run_with_terms(
     repair_run_dir(out)?;
     let budget = config.iterations;
     let found = if resume {
-        load_newest(out, |dir| load_checkpoint_with_terms(data, dir, registry))
+        load_newest(out, |dir| load_checkpoint_with_plugins(data, dir, plugins))
     } else {
         None
     };
@@ -117,7 +132,7 @@ pub fn train_run_with_terms(
             say_resumed(&t, &dir);
             t
         }
-        None => Trainer::with_terms(data, config, registry)?,
+        None => Trainer::with_plugins(data, config, plugins)?,
     };
     run_trainer(trainer, out, resume)
 }
@@ -207,7 +222,7 @@ pub fn branch_run(
     out: &Path,
     from: &Path,
 ) -> Result<RunSummary, Error> {
-    branch_run_with_terms(data, config, out, from, &TermRegistry::builtin())
+    branch_run_with_plugins(data, config, out, from, &Plugins::builtin())
 }
 
 /// [`branch_run`] with the loss terms of `registry` ([`train_run_with_terms`]).
@@ -218,8 +233,19 @@ pub fn branch_run_with_terms(
     from: &Path,
     registry: &TermRegistry<f32>,
 ) -> Result<RunSummary, Error> {
+    branch_run_with_plugins(data, config, out, from, &Plugins::with_terms(registry))
+}
+
+/// [`branch_run`] with the registries of `plugins` ([`train_run_with_plugins`]).
+pub fn branch_run_with_plugins(
+    data: &Dataset,
+    config: TrainConfig,
+    out: &Path,
+    from: &Path,
+    plugins: &Plugins,
+) -> Result<RunSummary, Error> {
     let _lock = lock_run(out)?;
-    let mut trainer = Trainer::with_terms(data, config, registry)?;
+    let mut trainer = Trainer::with_plugins(data, config, plugins)?;
     let fresh = trainer.branch_from(from)?;
     if trainer.iteration >= trainer.config.iterations {
         return Err(Error::Input(format!(

@@ -1,7 +1,8 @@
 //! Densification as a strategy (the shape of gsplat's `Strategy`): what to do with
 //! each gradient step's statistics after the backward pass, and how to change the
-//! set of Gaussians after the step. The trainer holds one; the config chooses
-//! between the two built-in ones ([`for_config`]) and a user's replaces it
+//! set of Gaussians after the step. The trainer holds one; the config names it
+//! (`densify.strategy`, looked up in a [`StrategyRegistry`]: the two built-in ones,
+//! [`for_config`], and any a program registers), or a user's replaces it
 //! ([`Trainer::set_strategy`]).
 //!
 //! gsplat's `step_pre_backward` exists to keep the gradient of the screen-space
@@ -14,7 +15,13 @@
 //! index list for the model, its Adam moments, the filter state, observations,
 //! statistics and liveness) and [`Trainer::reset_opacity`]. Its statistics are the
 //! trainer's [`DensifyStats`] (gsplat's `state`, held by the caller and checkpointed
-//! with the run); state of its own is not checkpointed.
+//! with the run); state of its own is checkpointed through [`Strategy::state`] and
+//! [`Strategy::load_state`].
+
+use std::collections::BTreeMap;
+use std::sync::Arc;
+
+use serde_json::Value;
 
 use super::{DensifyStats, TrainConfig, Trainer, ViewGrad, plan_densify};
 
@@ -44,6 +51,23 @@ pub trait Strategy: Send {
     /// reset opacities as due. Returns whether the set of Gaussians changed (the
     /// filter is then refreshed if `filter.refresh.after_densify`).
     fn refine(&mut self, trainer: &mut Trainer, iteration: usize) -> bool;
+
+    /// The strategy's own state (counters, budgets, random state: whatever
+    /// [`Strategy::refine`] reads besides the trainer), saved in every checkpoint's
+    /// `state.json` so a resumed run continues bit for bit. Floats survive exactly
+    /// (JSON numbers are written in their shortest round-trip form). Default: none
+    /// (`null`).
+    fn state(&self) -> Value {
+        Value::Null
+    }
+
+    /// Restores what [`Strategy::state`] returned, when a checkpoint is loaded
+    /// (resume, branch); an error (one line naming the bad field) stops the load.
+    /// Not called for a checkpoint without state. Default: nothing to restore.
+    fn load_state(&mut self, state: &Value) -> Result<(), String> {
+        let _ = state;
+        Ok(())
+    }
 }
 
 /// The 3DGS adaptive density control as SaRO-GS configures it (`config.densify`):
@@ -122,7 +146,7 @@ pub struct SensitivityPruning {
 
 impl Strategy for SensitivityPruning {
     fn name(&self) -> &str {
-        "sensitivity_pruning"
+        "sensitivity"
     }
 
     fn after_backward(&mut self, trainer: &mut Trainer, info: &StepInfo<'_>) {
@@ -140,8 +164,8 @@ impl Strategy for SensitivityPruning {
     }
 }
 
-/// The strategy `config` chooses: [`SensitivityPruning`] when `prune.every > 0`,
-/// else [`DefaultStrategy`].
+/// The built-in strategy `config` chooses when `densify.strategy` names none:
+/// [`SensitivityPruning`] when `prune.every > 0`, else [`DefaultStrategy`].
 pub fn for_config(config: &TrainConfig) -> Box<dyn Strategy> {
     if config.prune.every > 0 {
         Box::new(SensitivityPruning::default())
@@ -150,11 +174,111 @@ pub fn for_config(config: &TrainConfig) -> Box<dyn Strategy> {
     }
 }
 
+/// Makes a strategy from the run's config (it reads its settings there).
+pub type StrategyMaker = dyn Fn(&TrainConfig) -> Result<Box<dyn Strategy>, String> + Send + Sync;
+
+/// Densification strategies by name: what `densify.strategy` may name.
+/// [`StrategyRegistry::builtin`] holds `default` ([`DefaultStrategy`]) and
+/// `sensitivity` ([`SensitivityPruning`]); a program adds its own
+/// (`maaf::cli::Maaf::strategy`). Cloning shares the makers.
+#[derive(Clone)]
+pub struct StrategyRegistry {
+    makers: BTreeMap<String, Arc<StrategyMaker>>,
+}
+
+impl StrategyRegistry {
+    /// The built-in strategies.
+    pub fn builtin() -> Self {
+        let mut r = StrategyRegistry {
+            makers: BTreeMap::new(),
+        };
+        let _ = r.register("default", |_| Ok(Box::new(DefaultStrategy)));
+        let _ = r.register("sensitivity", |_| {
+            Ok(Box::new(SensitivityPruning::default()))
+        });
+        r
+    }
+
+    /// Adds the strategy `maker` makes under `name` (1 to 64 letters, digits or
+    /// `_`); refuses a name already registered or not a strategy name.
+    pub fn register<F>(&mut self, name: &str, maker: F) -> Result<(), String>
+    where
+        F: Fn(&TrainConfig) -> Result<Box<dyn Strategy>, String> + Send + Sync + 'static,
+    {
+        let ok = !name.is_empty()
+            && name.len() <= 64
+            && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
+        if !ok {
+            return Err(format!(
+                "`{name}` is not a strategy name (1 to 64 letters, digits or _)"
+            ));
+        }
+        if self.makers.contains_key(name) {
+            return Err(format!("strategy `{name}` is already registered"));
+        }
+        self.makers.insert(name.to_string(), Arc::new(maker));
+        Ok(())
+    }
+
+    /// The registered names, sorted.
+    pub fn names(&self) -> Vec<&str> {
+        self.makers.keys().map(String::as_str).collect()
+    }
+
+    /// The name of the strategy `config` runs: `densify.strategy`, else the
+    /// built-in [`for_config`] chooses.
+    pub fn name_for(config: &TrainConfig) -> &str {
+        match &config.densify.strategy {
+            Some(name) => name,
+            None if config.prune.every > 0 => "sensitivity",
+            None => "default",
+        }
+    }
+
+    /// Refuses (`what`: the config's file or section) a config whose strategy is not
+    /// registered, naming it and the registered ones.
+    pub fn check(&self, config: &TrainConfig, what: &str) -> Result<(), crate::Error> {
+        let name = Self::name_for(config);
+        if self.makers.contains_key(name) {
+            return Ok(());
+        }
+        Err(crate::Error::Input(format!(
+            "{what}: densify.strategy `{name}` is not registered in this program (registered: {}); use a program that registers it (maaf::cli::Maaf::strategy)",
+            self.names().join(", ")
+        )))
+    }
+
+    /// The strategy `config` names, made by its maker (whose error names the field).
+    pub fn build(&self, config: &TrainConfig) -> Result<Box<dyn Strategy>, crate::Error> {
+        self.check(config, "config")?;
+        let name = Self::name_for(config);
+        let strategy = self.makers[name](config)
+            .map_err(|e| crate::Error::Input(format!("config: densify.strategy `{name}`: {e}")))?;
+        Ok(strategy)
+    }
+}
+
 impl Trainer {
-    /// Replaces the densification strategy (the trainer starts with the config's,
-    /// [`for_config`]). The statistics the trainer holds are kept.
+    /// Replaces the densification strategy (the trainer starts with the one the
+    /// config names). The statistics the trainer holds are kept; call it before
+    /// loading a checkpoint so the strategy's own state is restored into it.
     pub fn set_strategy(&mut self, strategy: Box<dyn Strategy>) {
         self.strategy = Some(strategy);
+    }
+
+    /// The strategy's own state ([`Strategy::state`]), for a checkpoint.
+    pub(super) fn strategy_state(&self) -> Value {
+        self.strategy.as_ref().map_or(Value::Null, |s| s.state())
+    }
+
+    /// Restores the strategy's own state from a checkpoint ([`Strategy::load_state`]).
+    pub(super) fn load_strategy_state(&mut self, state: &Value) -> Result<(), String> {
+        match self.strategy.as_mut() {
+            Some(s) if !state.is_null() => s
+                .load_state(state)
+                .map_err(|e| format!("strategy `{}`: {e}", s.name())),
+            _ => Ok(()),
+        }
     }
 
     /// The strategy's [`Strategy::after_backward`] for one step.
@@ -175,5 +299,44 @@ impl Trainer {
             }
             None => false,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_config_names_a_strategy_and_an_unregistered_one_is_refused() {
+        let mut config = TrainConfig::default();
+        assert_eq!(StrategyRegistry::name_for(&config), "default");
+        config.prune.every = 100;
+        assert_eq!(StrategyRegistry::name_for(&config), "sensitivity");
+        let mut reg = StrategyRegistry::builtin();
+        assert_eq!(reg.build(&config).expect("built in").name(), "sensitivity");
+        config.densify.strategy = Some("mine".into());
+        let err = reg
+            .build(&config)
+            .err()
+            .expect("not registered")
+            .to_string();
+        assert!(
+            err.contains("`mine` is not registered") && err.contains("default, sensitivity"),
+            "{err}"
+        );
+        reg.register("mine", |_| Ok(Box::new(DefaultStrategy)))
+            .expect("new name");
+        assert!(reg.build(&config).is_ok());
+        assert!(
+            reg.register("mine", |_| Ok(Box::new(DefaultStrategy)))
+                .is_err()
+        );
+        assert!(
+            reg.register("no name", |_| Ok(Box::new(DefaultStrategy)))
+                .is_err()
+        );
+        // Old configs (no key) read as before; the key is written as null.
+        let json = serde_json::to_value(TrainConfig::default()).expect("json");
+        assert!(json["densify"]["strategy"].is_null());
     }
 }
