@@ -4,8 +4,8 @@
 use std::path::PathBuf;
 
 use maaf_train::bench::{StepBenchOptions, bench_step, format_table, measure_peak};
-use maaf_train::load_run;
 use maaf_train::trainer::MAX_BATCH;
+use maaf_train::{Plugins, load_run};
 
 /// Arguments of `maaf bench`.
 #[derive(clap::Args, Debug)]
@@ -34,8 +34,10 @@ pub struct BenchArgs {
     pub ops: bool,
 }
 
-/// Runs the benchmark and prints the table.
-pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
+/// Runs the benchmark and prints the table; the run's representation, filter,
+/// strategy and terms must be among `plugins` (a program's own through
+/// `maaf::cli::Maaf`).
+pub fn run(args: &BenchArgs, plugins: &Plugins) -> anyhow::Result<()> {
     anyhow::ensure!(args.iters > 0, "--iters must be at least 1");
     anyhow::ensure!(
         args.batch.is_none_or(|b| (1..=MAX_BATCH).contains(&b)),
@@ -53,7 +55,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     let mut runs = Vec::new();
     for &n in &args.gaussians {
         anyhow::ensure!(n > 0, "--gaussians: counts must be positive");
-        let trainer = load_run(&args.run, &data)?;
+        let trainer = load_run(&args.run, &data, plugins)?;
         let (bench, profile) = bench_step(trainer, n, &opts)?;
         if args.ops {
             println!("slowest ops at N = {n} (ms per iteration, forward / backward):");

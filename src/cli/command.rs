@@ -73,7 +73,7 @@ pub(super) fn run(cli: Cli, plugins: &Plugins) -> anyhow::Result<()> {
         Command::Cameras(args) => cli::cameras::run(&args)?,
         Command::Report(args) => cli::report::run(&args)?,
         Command::Compare(args) => cli::compare::run(&args)?,
-        Command::Bench(args) => cli::bench::run(&args)?,
+        Command::Bench(args) => cli::bench::run(&args, plugins)?,
         Command::ExportPly(args) => cli::export_ply::run(&args, models)?,
         Command::Sweep(args) => cli::sweep::run(&args)?,
         Command::BenchSuite(args) => cli::bench_suite::run(&args)?,

@@ -226,6 +226,20 @@ fn a_representation_of_ones_own_trains_from_a_config_with_its_options_and_resume
         maaf(&["eval", "--run", s(&killed), "--scales", "1"]),
         &["`tiny_deform`", "not registered"],
     );
+    // `bench` continues stepping the run, so it needs the program too.
+    let bench = [
+        "bench",
+        "--run",
+        s(&killed),
+        "--gaussians",
+        "50",
+        "--iters",
+        "1",
+        "--warmup",
+        "0",
+    ];
+    succeeded(run(&program, &bench, &[]));
+    refused(maaf(&bench), &["`tiny_deform`", "not registered"]);
     // Its factory checks its options, naming the field.
     for (options, needle) in [
         (r#""width": "wide""#, "model.width"),
