@@ -264,10 +264,7 @@ impl Default for FilterConfig {
 /// digits or `_`, and not `window_max` (the built-in spelled `"kind": "motion",
 /// "estimator": "window_max"`).
 pub fn name_problem(name: &str) -> Option<String> {
-    let ok = !name.is_empty()
-        && name.len() <= 64
-        && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
-    if !ok {
+    if !maaf_io::is_plugin_name(name) {
         Some(format!(
             "`{name}` is not a filter name (1 to 64 letters, digits or _)"
         ))

@@ -137,10 +137,7 @@ impl ModelConfig {
             ModelConfig::Saro(c) => c.validate(),
             ModelConfig::Deform(c) => c.validate(),
             ModelConfig::Custom { kind, .. } => {
-                let ok = !kind.is_empty()
-                    && kind.len() <= 64
-                    && kind.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
-                if ok {
+                if maaf_io::is_plugin_name(kind) {
                     Ok(())
                 } else {
                     Err(format!(

@@ -17,10 +17,7 @@ pub const RESERVED: [&str; 8] = [
 /// Why `name` cannot name a term, if it cannot: it must be 1 to 64 ASCII letters,
 /// digits or `_` (it becomes a `log.csv` column) and not one of [`RESERVED`].
 pub fn name_problem(name: &str) -> Option<String> {
-    let ok = !name.is_empty()
-        && name.len() <= 64
-        && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
-    if !ok {
+    if !maaf_io::is_plugin_name(name) {
         Some(format!(
             "`{name}` is not a term name (1 to 64 letters, digits or _)"
         ))

@@ -205,10 +205,7 @@ impl StrategyRegistry {
     where
         F: Fn(&TrainConfig) -> Result<Box<dyn Strategy>, String> + Send + Sync + 'static,
     {
-        let ok = !name.is_empty()
-            && name.len() <= 64
-            && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
-        if !ok {
+        if !maaf_io::is_plugin_name(name) {
             return Err(format!(
                 "`{name}` is not a strategy name (1 to 64 letters, digits or _)"
             ));
