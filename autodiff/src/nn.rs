@@ -10,12 +10,12 @@ use rand_pcg::Pcg64;
 use crate::ops::dense::Activation;
 use crate::{Float, Tape, Tensor, Var};
 
-/// A fully connected layer `y = x W + b`, `W` [in, out], `b` [out].
+/// A fully connected layer `y = x W + b`, `W` \[in, out\], `b` \[out\].
 #[derive(Clone, Debug, PartialEq)]
 pub struct Linear<T: Float> {
     /// Weight matrix [in, out].
     pub weight: Tensor<T>,
-    /// Bias [out].
+    /// Bias \[out\].
     pub bias: Tensor<T>,
 }
 

@@ -187,7 +187,7 @@ fn check_zip_target(out: &Path) -> Result<(), Error> {
 
 /// Writes `frames` evenly spaced times over `[t0, t1]` (`t_i = t0 + (t1 - t0) i /
 /// (frames - 1)`) into the folder `out` as `frame_0000.ply ...` (nothing else; each
-/// frame's time in its header, [`frame_bytes`]), built in a temporary sibling and
+/// frame's time in its header, `frame_bytes`), built in a temporary sibling and
 /// swapped in whole. An existing file at `out`, or a folder holding other files, is refused.
 /// Returns the PLY paths.
 pub fn export_sequence(

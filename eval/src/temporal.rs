@@ -5,7 +5,7 @@
 //! The video: the data set's `video` split (one fixed camera; the built-in generator
 //! writes it with exact forward flow) when it has at least two frames, else test camera
 //! 0 at every distinct test time, ascending (no exact flow then). Frames are rendered
-//! through the evaluation pipeline ([`super::render_image`]); the metrics are
+//! through the evaluation pipeline ([`TrainedScene::render_with`]); the metrics are
 //! [`crate::metrics::temporal::temporal_metrics`].
 
 use maaf_autodiff::Tensor;

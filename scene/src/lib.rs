@@ -1,7 +1,7 @@
 //! maaf-scene: what a trained run is and how to read it, without the trainer. The
 //! run's configuration ([`TrainConfig`]), the checkpoint reader ([`checkpoint_read`],
 //! the one reader behind the trainer's restore and [`TrainedScene::load`]), what a
-//! run starts from ([`model_init`]), the pipeline of one forward pass ([`forward`]),
+//! run starts from ([`model_init`]), the pipeline of one forward pass ([`forward`](mod@forward)),
 //! and the trained scene as a value.
 //!
 //! A trained scene: the representation, the filter state it renders with
@@ -210,7 +210,7 @@ impl TrainedScene {
     }
 
     /// Number of stored model scalars: the parameters plus the state the model keeps
-    /// outside its store ([`TrainingHooks::state_scalars`](crate::models::TrainingHooks::state_scalars), e.g. GroupFlow's tables).
+    /// outside its store ([`TrainingHooks::state_scalars`](maaf_models::TrainingHooks::state_scalars), e.g. GroupFlow's tables).
     pub fn num_scalars(&self) -> usize {
         let extra = self.model.hooks().map_or(0, |h| h.state_scalars());
         self.model.params().num_scalars() + extra
@@ -240,7 +240,7 @@ impl TrainedScene {
     }
 
     /// Renders the scene at `time` from `camera` with `settings`, through the training
-    /// pipeline ([`forward`]) with the parameters as constants.
+    /// pipeline ([`forward()`]) with the parameters as constants.
     pub fn render_with(
         &self,
         camera: &Camera,

@@ -1,4 +1,4 @@
-//! Pixel lanes for the blend loop: the tile kernels in [`crate::blend`] are written
+//! Pixel lanes for the blend loop: the tile kernels in the `blend` module are written
 //! once over [`Lanes`], a small set of element-wise operations on `N` pixels at a
 //! time. `f32` renders through `wide::f32x4` (4 pixels of a tile row per step, one
 //! SSE2 instruction per operation on a default x86-64 build); `f64` (the gradient

@@ -6,12 +6,12 @@
 //! `scales [N,3]`, `quats [N,4]` (w,x,y,z, normalised inside), activated
 //! `opacity [N]` and `sh [N,K,3]`.
 //!
-//! The pipeline ([`render`]) is four ops, each with a hand-written backward next to
+//! The pipeline ([`render()`]) is four ops, each with a hand-written backward next to
 //! its forward and generic over f32/f64: [`cov3d::QuatScaleToCov`],
 //! [`project::ProjectEwa`] (frustum clamp, 2D filter), [`sh::ShColor`] and
 //! [`rasterize::Rasterize`] (16x16 tiles, per-tile depth sort, deterministic parallel
 //! backward). [`apply_3d_filter`] folds the Mip-Splatting 3D filter into scales and
-//! opacity. [`reference`] holds slow independent versions used as test oracles.
+//! opacity. [`reference`](mod@reference) holds slow independent versions used as test oracles.
 
 // Index loops are the clearest way to write the small matrix algebra here.
 #![allow(clippy::needless_range_loop)]

@@ -24,7 +24,7 @@ pub enum Activation {
     Relu,
 }
 
-/// `y = act(x W + b)` for `x` [m, k], `W` [k, n], `b` [n], `y` [m, n]. Backward with
+/// `y = act(x W + b)` for `x` \[m, k\], `W` \[k, n\], `b` \[n\], `y` \[m, n\]. Backward with
 /// `g' = g` (identity) or `g' = g [y > 0]` (ReLU): `dx = g' W^T`, `dW = x^T g'`,
 /// `db = sum over rows of g'`.
 pub struct Dense(pub Activation);
@@ -160,7 +160,7 @@ impl<T: Float> Op<T> for Dense {
 
 impl<'t, T: Float> Var<'t, T> {
     /// The fused dense layer `act(self W + b)` (see [`Dense`]) for `self` [m, k],
-    /// `weight` [k, n], `bias` [n].
+    /// `weight` \[k, n\], `bias` \[n\].
     pub fn dense(self, weight: Var<'t, T>, bias: Var<'t, T>, act: Activation) -> Var<'t, T> {
         self.tape().apply1(Dense(act), &[self, weight, bias])
     }

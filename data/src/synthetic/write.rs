@@ -5,7 +5,7 @@
 //! (straight RGBA, 8 bit) and `video/flow_NNN.png` (forward flow from video frame `NNN`
 //! to `NNN + 1`, KITTI 16-bit PNG, see [`crate::flow`]). Everything is written into a
 //! temporary sibling of the target and swapped in by `maaf_io::replace_dir`
-//! ([`write_folder`]), so a failure leaves nothing half-written.
+//! (`write_folder`), so a failure leaves nothing half-written.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;

@@ -20,7 +20,7 @@
 //! `< warm_up` the model renders the canonical Gaussians (no network).
 //!
 //! With `group_flow.groups > 0`, from iteration `group_flow.at` on the Gaussians
-//! follow SpeeDe3DGS's GroupFlow instead of the MLP (module [`group_flow`] gives the
+//! follow SpeeDe3DGS's GroupFlow instead of the MLP (module `group_flow` gives the
 //! fit): Gaussian i of group g, with stored centre x and knot-0 offset o (the MLP's
 //! `dx` at t = 0 when the groups were fitted), sits at
 //! `mu(t) = x + R_g(t) (sg(x) + o - n_g) + n_g + T_g(t) - sg(x)` (the reference's

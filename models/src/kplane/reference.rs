@@ -5,7 +5,7 @@ use maaf_autodiff::Tensor;
 use super::sample::lookup;
 use super::{FieldQuery, KPlaneField};
 
-/// Slow oracle of [`PlaneSample`]'s forward, built independently: a level-l texel is
+/// Slow oracle of [`super::PlaneSample`]'s forward, built independently: a level-l texel is
 /// the mean of the `2^l x 2^l` block of level-0 texels it covers, and bilinear
 /// interpolation is a sum of hat functions `max(0, 1 - |i - x|)` over every texel at
 /// the coordinate clamped to the texel-centre range (which equals clamp-to-edge).

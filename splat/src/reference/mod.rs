@@ -6,7 +6,7 @@
 //!   to 1e-5 in f32).
 //! * [`tape`]: the same stages built from differentiable primitives of
 //!   `maaf-autodiff`, used as `check_vjp` references for the hand-written backwards
-//!   (the rasterizer only in [`AlphaCutoff::Smooth`] mode, which primitives can
+//!   (the rasterizer only in [`crate::AlphaCutoff::Smooth`] mode, which primitives can
 //!   express).
 
 mod composite;

@@ -93,10 +93,10 @@ pub struct Trainer {
     /// reset lowered it: the dead-Gaussian counts of the run's summary.
     pub liveness: Liveness,
     /// Bounds of the point cloud the representation was built from
-    /// ([`PointCloud::bounds`] of [`ModelInit::cloud`]), saved with every checkpoint
+    /// ([`crate::data::PointCloud::bounds`] of [`crate::models::ModelInit::cloud`]), saved with every checkpoint
     /// ([`SceneRecord::init_box`]) so that the run's model is rebuilt without its data
     /// set. [`Trainer::new`] sets it; [`Trainer::with_model`] starts from the data
-    /// set's scene bounds: set it when the model was built from a [`ModelInit`] whose
+    /// set's scene bounds: set it when the model was built from a [`crate::models::ModelInit`] whose
     /// box it uses beyond its parameters.
     pub init_box: ([f64; 3], [f64; 3]),
     /// Wall time per phase.

@@ -23,8 +23,8 @@ use crate::float::{PARALLEL_MIN_MACS, ROW_BLOCK};
 use crate::op::{BackwardCtx, Op};
 use crate::{Float, MatMut, MatRef, Tensor, Var};
 
-/// The fused MLP op: inputs `[x, W_1, b_1, ..., W_L, b_L]` with `x` [m, n_0], `W_l`
-/// [n_{l-1}, n_l], `b_l` [n_l]; output `y` [m, n_L]. ReLU after every layer but the
+/// The fused MLP op: inputs `[x, W_1, b_1, ..., W_L, b_L]` with `x` \[m, n_0\], `W_l`
+/// \[n_{l-1}, n_l\], `b_l` \[n_l\]; output `y` \[m, n_L\]. ReLU after every layer but the
 /// last. Backward, from `g_L = dL/dy` down: `dW_l = a_{l-1}^T g_l`, `db_l = sum over
 /// rows of g_l`, `g_{l-1} = (g_l W_l^T) [a_{l-1} > 0]`, `dx = g_1 W_1^T`, with
 /// `a_0 = x` and `a_l` the hidden activations.
