@@ -2,8 +2,9 @@
 //! method (preset / filter / background) averaged over the scenes it was evaluated on,
 //! with the paper's Tab. 2 rows and the released code's row beside it
 //! ([`super::published`], labelled as published), then per-scene PSNR, SSIM and LPIPS at
-//! every evaluated scale and the cost of each run (training wall time, Gaussians, model
-//! bytes). Written as `report.md` and `report.json`.
+//! every evaluated scale and the cost of each run (training wall time, where the
+//! training time went by phase, Gaussians, model bytes). Written as `report.md` and
+//! `report.json`.
 //!
 //! Averages are plain means over the scenes present: a cell is averaged only when every
 //! evaluated scene of the method has it, and a scene is counted only once it has an
@@ -12,6 +13,7 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
+use maaf_scene::Timings;
 use serde::{Deserialize, Serialize};
 
 use super::published::{PublishedRow, paper_tab2, released};
@@ -80,6 +82,9 @@ pub struct SceneResult {
     pub model_bytes: u64,
     /// Bytes of the filter state.
     pub filter_bytes: u64,
+    /// Training seconds per phase (`RUN/summary.json`'s `timings`; absent when the
+    /// run has no summary).
+    pub phases: Option<Timings>,
 }
 
 /// A method's mean over its evaluated scenes.
@@ -162,6 +167,7 @@ fn scene_result(run: &SuiteRun, eval: &EvalReport) -> SceneResult {
         gaussians: eval.num_gaussians,
         model_bytes: eval.model_bytes,
         filter_bytes: eval.filter_bytes,
+        phases: None,
     }
 }
 
@@ -390,20 +396,62 @@ fn per_scene_table(summary: &SuiteSummary, metric: &Metric) -> String {
     t
 }
 
-/// Per scene and method: iterations, training wall time, Gaussians, bytes.
+/// The training phases in the cost table's order, with their column names.
+const PHASES: [(&str, fn(&Timings) -> f64); 6] = [
+    ("field + MLPs", |t| t.field_mlp),
+    ("render", |t| t.render_forward),
+    ("backward", |t| t.backward),
+    ("optimiser", |t| t.optimiser),
+    ("filter", |t| t.filter_refresh),
+    ("densify", |t| t.densification),
+];
+
+/// Each phase's share of the phases' sum, in percent ([`PHASES`] order); `None` when
+/// the timings are absent or sum to zero.
+pub fn phase_shares(timings: Option<&Timings>) -> Option<[f64; 6]> {
+    let t = timings?;
+    let total = t.total();
+    (total > 0.0).then(|| PHASES.map(|(_, f)| 100.0 * f(t) / total))
+}
+
+/// The mean of each phase's share over the scenes that have timings.
+fn mean_shares(scenes: &[SceneResult]) -> Option<[f64; 6]> {
+    let all: Vec<[f64; 6]> = scenes
+        .iter()
+        .filter_map(|r| phase_shares(r.phases.as_ref()))
+        .collect();
+    (!all.is_empty())
+        .then(|| std::array::from_fn(|i| all.iter().map(|s| s[i]).sum::<f64>() / all.len() as f64))
+}
+
+/// `| a | b | ...` of the shares with no decimals, or dashes.
+fn share_cells(shares: Option<[f64; 6]>) -> String {
+    match shares {
+        Some(s) => s.iter().map(|v| format!(" {v:.0} |")).collect(),
+        None => " - |".repeat(PHASES.len()),
+    }
+}
+
+/// Per scene and method: iterations, training wall time, the phase split (percent of
+/// the timed phases), Gaussians, bytes.
 fn cost_table(summary: &SuiteSummary) -> String {
-    let mut t = String::from(
-        "| Method | Scene | Iterations | Train time (min) | Gaussians | Model (MB) | Filter state (MB) |\n|---|---|---:|---:|---:|---:|---:|\n",
-    );
+    let mut t = String::from("| Method | Scene | Iterations | Train time (min) |");
+    for (name, _) in PHASES {
+        let _ = write!(t, " {name} % |");
+    }
+    t.push_str(" Gaussians | Model (MB) | Filter state (MB) |\n|---|---|---:|---:|");
+    t.push_str(&"---:|".repeat(PHASES.len() + 3));
+    t.push('\n');
     for m in &summary.methods {
         for r in &m.scenes {
             let _ = writeln!(
                 t,
-                "| {} | {} | {} | {:.2} | {} | {:.2} | {:.3} |",
+                "| {} | {} | {} | {:.2} |{} {} | {:.2} | {:.3} |",
                 m.method,
                 r.scene,
                 r.iterations,
                 r.train_seconds / 60.0,
+                share_cells(phase_shares(r.phases.as_ref())),
                 r.gaussians,
                 r.model_bytes as f64 / 1e6,
                 r.filter_bytes as f64 / 1e6
@@ -412,10 +460,11 @@ fn cost_table(summary: &SuiteSummary) -> String {
         if let Some(avg) = &m.average {
             let _ = writeln!(
                 t,
-                "| {} | **average ({} scenes)** | | {:.2} | {:.0} | {:.2} | |",
+                "| {} | **average ({} scenes)** | | {:.2} |{} {:.0} | {:.2} | |",
                 m.method,
                 avg.scenes,
                 avg.train_seconds / 60.0,
+                share_cells(mean_shares(&m.scenes)),
                 avg.gaussians,
                 avg.model_bytes / 1e6
             );
@@ -445,7 +494,7 @@ pub fn markdown(summary: &SuiteSummary) -> String {
         let _ = writeln!(md, "\n## Per scene: {}\n", metric.0);
         md.push_str(&per_scene_table(summary, metric));
     }
-    md.push_str("\n## Per scene: cost (training wall time as each run recorded it; the machine's load is not recorded)\n\n");
+    md.push_str("\n## Per scene: cost (training wall time as each run recorded it, the machine's load not recorded; the phase split in percent of the timed phases, from each run's `summary.json`)\n\n");
     md.push_str(&cost_table(summary));
     if !summary.missing.is_empty() {
         md.push_str("\n## Not evaluated yet\n\n");
@@ -468,7 +517,12 @@ pub fn write_suite_report(runs: &[SuiteRun], out: &Path) -> Result<SuiteOutput, 
         };
         loaded.push((r.clone(), eval));
     }
-    let summary = summarise(&loaded);
+    let mut summary = summarise(&loaded);
+    for m in &mut summary.methods {
+        for r in &mut m.scenes {
+            r.phases = read_phases(&r.run)?;
+        }
+    }
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let markdown_path = out.join("report.md");
     write_atomic(&markdown_path, markdown(&summary).as_bytes())?;
@@ -481,6 +535,23 @@ pub fn write_suite_report(runs: &[SuiteRun], out: &Path) -> Result<SuiteOutput, 
         json: json_path,
         table: tab2_table(&summary),
     })
+}
+
+/// The `timings` of `RUN/summary.json`, `None` when the run has no summary; a
+/// summary that cannot be read is an error naming it.
+fn read_phases(run: &Path) -> Result<Option<Timings>, Error> {
+    #[derive(Deserialize)]
+    struct Summary {
+        timings: Timings,
+    }
+    let path = run.join("summary.json");
+    if !path.is_file() {
+        return Ok(None);
+    }
+    let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+    let summary: Summary = serde_json::from_str(&text)
+        .map_err(|e| Error::Input(format!("{}: {e}", path.display())))?;
+    Ok(Some(summary.timings))
 }
 
 #[cfg(test)]
@@ -557,5 +628,37 @@ mod tests {
         assert_eq!(scales, vec![1.0, 2.0]);
         let md = markdown(&s);
         assert!(md.contains("**average (2 scenes)**"), "{md}");
+    }
+
+    #[test]
+    fn the_cost_table_splits_training_time_by_phase_and_averages_the_shares() {
+        let runs = vec![
+            (run("a", "motion"), Some(eval(30.0, &[1.0]))),
+            (run("b", "motion"), Some(eval(30.0, &[1.0]))),
+            (run("c", "motion"), Some(eval(30.0, &[1.0]))),
+        ];
+        let mut s = summarise(&runs);
+        let timings = |field_mlp, backward| Timings {
+            field_mlp,
+            render_forward: 1.0,
+            backward,
+            optimiser: 1.0,
+            filter_refresh: 0.5,
+            densification: 0.5,
+        };
+        // a: 2 + 1 + 4 + 1 + 0.5 + 0.5 = 9 s; b: 6 + 1 + 2 + 1 + 0.5 + 0.5 = 11 s.
+        s.methods[0].scenes[0].phases = Some(timings(2.0, 4.0));
+        s.methods[0].scenes[1].phases = Some(timings(6.0, 2.0));
+        let a = phase_shares(s.methods[0].scenes[0].phases.as_ref()).expect("shares");
+        assert!((a[0] - 200.0 / 9.0).abs() < 1e-9 && (a[2] - 400.0 / 9.0).abs() < 1e-9);
+        assert!((a.iter().sum::<f64>() - 100.0).abs() < 1e-9);
+        let table = cost_table(&s);
+        assert!(table.contains("| 22 | 11 | 44 | 11 | 6 | 6 |"), "{table}");
+        assert!(table.contains("| 55 | 9 | 18 | 9 | 5 | 5 |"), "{table}");
+        // Scene c has no summary: dashes, and the average is over a and b only
+        // (field + MLPs (22.2 + 54.5) / 2 = 38.4).
+        assert!(table.contains("| - | - | - | - | - | - |"), "{table}");
+        assert!(table.contains("| 38 | 10 | 31 | 10 | 5 | 5 |"), "{table}");
+        assert_eq!(phase_shares(Some(&Timings::default())), None);
     }
 }
