@@ -396,8 +396,11 @@ fn per_scene_table(summary: &SuiteSummary, metric: &Metric) -> String {
     t
 }
 
-/// The training phases in the cost table's order, with their column names.
-const PHASES: [(&str, fn(&Timings) -> f64); 6] = [
+/// A training phase: its column name and its seconds in [`Timings`].
+type Phase = (&'static str, fn(&Timings) -> f64);
+
+/// The training phases in the cost table's order.
+const PHASES: [Phase; 6] = [
     ("field + MLPs", |t| t.field_mlp),
     ("render", |t| t.render_forward),
     ("backward", |t| t.backward),
