@@ -150,6 +150,7 @@ impl Maaf {
     /// join when they wake.
     pub fn run(self) {
         alloc::keep_freed_pages();
+        quiet_on_closed_pipe();
         if let Err(e) = self.execute(Cli::parse()) {
             eprintln!("maaf: error: {e:#}");
             std::process::exit(1);
@@ -177,5 +178,19 @@ impl Maaf {
             Ok(pool) => pool.install(|| command::run(cli, &self.plugins)),
             Err(e) => Err(anyhow::anyhow!("cannot start the worker threads: {e}")),
         }
+    }
+}
+
+/// Lets a closed pipe end the process quietly, as command-line tools do (`maaf
+/// bench-suite ... | head -1`): Rust starts with SIGPIPE ignored, so a print to a
+/// closed pipe would panic with a backtrace instead. Outputs are written atomically,
+/// so a process ended by the signal leaves no partial file.
+#[allow(unsafe_code)]
+fn quiet_on_closed_pipe() {
+    #[cfg(unix)]
+    // SAFETY: sets the disposition of one signal to its default, at start-up before
+    // any command runs; no handler is installed.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
 }

@@ -327,3 +327,28 @@ fn cameras_render_sizes_paths_backgrounds_and_report() {
         assert!(printed.contains(col), "{col}: {printed}");
     }
 }
+
+/// `maaf info | head -0`: a closed standard output ends the process by SIGPIPE, as
+/// other command-line tools end, not by a panic and its backtrace.
+#[cfg(unix)]
+#[test]
+fn a_closed_pipe_ends_the_command_quietly() {
+    use std::os::unix::process::ExitStatusExt;
+    use std::process::Stdio;
+    let (reader, writer) = std::io::pipe().expect("pipe");
+    drop(reader);
+    let out = Command::new(env!("CARGO_BIN_EXE_maaf"))
+        .arg("info")
+        .stdout(writer)
+        .stderr(Stdio::piped())
+        .output()
+        .expect("run maaf");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(
+        out.status.signal(),
+        Some(libc::SIGPIPE),
+        "{:?}: {err}",
+        out.status
+    );
+    assert!(!err.contains("panicked"), "{err}");
+}
