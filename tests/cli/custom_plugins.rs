@@ -46,6 +46,26 @@ fn train(program: &Path, fx: &Fixture, name: &str, config: &Path, env: &[(&str, 
     out
 }
 
+/// Writes the config `{BASE, settings}` as `ROOT/NAME.json`, has `program` train it
+/// into `ROOT/NAME` and checks that it is refused with one line holding `needles`
+/// before the run's log is written.
+fn refused_config(program: &Path, fx: &Fixture, name: &str, settings: &str, needles: &[&str]) {
+    let config = fx.root.join(format!("{name}.json"));
+    std::fs::write(&config, format!("{{{BASE}, {settings}}}")).expect("config");
+    let out = fx.root.join(name);
+    let args = [
+        "train",
+        "--data",
+        s(&fx.data),
+        "--out",
+        s(&out),
+        "--config",
+        s(&config),
+    ];
+    refused(run(program, &args, &[]), needles);
+    assert!(!out.join("log.csv").exists());
+}
+
 /// Trains the program's run uninterrupted and killed (an abort at a write step, as a
 /// kill -9), checks that plain `maaf` refuses to resume the killed run with one line
 /// holding `needles` and leaves it unchanged, resumes it with the program to the
@@ -164,24 +184,11 @@ fn a_strategy_of_ones_own_is_named_by_config_and_its_state_resumes_with_it() {
     let at4 = json(&reference.join("checkpoints/iter_000004/state.json"));
     assert_eq!(at4["strategy"]["cloned"], 40, "{}", at4["strategy"]);
     // Its maker refuses a config it cannot run, naming the field.
-    let config = fx.root.join("no_interval.json");
-    std::fs::write(
-        &config,
-        format!(r#"{{{BASE}, "densify": {{"strategy": "budgeted_growth", "every": 0}}}}"#),
-    )
-    .expect("config");
-    let out = fx.root.join("no_interval");
-    let args = [
-        "train",
-        "--data",
-        s(&fx.data),
-        "--out",
-        s(&out),
-        "--config",
-        s(&config),
-    ];
-    refused(
-        run(&example("custom_strategy"), &args, &[]),
+    refused_config(
+        &example("custom_strategy"),
+        &fx,
+        "no_interval",
+        r#""densify": {"strategy": "budgeted_growth", "every": 0}"#,
         &["densify.every = 0"],
     );
     // The built-ins by name, in plain `maaf`.
@@ -245,23 +252,7 @@ fn a_representation_of_ones_own_trains_from_a_config_with_its_options_and_resume
         (r#""width": "wide""#, "model.width"),
         (r#""depth": 3"#, "model.depth"),
     ] {
-        let config = fx.root.join("bad.json");
-        std::fs::write(
-            &config,
-            format!(r#"{{{BASE}, "model": {{"kind": "tiny_deform", {options}}}}}"#),
-        )
-        .expect("config");
-        let out = fx.root.join("bad");
-        let args = [
-            "train",
-            "--data",
-            s(&fx.data),
-            "--out",
-            s(&out),
-            "--config",
-            s(&config),
-        ];
-        refused(run(&program, &args, &[]), &[needle]);
-        assert!(!out.join("log.csv").exists());
+        let settings = format!(r#""model": {{"kind": "tiny_deform", {options}}}"#);
+        refused_config(&program, &fx, "bad", &settings, &[needle]);
     }
 }
