@@ -47,7 +47,6 @@ pub use run::{
 };
 pub use strategy::{
     DefaultStrategy, SensitivityPruning, StepInfo, Strategy, StrategyMaker, StrategyRegistry,
-    for_config as strategy_for_config,
 };
 
 use crate::data::Dataset;

@@ -1,8 +1,8 @@
 //! Densification as a strategy (the shape of gsplat's `Strategy`): what to do with
 //! each gradient step's statistics after the backward pass, and how to change the
 //! set of Gaussians after the step. The trainer holds one; the config names it
-//! (`densify.strategy`, looked up in a [`StrategyRegistry`]: the two built-in ones,
-//! [`for_config`], and any a program registers), or a user's replaces it
+//! (`densify.strategy`, looked up in a [`StrategyRegistry`]: the two built-in ones
+//! and any a program registers), or a user's replaces it
 //! ([`Trainer::set_strategy`]).
 //!
 //! gsplat's `step_pre_backward` exists to keep the gradient of the screen-space
@@ -164,16 +164,6 @@ impl Strategy for SensitivityPruning {
     }
 }
 
-/// The built-in strategy `config` chooses when `densify.strategy` names none:
-/// [`SensitivityPruning`] when `prune.every > 0`, else [`DefaultStrategy`].
-pub fn for_config(config: &TrainConfig) -> Box<dyn Strategy> {
-    if config.prune.every > 0 {
-        Box::new(SensitivityPruning::default())
-    } else {
-        Box::new(DefaultStrategy)
-    }
-}
-
 /// Makes a strategy from the run's config (it reads its settings there).
 pub type StrategyMaker = dyn Fn(&TrainConfig) -> Result<Box<dyn Strategy>, String> + Send + Sync;
 
@@ -222,8 +212,8 @@ impl StrategyRegistry {
         self.makers.keys().map(String::as_str).collect()
     }
 
-    /// The name of the strategy `config` runs: `densify.strategy`, else the
-    /// built-in [`for_config`] chooses.
+    /// The name of the strategy `config` runs: `densify.strategy`, else the built-in
+    /// one the config implies (`sensitivity` when `prune.every > 0`, else `default`).
     pub fn name_for(config: &TrainConfig) -> &str {
         match &config.densify.strategy {
             Some(name) => name,
