@@ -703,8 +703,11 @@ fn the_motion_filter_observes_at_most_max_views_and_the_others_none() {
 /// term; continuing it needs the term registered, and is refused, naming it, without.
 #[test]
 fn a_run_with_its_own_term_loads_for_rendering_and_trains_only_with_the_term() {
+    use maaf_train::Plugins;
     use maaf_train::loss::TermRegistry;
-    use maaf_train::trainer::{load_checkpoint_with_terms, train_run_with, train_run_with_terms};
+    use maaf_train::trainer::{
+        load_checkpoint_with_plugins, train_run_with, train_run_with_plugins,
+    };
     let Some(data) = mutant() else { return };
     let dir = std::env::temp_dir().join(format!("maaf_own_term_{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
@@ -714,7 +717,8 @@ fn a_run_with_its_own_term_loads_for_rendering_and_trains_only_with_the_term() {
     config.terms.insert("alpha_mean".into(), 0.01);
     let mut registry = TermRegistry::builtin();
     registry.register_fn("alpha_mean", |ctx| ctx.alpha().mean());
-    train_run_with_terms(&data, config, &dir, false, &registry).expect("trains with the term");
+    let plugins = Plugins::with_terms(&registry);
+    train_run_with_plugins(&data, config, &dir, false, &plugins).expect("trains with the term");
     let log = std::fs::read_to_string(dir.join("log.csv")).expect("log");
     assert!(
         log.starts_with("iteration,l1,dssim,l_sr,alpha_mean,"),
@@ -728,7 +732,7 @@ fn a_run_with_its_own_term_loads_for_rendering_and_trains_only_with_the_term() {
         .expect_err("refused")
         .to_string();
     assert!(msg.contains("lacks the term `alpha_mean`"), "{msg}");
-    let msg = load_checkpoint_with_terms(&data, &model, &TermRegistry::builtin())
+    let msg = load_checkpoint_with_plugins(&data, &model, &Plugins::builtin())
         .err()
         .expect("refused")
         .to_string();
@@ -736,7 +740,7 @@ fn a_run_with_its_own_term_loads_for_rendering_and_trains_only_with_the_term() {
         msg.contains("state.json: the term `alpha_mean` is not registered"),
         "{msg}"
     );
-    let t = load_checkpoint_with_terms(&data, &model, &registry).expect("with the term");
+    let t = load_checkpoint_with_plugins(&data, &model, &plugins).expect("with the term");
     assert!(t.objective.unregistered().is_empty());
     assert!(t.objective.names().iter().any(|n| n == "alpha_mean"));
     let _ = std::fs::remove_dir_all(&dir);

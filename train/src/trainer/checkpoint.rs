@@ -16,7 +16,6 @@ use safetensors::{Dtype, tensor::TensorView};
 
 use super::{DensifyStats, Liveness, Trainer};
 use crate::data::Dataset;
-use crate::loss::TermRegistry;
 use crate::params::Rows;
 use crate::scene::checkpoint_read::{BUFFER, Opened, State, bytes_of, tensor};
 use crate::{Error, Plugins};
@@ -153,24 +152,13 @@ pub fn checkpoint_iteration(dir: &Path) -> Result<usize, Error> {
 /// rendering and evaluation: a term of the run's `config.terms` that is not built in
 /// is left out of its objective ([`crate::loss::Objective::unregistered`]), and
 /// [`super::train_run_with`] refuses to train it; to continue training, load with
-/// [`load_checkpoint_with_terms`]. Errors name the file and the missing or
+/// [`load_checkpoint_with_plugins`]. Errors name the file and the missing or
 /// malformed entry.
 pub fn load_checkpoint(data: &Dataset, dir: &Path) -> Result<Trainer, Error> {
     let state = Opened::read_state(dir)?;
     let mut trainer = Trainer::from_config(data, state.config.clone(), &Plugins::builtin())?;
     trainer.restore_state(dir, state, false)?;
     Ok(trainer)
-}
-
-/// [`load_checkpoint`] with the terms of `registry`, to continue training: every
-/// term of the run's `config.terms` must be registered there (one line naming those
-/// that are not, and the checkpoint's `state.json`).
-pub fn load_checkpoint_with_terms(
-    data: &Dataset,
-    dir: &Path,
-    registry: &TermRegistry<f32>,
-) -> Result<Trainer, Error> {
-    load_checkpoint_with_plugins(data, dir, &Plugins::with_terms(registry))
 }
 
 /// [`load_checkpoint`] with the registries of `plugins`, to continue training: every

@@ -28,8 +28,7 @@ use maaf_filter::{CameraTime, FilterState, ObservationTable, SamplingFilter};
 use maaf_splat::Camera;
 
 pub use checkpoint::{
-    checkpoint_iteration, load_checkpoint, load_checkpoint_with_plugins,
-    load_checkpoint_with_terms, save_checkpoint,
+    checkpoint_iteration, load_checkpoint, load_checkpoint_with_plugins, save_checkpoint,
 };
 pub use densify::{DensifyPlan, DensifyStats, ViewGrad, plan as plan_densify};
 /// The run's configuration, its timings and what it starts from: `maaf-scene` types,
@@ -42,15 +41,15 @@ pub use prune::{keep_highest, removal_sensitivity};
 pub use reset::{Liveness, opacity_caps};
 pub use resume::{checkpoints_newest_first, load_newest, truncate_log};
 pub use run::{
-    RunSummary, branch_run, branch_run_with_plugins, branch_run_with_terms, checkpoint_dir,
-    train_run, train_run_with, train_run_with_plugins, train_run_with_terms,
+    RunSummary, branch_run, branch_run_with_plugins, checkpoint_dir, train_run, train_run_with,
+    train_run_with_plugins,
 };
 pub use strategy::{
     DefaultStrategy, SensitivityPruning, StepInfo, Strategy, StrategyMaker, StrategyRegistry,
 };
 
 use crate::data::Dataset;
-use crate::loss::{Objective, TermRegistry};
+use crate::loss::Objective;
 use crate::models::{Canonical, Representation};
 use crate::scene::{SceneRecord, TrainedScene, observed_views, training_views};
 use crate::{Error, Plugins};
@@ -133,16 +132,6 @@ impl Trainer {
     /// into the config, so `config.json` records them.
     pub fn new(data: &Dataset, config: TrainConfig) -> Result<Self, Error> {
         Self::with_plugins(data, config, &Plugins::builtin())
-    }
-
-    /// [`Trainer::new`] with the terms of `registry`: every name in `config.terms`
-    /// must be registered there (one-line error naming those that are not).
-    pub fn with_terms(
-        data: &Dataset,
-        config: TrainConfig,
-        registry: &TermRegistry<f32>,
-    ) -> Result<Self, Error> {
-        Self::with_plugins(data, config, &Plugins::with_terms(registry))
     }
 
     /// [`Trainer::new`] with the terms, representations, filters and strategies of

@@ -14,7 +14,6 @@ use super::{
     repair_run_dir, save_checkpoint, truncate_log,
 };
 use crate::data::Dataset;
-use crate::loss::TermRegistry;
 use crate::{Error, Plugins, write_atomic};
 
 /// What a finished run reports (also written as `RUN/summary.json`).
@@ -77,20 +76,6 @@ pub fn train_run(
     resume: bool,
 ) -> Result<RunSummary, Error> {
     train_run_with_plugins(data, config, out, resume, &Plugins::builtin())
-}
-
-/// [`train_run`] with the loss terms of `registry` (the built-in ones and the
-/// program's own): every term `config.terms` names must be registered there, for a
-/// new run and for a resume (the run's `config.json`), or the call fails with one
-/// line naming the missing terms before anything changes.
-pub fn train_run_with_terms(
-    data: &Dataset,
-    config: TrainConfig,
-    out: &Path,
-    resume: bool,
-    registry: &TermRegistry<f32>,
-) -> Result<RunSummary, Error> {
-    train_run_with_plugins(data, config, out, resume, &Plugins::with_terms(registry))
 }
 
 /// [`train_run`] with the terms, representations, filters and strategies of
@@ -225,17 +210,6 @@ pub fn branch_run(
     branch_run_with_plugins(data, config, out, from, &Plugins::builtin())
 }
 
-/// [`branch_run`] with the loss terms of `registry` ([`train_run_with_terms`]).
-pub fn branch_run_with_terms(
-    data: &Dataset,
-    config: TrainConfig,
-    out: &Path,
-    from: &Path,
-    registry: &TermRegistry<f32>,
-) -> Result<RunSummary, Error> {
-    branch_run_with_plugins(data, config, out, from, &Plugins::with_terms(registry))
-}
-
 /// [`branch_run`] with the registries of `plugins` ([`train_run_with_plugins`]).
 pub fn branch_run_with_plugins(
     data: &Dataset,
@@ -284,7 +258,7 @@ pub fn train_run_with(mut trainer: Trainer, out: &Path, resume: bool) -> Result<
     let _lock = lock_run(out)?;
     if let Some(name) = trainer.objective.unregistered().first() {
         return Err(Error::Input(format!(
-            "{}: the trainer's objective lacks the term `{name}` its config names (load it with load_checkpoint_with_terms)",
+            "{}: the trainer's objective lacks the term `{name}` its config names (load it with load_checkpoint_with_plugins)",
             out.display()
         )));
     }
