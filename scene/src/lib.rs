@@ -31,7 +31,7 @@ use std::path::{Path, PathBuf};
 
 use maaf_autodiff::{PerGaussian, Tensor};
 use maaf_filter::{
-    FilterError, FilterKind, FilterRegistry, FilterState, ObservationTable, static_nu,
+    FilterError, FilterRegistry, FilterState, ObservationTable, SamplingFilter, static_nu,
 };
 use maaf_splat::{Camera, Filter2d, RenderSettings};
 
@@ -117,6 +117,14 @@ pub fn model_dir(run: &Path) -> Result<PathBuf, Error> {
     Ok(model)
 }
 
+/// The built-in filter the run's config names, whose `observes` and `smooths` the
+/// trainer used; `None` for a program's own filter, whose code a trained scene does
+/// not have: what it did is read from its checkpoint instead (it observed if the
+/// checkpoint holds observations, it smooths unless its state is no filter).
+fn builtin_filter(config: &TrainConfig) -> Option<Box<dyn SamplingFilter>> {
+    FilterRegistry::builtin().for_config(&config.filter).ok()
+}
+
 impl TrainedScene {
     /// Loads the trained model of `run` (`RUN/model`) without its data set. A run
     /// whose checkpoints predate the scene record needs its data set
@@ -184,11 +192,9 @@ impl TrainedScene {
             .build(&opened.state.model, config, &init)
             .map_err(|e| Error::Input(format!("{}: {e}", dir.display())))?;
         opened.load_model(model.as_mut(), dir, HashMap::new())?;
-        let observes = match FilterRegistry::builtin().for_config(&config.filter) {
-            Ok(filter) => filter.observes(),
-            // A program's own filter (the scene needs its state, not its code): it
-            // observed when the checkpoint holds observations.
-            Err(_) => opened.tensors()?.names().contains(&"observations"),
+        let observes = match builtin_filter(config) {
+            Some(filter) => filter.observes(),
+            None => opened.tensors()?.names().contains(&"observations"),
         };
         let (observed, _) = observed_views(&record.times, observes, config.filter.max_views);
         let observations = opened.observations(&observed, record.times.len())?;
@@ -219,12 +225,10 @@ impl TrainedScene {
     /// The settings the run renders with ([`render_settings`] at its iteration, on
     /// its background).
     pub fn render_settings(&self) -> RenderSettings {
-        // A program's own filter smooths unless its state is no filter.
-        let smooths = match &self.config.filter.kind {
-            FilterKind::None => false,
-            FilterKind::Custom(_) => !matches!(self.filter, FilterState::None { .. }),
-            _ => true,
-        };
+        let smooths = builtin_filter(&self.config).map_or_else(
+            || !matches!(self.filter, FilterState::None { .. }),
+            |filter| filter.smooths(),
+        );
         render_settings(
             &self.config,
             self.record.background,
