@@ -409,8 +409,9 @@ const PHASES: [Phase; 6] = [
     ("densify", |t| t.densification),
 ];
 
-/// Each phase's share of the phases' sum, in percent ([`PHASES`] order); `None` when
-/// the timings are absent or sum to zero.
+/// Each phase's share of the phases' sum, in percent, in the order field + MLPs,
+/// render, backward, optimiser, filter, densify; `None` when the timings are absent
+/// or sum to zero.
 pub fn phase_shares(timings: Option<&Timings>) -> Option<[f64; 6]> {
     let t = timings?;
     let total = t.total();
