@@ -1,4 +1,4 @@
-//! Wall time per training phase.
+//! Wall time per training phase, and the CPU time they used.
 
 use serde::{Deserialize, Serialize};
 
@@ -17,6 +17,11 @@ pub struct Timings {
     pub filter_refresh: f64,
     /// Densification, pruning and opacity resets.
     pub densification: f64,
+    /// CPU seconds of all the process's threads over the same phases (0 in runs
+    /// that predate it); not part of [`Self::total`]. Unlike the wall phases it
+    /// barely moves with other load: on an idle machine wall ≈ `cpu` / cores busy.
+    #[serde(default)]
+    pub cpu: f64,
 }
 
 impl Timings {
@@ -50,6 +55,14 @@ impl Timings {
                 100.0 * s / total
             )
         })
+        .chain((self.cpu > 0.0).then(|| {
+            format!(
+                "{:>15}: {:8.1} s  {:5.2} cores busy on average\n",
+                "CPU (all)",
+                self.cpu,
+                self.cpu / total
+            )
+        }))
         .collect()
     }
 }

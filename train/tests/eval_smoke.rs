@@ -68,8 +68,16 @@ fn eval_writes_the_contract_and_refuses_bad_input() {
     let data = Dataset::open(&root, DatasetOptions::default()).expect("mutant");
     let tmp = std::env::temp_dir().join(format!("maaf_eval_{}", std::process::id()));
     let run = tmp.join("run");
-    train_run(&data, tiny_config(), &run, false).expect("train");
+    let summary = train_run(&data, tiny_config(), &run, false).expect("train");
     record_data(&run, &data).expect("data.json");
+    // The summary's CPU time is counted and bounded by the timed phases' wall time
+    // times the cores (a double count would break the bound).
+    let (cpu, wall) = (summary.timings.cpu, summary.timings.total());
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get()) as f64;
+    assert!(
+        cpu > 0.0 && cpu <= wall * cores * 1.1 + 0.05,
+        "cpu {cpu} s, wall {wall} s"
+    );
 
     let options = EvalOptions {
         scales: vec![0.5, 1.0, 2.0],

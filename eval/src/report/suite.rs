@@ -436,25 +436,38 @@ fn share_cells(shares: Option<[f64; 6]>) -> String {
     }
 }
 
-/// Per scene and method: iterations, training wall time, the phase split (percent of
-/// the timed phases), Gaussians, bytes.
+/// A run's training CPU time in minutes (all threads), `None` when its summary
+/// predates the CPU clock or is absent.
+fn cpu_minutes(r: &SceneResult) -> Option<f64> {
+    r.phases.as_ref().map(|t| t.cpu / 60.0).filter(|&m| m > 0.0)
+}
+
+/// The mean CPU minutes over the scenes that have them.
+fn mean_cpu_minutes(scenes: &[SceneResult]) -> Option<f64> {
+    let all: Vec<f64> = scenes.iter().filter_map(cpu_minutes).collect();
+    (!all.is_empty()).then(|| all.iter().sum::<f64>() / all.len() as f64)
+}
+
+/// Per scene and method: iterations, training wall and CPU time, the phase split
+/// (percent of the timed phases), Gaussians, bytes.
 fn cost_table(summary: &SuiteSummary) -> String {
-    let mut t = String::from("| Method | Scene | Iterations | Train time (min) |");
+    let mut t = String::from("| Method | Scene | Iterations | Train time (min) | CPU time (min) |");
     for (name, _) in PHASES {
         let _ = write!(t, " {name} % |");
     }
-    t.push_str(" Gaussians | Model (MB) | Filter state (MB) |\n|---|---|---:|---:|");
+    t.push_str(" Gaussians | Model (MB) | Filter state (MB) |\n|---|---|---:|---:|---:|");
     t.push_str(&"---:|".repeat(PHASES.len() + 3));
     t.push('\n');
     for m in &summary.methods {
         for r in &m.scenes {
             let _ = writeln!(
                 t,
-                "| {} | {} | {} | {:.2} |{} {} | {:.2} | {:.3} |",
+                "| {} | {} | {} | {:.2} | {} |{} {} | {:.2} | {:.3} |",
                 m.method,
                 r.scene,
                 r.iterations,
                 r.train_seconds / 60.0,
+                num(cpu_minutes(r), 2),
                 share_cells(phase_shares(r.phases.as_ref())),
                 r.gaussians,
                 r.model_bytes as f64 / 1e6,
@@ -464,10 +477,11 @@ fn cost_table(summary: &SuiteSummary) -> String {
         if let Some(avg) = &m.average {
             let _ = writeln!(
                 t,
-                "| {} | **average ({} scenes)** | | {:.2} |{} {:.0} | {:.2} | |",
+                "| {} | **average ({} scenes)** | | {:.2} | {} |{} {:.0} | {:.2} | |",
                 m.method,
                 avg.scenes,
                 avg.train_seconds / 60.0,
+                num(mean_cpu_minutes(&m.scenes), 2),
                 share_cells(mean_shares(&m.scenes)),
                 avg.gaussians,
                 avg.model_bytes / 1e6
@@ -642,27 +656,38 @@ mod tests {
             (run("c", "motion"), Some(eval(30.0, &[1.0]))),
         ];
         let mut s = summarise(&runs);
-        let timings = |field_mlp, backward| Timings {
+        let timings = |field_mlp, backward, cpu| Timings {
             field_mlp,
             render_forward: 1.0,
             backward,
             optimiser: 1.0,
             filter_refresh: 0.5,
             densification: 0.5,
+            cpu,
         };
         // a: 2 + 1 + 4 + 1 + 0.5 + 0.5 = 9 s; b: 6 + 1 + 2 + 1 + 0.5 + 0.5 = 11 s.
-        s.methods[0].scenes[0].phases = Some(timings(2.0, 4.0));
-        s.methods[0].scenes[1].phases = Some(timings(6.0, 2.0));
+        // CPU: a 0.25 min, b 0.35 min; the phases' sum leaves CPU time out.
+        s.methods[0].scenes[0].phases = Some(timings(2.0, 4.0, 15.0));
+        s.methods[0].scenes[1].phases = Some(timings(6.0, 2.0, 21.0));
         let a = phase_shares(s.methods[0].scenes[0].phases.as_ref()).expect("shares");
         assert!((a[0] - 200.0 / 9.0).abs() < 1e-9 && (a[2] - 400.0 / 9.0).abs() < 1e-9);
         assert!((a.iter().sum::<f64>() - 100.0).abs() < 1e-9);
         let table = cost_table(&s);
-        assert!(table.contains("| 22 | 11 | 44 | 11 | 6 | 6 |"), "{table}");
-        assert!(table.contains("| 55 | 9 | 18 | 9 | 5 | 5 |"), "{table}");
+        assert!(
+            table.contains("| 0.25 | 22 | 11 | 44 | 11 | 6 | 6 |"),
+            "{table}"
+        );
+        assert!(
+            table.contains("| 0.35 | 55 | 9 | 18 | 9 | 5 | 5 |"),
+            "{table}"
+        );
         // Scene c has no summary: dashes, and the average is over a and b only
-        // (field + MLPs (22.2 + 54.5) / 2 = 38.4).
-        assert!(table.contains("| - | - | - | - | - | - |"), "{table}");
-        assert!(table.contains("| 38 | 10 | 31 | 10 | 5 | 5 |"), "{table}");
+        // (field + MLPs (22.2 + 54.5) / 2 = 38.4; CPU (0.25 + 0.35) / 2 = 0.30).
+        assert!(table.contains("| - | - | - | - | - | - | - |"), "{table}");
+        assert!(
+            table.contains("| 0.30 | 38 | 10 | 31 | 10 | 5 | 5 |"),
+            "{table}"
+        );
         assert_eq!(phase_shares(Some(&Timings::default())), None);
     }
 }

@@ -10,6 +10,7 @@
 //! a run directory.
 
 mod checkpoint;
+mod cpu_clock;
 mod densify;
 mod health;
 mod log;

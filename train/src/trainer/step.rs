@@ -11,6 +11,7 @@ use rand::seq::SliceRandom;
 use rand_pcg::Pcg64;
 
 use super::ViewGrad;
+use super::cpu_clock::process_cpu_seconds;
 use super::strategy::StepInfo;
 use super::{Trainer, log_line};
 use crate::forward::forward_bound;
@@ -66,6 +67,7 @@ impl Trainer {
     /// advances `iteration`. What it trained is the model to validate at this
     /// iteration, before [`Self::schedule`] densifies or resets opacities.
     pub fn update(&mut self) {
+        let cpu0 = process_cpu_seconds();
         self.ensure_filter();
         let it = self.iteration + 1;
         self.model.set_iteration(it);
@@ -198,6 +200,7 @@ impl Trainer {
         drop(bound);
         drop(params);
         self.iteration = it;
+        self.timings.cpu += process_cpu_seconds() - cpu0;
     }
 
     /// What the schedule does after the gradient step of iteration `iteration`: the
@@ -205,6 +208,7 @@ impl Trainer {
     /// densification, pruning and opacity reset), then the filter refresh, when due.
     pub fn schedule(&mut self) {
         let it = self.iteration;
+        let cpu0 = process_cpu_seconds();
         let t4 = Instant::now();
         let densified = self.strategy_refine(it);
         let t5 = Instant::now();
@@ -218,6 +222,7 @@ impl Trainer {
             self.refresh_filter();
         }
         self.timings.filter_refresh += t5.elapsed().as_secs_f64();
+        self.timings.cpu += process_cpu_seconds() - cpu0;
     }
 }
 
