@@ -1,9 +1,10 @@
 //! `maaf bench-suite`: the D-NeRF protocol over a folder of scenes. Every scene x preset
 //! x filter x background is one run (train with the preset, then `maaf eval` at
 //! 1/4x..4x on the scene's evaluation split), written as a job list like `maaf sweep`
-//! (`jobs.txt`, one `train && eval` line per run, so scenes can run on several
-//! machines) and, without `--jobs-only`, run here one at a time, skipping evaluated runs
-//! and resuming interrupted ones. Then one report ([`maaf_eval::report::suite`]):
+//! (`jobs.txt`, one `maaf bench-suite --out OUT --job N` line per run, so scenes can run
+//! on several machines and a line run again resumes its run) and, without
+//! `--jobs-only`, run here one at a time, skipping evaluated runs and resuming
+//! interrupted ones. Then one report ([`maaf_eval::report::suite`]):
 //! the paper's Tab. 2 layout with the published rows beside maaf's.
 
 use std::fmt::Write as _;
@@ -29,18 +30,18 @@ pub struct BenchSuiteArgs {
     #[arg(long)]
     pub out: PathBuf,
     /// Folder of D-NeRF scenes: every subfolder holding transforms_train.json is a
-    /// scene [default: none; required unless --report-only].
-    #[arg(long, required_unless_present = "report_only")]
+    /// scene [default: none; required unless --report-only or --job].
+    #[arg(long, required_unless_present_any = ["report_only", "job"])]
     pub data: Option<PathBuf>,
     /// Only these scenes (folder names, comma-separated) [default: every scene].
     #[arg(long, value_delimiter = ',')]
     pub scenes: Vec<String>,
     /// Preset files (configs/*.json; repeat or comma-separate), one method each, named
-    /// by the file's stem [default: none; required unless --report-only].
+    /// by the file's stem [default: none; required unless --report-only or --job].
     #[arg(
         long = "preset",
         value_delimiter = ',',
-        required_unless_present = "report_only"
+        required_unless_present_any = ["report_only", "job"]
     )]
     pub presets: Vec<PathBuf>,
     /// 3D filters, one run each.
@@ -75,6 +76,12 @@ pub struct BenchSuiteArgs {
     /// Only write the report from the runs evaluated so far (reads OUT/suite.json).
     #[arg(long, conflicts_with = "jobs_only")]
     pub report_only: bool,
+    /// Only run job N of the suite written in --out (1-based, the line number in
+    /// jobs.txt), as the whole suite would: skipped when evaluated, resumed from its
+    /// newest checkpoint when interrupted, else trained; then evaluated. Reads
+    /// OUT/suite.json; no report is written (`--report-only` does that).
+    #[arg(long, conflicts_with_all = ["jobs_only", "report_only"])]
+    pub job: Option<usize>,
 }
 
 /// `--backgrounds` values.
@@ -308,19 +315,16 @@ fn write_suite(spec: &SuiteSpec, out: &Path, exe: &Path) -> anyhow::Result<()> {
         let json = serde_json::to_string_pretty(config)?;
         write_atomic(&out.join("configs").join(name), json.as_bytes())?;
     }
-    let q = |args: &[String]| {
-        std::iter::once(shell_quote(&exe.display().to_string()))
-            .chain(args.iter().map(|a| shell_quote(a)))
-            .collect::<Vec<_>>()
-            .join(" ")
-    };
     let mut jobs = String::new();
-    for run in &spec.runs {
+    for (i, run) in spec.runs.iter().enumerate() {
         writeln!(
             jobs,
-            "{} && {}",
-            q(&train_args(spec, out, run)),
-            q(&eval_args(spec, run))
+            "{} bench-suite --out {} --job {}   # {} {}",
+            shell_quote(&exe.display().to_string()),
+            shell_quote(&out.display().to_string()),
+            i + 1,
+            run.scene,
+            run.method()
         )?;
     }
     write_atomic(&out.join("jobs.txt"), jobs.as_bytes())?;
@@ -375,7 +379,28 @@ fn run_one(
 pub fn run(args: &BenchSuiteArgs) -> anyhow::Result<()> {
     let out = std::path::absolute(&args.out)
         .with_context(|| format!("{}: cannot resolve", args.out.display()))?;
-    let spec = if args.report_only {
+    let spec = if let Some(n) = args.job {
+        let spec = read_spec(&out)?;
+        let run = n
+            .checked_sub(1)
+            .and_then(|i| spec.runs.get(i))
+            .ok_or_else(|| {
+                anyhow::anyhow!(
+                    "--job {n}: {} holds jobs 1..={}",
+                    out.join(SPEC_FILE).display(),
+                    spec.runs.len()
+                )
+            })?;
+        let exe = std::env::current_exe().context("cannot locate the maaf executable")?;
+        let what = run_one(&spec, &out, &exe, run)?;
+        println!(
+            "[{n}/{}] {} {}: {what}",
+            spec.runs.len(),
+            run.scene,
+            run.method()
+        );
+        return Ok(());
+    } else if args.report_only {
         read_spec(&out)?
     } else {
         let spec = plan(args, &out)?;

@@ -1,6 +1,7 @@
 //! `maaf bench-suite` as a user runs it, on a folder of two tiny generated scenes: the
 //! job list first (one line per scene x filter, the split rule applied), one line run
-//! as written, then the suite run here, which skips that run and does the others; a
+//! as written and again (skipped), one interrupted run resumed by its line, then the
+//! suite run here, which skips those runs and does the others; a
 //! second invocation does nothing, one whose evaluation was removed is only
 //! evaluated, other options on the same folder are refused, and the report has a row
 //! per scene and method, each method's average and the published rows.
@@ -86,29 +87,60 @@ fn suite_writes_jobs_runs_them_once_and_reports_every_scene_beside_the_published
         6,
         "2 scenes x 3 filters x 1 background: {jobs}"
     );
-    for line in &lines {
-        assert!(line.contains(" train ") && line.contains(" && ") && line.contains(" eval "));
-        assert!(line.contains("--background black"), "{line}");
+    for (i, line) in lines.iter().enumerate() {
+        assert!(line.contains(" bench-suite --out "), "{line}");
+        assert!(line.contains(&format!(" --job {}   # ", i + 1)), "{line}");
+        assert!(
+            line.contains("small / ") && line.contains(" / black"),
+            "{line}"
+        );
     }
+    assert!(
+        lines[0].ends_with("# a small / none / black"),
+        "{}",
+        lines[0]
+    );
     // The split rule: b is named (val), a is not (test); lego is absent and ignored.
-    assert_eq!(count(&jobs, "--split val"), 3, "{jobs}");
-    assert_eq!(count(&jobs, "--split test"), 3, "{jobs}");
-    assert!(lines[0].contains("runs/a/small-none-black"), "{}", lines[0]);
+    let spec = std::fs::read_to_string(out.join("suite.json")).expect("suite.json");
+    assert_eq!(count(&spec, r#""split": "val""#), 3, "{spec}");
+    assert_eq!(count(&spec, r#""split": "test""#), 3, "{spec}");
     assert!(!out.join("report.md").exists());
 
-    // One line run as written, as on another machine.
-    let status = Command::new("sh")
-        .arg("-c")
-        .arg(lines[0])
-        .output()
-        .expect("sh");
-    ok(status);
+    // One line run as written, as on another machine; run again, it does nothing.
+    let sh = |line: &str| Command::new("sh").arg("-c").arg(line).output().expect("sh");
+    let printed = ok(sh(lines[0]));
+    assert!(
+        printed.contains("[1/6] a small / none / black: trained and evaluated"),
+        "{printed}"
+    );
     let first = out.join("runs/a/small-none-black");
     assert!(first.join("eval.json").is_file());
+    assert!(ok(sh(lines[0])).contains("[1/6] a small / none / black: skipped (evaluated)"));
+
+    // A run interrupted after its iteration-3 checkpoint: its line resumes it.
+    let second = out.join("runs/a/small-mip3d-black");
+    ok(sh(lines[1]));
+    for done in ["eval.json", "summary.json"] {
+        std::fs::remove_file(second.join(done)).expect("rm");
+    }
+    std::fs::remove_dir_all(second.join("model")).expect("rm model");
+    assert!(second.join("checkpoints/iter_000003").is_dir());
+    let printed = ok(sh(lines[1]));
+    assert!(
+        printed.contains("[2/6] a small / mip3d / black: resumed and evaluated"),
+        "{printed}"
+    );
+    let summary = std::fs::read_to_string(second.join("summary.json")).expect("summary");
+    assert!(summary.contains(r#""iterations": 6"#), "{summary}");
+    assert!(second.join("eval.json").is_file());
+    refused(
+        maaf(&["bench-suite", "--out", s(&out), "--job", "7"]),
+        &["--job 7", "suite.json", "1..=6"],
+    );
 
     let printed = ok(suite(&data, &preset, &out, &[]));
-    assert_eq!(count(&printed, "skipped (evaluated)"), 1, "{printed}");
-    assert_eq!(count(&printed, "trained and evaluated"), 5, "{printed}");
+    assert_eq!(count(&printed, "skipped (evaluated)"), 2, "{printed}");
+    assert_eq!(count(&printed, "trained and evaluated"), 4, "{printed}");
 
     let stamp = |p: &Path| std::fs::metadata(p.join("eval.json")).and_then(|m| m.modified());
     let before = stamp(&first).expect("mtime");
