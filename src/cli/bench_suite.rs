@@ -79,7 +79,8 @@ pub struct BenchSuiteArgs {
     /// Only run job N of the suite written in --out (1-based, the line number in
     /// jobs.txt), as the whole suite would: skipped when evaluated, resumed from its
     /// newest checkpoint when interrupted, else trained; then evaluated. Reads
-    /// OUT/suite.json; no report is written (`--report-only` does that).
+    /// OUT/suite.json; no report is written (`--report-only` does that) [default: every
+    /// job].
     #[arg(long, conflicts_with_all = ["jobs_only", "report_only"])]
     pub job: Option<usize>,
 }
