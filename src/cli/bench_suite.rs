@@ -376,36 +376,47 @@ fn run_one(
     Ok(what)
 }
 
+/// `[N/M] scene method`: how the suite's output names run `i` (0-based).
+fn label(spec: &SuiteSpec, i: usize) -> String {
+    let r = &spec.runs[i];
+    format!("[{}/{}] {} {}", i + 1, spec.runs.len(), r.scene, r.method())
+}
+
+/// The running `maaf` executable, which spawns the runs' commands.
+fn maaf_exe() -> anyhow::Result<PathBuf> {
+    std::env::current_exe().context("cannot locate the maaf executable")
+}
+
+/// `--job n`: run `n` (1-based) of the suite written in `out`, by [`run_one`]'s rule.
+fn run_job(out: &Path, n: usize) -> anyhow::Result<()> {
+    let spec = read_spec(out)?;
+    let i = n
+        .checked_sub(1)
+        .filter(|&i| i < spec.runs.len())
+        .ok_or_else(|| {
+            anyhow::anyhow!(
+                "--job {n}: {} holds jobs 1..={}",
+                out.join(SPEC_FILE).display(),
+                spec.runs.len()
+            )
+        })?;
+    let what = run_one(&spec, out, &maaf_exe()?, &spec.runs[i])?;
+    println!("{}: {what}", label(&spec, i));
+    Ok(())
+}
+
 /// Runs `maaf bench-suite`.
 pub fn run(args: &BenchSuiteArgs) -> anyhow::Result<()> {
     let out = std::path::absolute(&args.out)
         .with_context(|| format!("{}: cannot resolve", args.out.display()))?;
-    let spec = if let Some(n) = args.job {
-        let spec = read_spec(&out)?;
-        let run = n
-            .checked_sub(1)
-            .and_then(|i| spec.runs.get(i))
-            .ok_or_else(|| {
-                anyhow::anyhow!(
-                    "--job {n}: {} holds jobs 1..={}",
-                    out.join(SPEC_FILE).display(),
-                    spec.runs.len()
-                )
-            })?;
-        let exe = std::env::current_exe().context("cannot locate the maaf executable")?;
-        let what = run_one(&spec, &out, &exe, run)?;
-        println!(
-            "[{n}/{}] {} {}: {what}",
-            spec.runs.len(),
-            run.scene,
-            run.method()
-        );
-        return Ok(());
-    } else if args.report_only {
+    if let Some(n) = args.job {
+        return run_job(&out, n);
+    }
+    let spec = if args.report_only {
         read_spec(&out)?
     } else {
         let spec = plan(args, &out)?;
-        let exe = std::env::current_exe().context("cannot locate the maaf executable")?;
+        let exe = maaf_exe()?;
         write_suite(&spec, &out, &exe)?;
         println!(
             "suite: {} runs ({} configs) in {}; jobs: {}",
@@ -423,7 +434,7 @@ pub fn run(args: &BenchSuiteArgs) -> anyhow::Result<()> {
         }
         let mut failed = Vec::new();
         for (i, r) in spec.runs.iter().enumerate() {
-            let label = format!("[{}/{}] {} {}", i + 1, spec.runs.len(), r.scene, r.method());
+            let label = label(&spec, i);
             match run_one(&spec, &out, &exe, r) {
                 Ok(what) => println!("{label}: {what}"),
                 Err(e) => {
