@@ -36,7 +36,9 @@ use maaf_filter::{
 use maaf_splat::{Camera, Filter2d, RenderSettings};
 
 pub use checkpoint_read::Opened;
-pub use config::{DensifyConfig, MAX_BATCH, OpacityReset, PruneConfig, TrainConfig};
+pub use config::{
+    DensifyConfig, DensifyGradient, MAX_BATCH, OpacityReset, PruneConfig, TrainConfig,
+};
 pub use error::{Error, write_atomic};
 pub use init::{camera_extent, model_init, training_views};
 pub use observed::{centres, observed_views};

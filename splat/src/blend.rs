@@ -329,17 +329,20 @@ pub(crate) struct TileGrads<'a, T> {
 
 /// Backward of [`forward_tile`]: walks each pixel back to front from its last
 /// contributor, recovering `T_i = T_{i+1} / (1 - alpha_i)`, and returns one gradient
-/// row per list entry: `d/d(mx, my, A, B, C, o, r, g, b, z)`.
+/// row per list entry: `d/d(mx, my, A, B, C, o, r, g, b, z)`, then in 10 and 11 the
+/// sums over pixels of `|d/dmx|` and `|d/dmy|` per pixel (AbsGS's statistic), which
+/// are left zero unless `abs_means` is set.
 pub(crate) fn backward_tile<T: SplatFloat>(
     splats: &[Splat<T>],
     rect: TileRect,
     cut: AlphaCutoff,
     background: [T; 3],
     inp: &TileGrads<'_, T>,
-) -> Vec<[T; 10]> {
+    abs_means: bool,
+) -> Vec<[T; 12]> {
     let l = T::L::splat;
     let (zero, one, half) = (T::zero(), T::one(), T::of(0.5));
-    let mut grads = vec![[zero; 10]; splats.len()];
+    let mut grads = vec![[zero; 12]; splats.len()];
     let (t_final, n_last) = (&inp.end.t_final, &inp.end.n_last);
     let mut tr = t_final.clone();
     let mut behind: [Vec<T>; 4] = [
@@ -360,7 +363,7 @@ pub(crate) fn backward_tile<T: SplatFloat>(
             active[order[next_in]] = one;
             next_in += 1;
         }
-        let mut acc = [l(zero); 10];
+        let mut acc = [l(zero); 12];
         for_each_group(rect, &splats[j], cut, &mut active, |w, g, _| {
             let Group { k, dx, dy, al } = g;
             let m = al.ok;
@@ -395,8 +398,14 @@ pub(crate) fn backward_tile<T: SplatFloat>(
             acc[2] = acc[2] + v_power * l(half) * dx * dx;
             acc[3] = acc[3] + v_power * dx * dy;
             acc[4] = acc[4] + v_power * l(half) * dy * dy;
-            acc[0] = acc[0] - v_power * (w.a * dx + w.b * dy);
-            acc[1] = acc[1] - v_power * (w.b * dx + w.c * dy);
+            let v_mx = -(v_power * (w.a * dx + w.b * dy));
+            let v_my = -(v_power * (w.b * dx + w.c * dy));
+            acc[0] = acc[0] + v_mx;
+            acc[1] = acc[1] + v_my;
+            if abs_means {
+                acc[10] = acc[10] + v_mx.abs();
+                acc[11] = acc[11] + v_my.abs();
+            }
         });
         grads[j] = acc.map(|v| v.sum());
     }

@@ -43,6 +43,8 @@ pub trait Lanes<T>:
     fn exp(self) -> Self;
     /// Per-lane minimum.
     fn min(self, o: Self) -> Self;
+    /// `|x|` per lane.
+    fn abs(self) -> Self;
     /// `self < o` per lane.
     fn lt(self, o: Self) -> Self::Mask;
     /// `self <= o` per lane.
@@ -100,6 +102,10 @@ impl Lanes<f32> for f32x4 {
     #[inline(always)]
     fn min(self, o: Self) -> Self {
         f32x4::min(self, o)
+    }
+    #[inline(always)]
+    fn abs(self) -> Self {
+        f32x4::abs(self)
     }
     #[inline(always)]
     fn lt(self, o: Self) -> Self {
@@ -179,6 +185,9 @@ impl<T: Float> Lanes<T> for One<T> {
     }
     fn min(self, o: Self) -> Self {
         One(self.0.min(o.0))
+    }
+    fn abs(self) -> Self {
+        One(self.0.abs())
     }
     fn lt(self, o: Self) -> bool {
         self.0 < o.0

@@ -6,6 +6,9 @@
 //! writes per-tile gradient buffers that are summed serially in tile order, so the
 //! result is bit-identical on any number of threads.
 
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+
 use maaf_autodiff::{BackwardCtx, Float, Op, Tensor, Var};
 use rayon::prelude::*;
 
@@ -43,6 +46,62 @@ pub struct Rasterize<T: Float> {
     pub background: [T; 3],
     /// Cutoff rules.
     pub cutoff: AlphaCutoff,
+    /// Where the backward leaves the absolute screen-mean gradient when asked.
+    pub abs_means2d: AbsMeans2dGrad<T>,
+}
+
+/// AbsGS's densification statistic of one rasterization, filled by its backward
+/// when [`request`](Self::request)ed before the tape's backward pass:
+///
+/// ```text
+/// abs_i = ( sum_p |dL_p/d mx_i| , sum_p |dL_p/d my_i| )     [N, 2], pixels
+/// ```
+///
+/// where `L_p` is the part of the loss that reaches pixel `p` (its colour, alpha and
+/// depth cotangents). `dL/d means2d` is the same sum without the absolute values, so
+/// opposite pulls from two sides of a Gaussian cancel there and not here (AbsGS,
+/// Ye et al. 2024; the `dL_dmean2D_densify` buffer of the MAAF release's rasterizer).
+/// Not a gradient: no op consumes it, so it has no finite-difference check; its test
+/// compares it with per-pixel gradients of the reference compositor.
+#[derive(Clone)]
+pub struct AbsMeans2dGrad<T>(Arc<AbsSlot<T>>);
+
+struct AbsSlot<T> {
+    wanted: AtomicBool,
+    value: Mutex<Option<Tensor<T>>>,
+}
+
+impl<T: Float> Default for AbsMeans2dGrad<T> {
+    fn default() -> Self {
+        AbsMeans2dGrad(Arc::new(AbsSlot {
+            wanted: AtomicBool::new(false),
+            value: Mutex::new(None),
+        }))
+    }
+}
+
+impl<T: Float> AbsMeans2dGrad<T> {
+    /// Asks the rasterizer's backward to compute the statistic (it costs two more
+    /// accumulations per pixel and Gaussian, so it is off unless asked).
+    pub fn request(&self) {
+        self.0.wanted.store(true, Ordering::Relaxed);
+    }
+
+    /// The statistic `[N, 2]`, once the backward has run after a
+    /// [`request`](Self::request); `None` before, or if it was not requested.
+    pub fn take(&self) -> Option<Tensor<T>> {
+        self.0.value.lock().ok().and_then(|mut v| v.take())
+    }
+
+    fn wanted(&self) -> bool {
+        self.0.wanted.load(Ordering::Relaxed)
+    }
+
+    fn put(&self, t: Tensor<T>) {
+        if let Ok(mut v) = self.0.value.lock() {
+            *v = Some(t);
+        }
+    }
 }
 
 /// What the rasterizer forward keeps for its backward.
@@ -200,9 +259,10 @@ impl<T: SplatFloat> Op<T> for Rasterize<T> {
             ctx.grad_outputs[2].data(),
         );
         let w = self.width as usize;
+        let abs_means = self.abs_means2d.wanted();
         // Per tile: one gradient row per list entry,
-        // (mx, my, A, B, C, o, r, g, b, z).
-        let per_tile: Vec<Vec<[T; 10]>> = (0..ntiles)
+        // (mx, my, A, B, C, o, r, g, b, z, |mx|, |my|).
+        let per_tile: Vec<Vec<[T; 12]>> = (0..ntiles)
             .into_par_iter()
             .map(|t| {
                 let splats = gather_splats(bins.tile(t), ctx.inputs, bins);
@@ -224,7 +284,7 @@ impl<T: SplatFloat> Op<T> for Rasterize<T> {
                     inp.v_render_alphas[k] = v_render_alphas[p];
                     inp.v_render_depths[k] = v_render_depths[p];
                 }
-                backward_tile(&splats, rect, self.cutoff, self.background, &inp)
+                backward_tile(&splats, rect, self.cutoff, self.background, &inp, abs_means)
             })
             .collect();
         let mut v_means2d = vec![T::zero(); 2 * n];
@@ -232,6 +292,7 @@ impl<T: SplatFloat> Op<T> for Rasterize<T> {
         let mut v_colors = vec![T::zero(); 3 * n];
         let mut v_opacities = vec![T::zero(); n];
         let mut v_depths = vec![T::zero(); n];
+        let mut abs_m = vec![T::zero(); if abs_means { 2 * n } else { 0 }];
         // Serial reduction in tile order: bit-identical for any thread count.
         for (t, grads) in per_tile.iter().enumerate() {
             for (&g, gr) in bins.tile(t).iter().zip(grads) {
@@ -246,7 +307,14 @@ impl<T: SplatFloat> Op<T> for Rasterize<T> {
                 v_colors[3 * g + 1] += gr[7];
                 v_colors[3 * g + 2] += gr[8];
                 v_depths[g] += gr[9];
+                if abs_means {
+                    abs_m[2 * g] += gr[10];
+                    abs_m[2 * g + 1] += gr[11];
+                }
             }
+        }
+        if abs_means {
+            self.abs_means2d.put(Tensor::from_vec(abs_m, &[n, 2]));
         }
         vec![
             Some(Tensor::from_vec(v_means2d, &[n, 2])),
@@ -267,6 +335,8 @@ pub struct Rasterized<'t, T: Float> {
     pub alpha: Var<'t, T>,
     /// Alpha-weighted depth `sum z_i alpha_i T_i`, `[H,W]`.
     pub depth: Var<'t, T>,
+    /// The absolute screen-mean gradient, filled by the backward when requested.
+    pub abs_means2d: AbsMeans2dGrad<T>,
 }
 
 /// Rasterizes on the tape, see [`Rasterize`].
@@ -283,12 +353,14 @@ pub fn rasterize<'t, T: SplatFloat>(
     background: [f64; 3],
     cutoff: AlphaCutoff,
 ) -> Rasterized<'t, T> {
+    let abs_means2d = AbsMeans2dGrad::default();
     let out = means2d.tape().apply(
         Rasterize {
             width,
             height,
             background: background.map(T::of),
             cutoff,
+            abs_means2d: abs_means2d.clone(),
         },
         &[means2d, conics, colors, opacity, depths, radii],
     );
@@ -296,5 +368,6 @@ pub fn rasterize<'t, T: SplatFloat>(
         image: out[0],
         alpha: out[1],
         depth: out[2],
+        abs_means2d,
     }
 }

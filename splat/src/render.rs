@@ -8,7 +8,7 @@ use crate::compositing::AlphaCutoff;
 use crate::cov3d::quat_scale_to_cov;
 use crate::lanes::SplatFloat;
 use crate::project::{Filter2d, NEAR_PLANE, project_ewa};
-use crate::rasterize::rasterize;
+use crate::rasterize::{AbsMeans2dGrad, rasterize};
 use crate::sh::sh_color;
 
 /// Activated per-Gaussian parameters on a tape (the trainer applies `exp` to log-scales
@@ -70,6 +70,9 @@ pub struct RenderOutput<'t, T: Float> {
     pub means2d: Var<'t, T>,
     /// Screen-space radius per Gaussian in pixels (0 = culled); not differentiable.
     pub radii: Vec<u32>,
+    /// AbsGS's densification statistic, filled by the backward when requested
+    /// before it ([`crate::rasterize::AbsMeans2dGrad`]).
+    pub abs_means2d: AbsMeans2dGrad<T>,
 }
 
 impl<T: Float> RenderOutput<'_, T> {
@@ -149,6 +152,7 @@ pub fn render<'t, T: SplatFloat>(
         depth: out.depth,
         means2d: proj.means2d,
         radii,
+        abs_means2d: out.abs_means2d,
     }
 }
 

@@ -10,7 +10,8 @@ use maaf_train::data::{Dataset, DatasetOptions, Split};
 use maaf_train::models::ModelConfig;
 use maaf_train::params::Rows;
 use maaf_train::trainer::{
-    DensifyPlan, Liveness, TrainConfig, Trainer, keep_highest, load_checkpoint, save_checkpoint,
+    DensifyGradient, DensifyPlan, Liveness, TrainConfig, Trainer, keep_highest, load_checkpoint,
+    save_checkpoint,
 };
 
 fn mutant() -> Option<Dataset> {
@@ -298,6 +299,42 @@ fn a_run_without_gaussians_stops_with_one_line() {
 /// densification statistics all have the new length, survivors keep their values
 /// bit for bit, the overwritten rows carry the planned centres and scales, and
 /// training goes on at the new size.
+/// `densify.gradient` `abs` feeds the statistics AbsGS's sums of absolute per-pixel
+/// gradients: from the same start, one step counts the same visible Gaussians with an
+/// accumulated norm at least the 3DGS one (|sum| <= sum of |.| per axis), larger for
+/// many, and leaves the parameters' update unchanged (the statistic is a by-product).
+#[test]
+fn the_abs_statistic_bounds_the_mean_one_and_changes_no_parameter() {
+    let Some(data) = mutant() else { return };
+    let mut runs = Vec::new();
+    for gradient in [DensifyGradient::Mean, DensifyGradient::Abs] {
+        let mut c = tiny_config(FilterKind::Mip3d);
+        c.densify.gradient = gradient;
+        let mut t = Trainer::new(&data, c).expect("trainer");
+        t.update();
+        runs.push(t);
+    }
+    let (mut mean, mut abs) = (runs.remove(0), runs.remove(0));
+    assert_eq!(mean.stats.denom, abs.stats.denom);
+    let (m, a) = (&mean.stats.grad_accum, &abs.stats.grad_accum);
+    let seen = mean.stats.denom.iter().filter(|&&d| d > 0.0).count();
+    assert!(seen > 100, "only {seen} Gaussians drawn");
+    for i in 0..m.len() {
+        assert!(
+            a[i] >= m[i] * (1.0 - 1e-5),
+            "Gaussian {i}: abs {} < mean {}",
+            a[i],
+            m[i]
+        );
+    }
+    let larger = (0..m.len()).filter(|&i| a[i] > m[i] * 1.1).count();
+    assert!(
+        larger * 4 > seen,
+        "abs exceeds mean by 10 % on only {larger} of {seen}"
+    );
+    assert_same_params(&mut mean, &mut abs, "abs statistic");
+}
+
 #[test]
 fn one_plan_resizes_every_container_in_lock_step() {
     let Some(data) = mutant() else { return };

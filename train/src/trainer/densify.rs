@@ -14,6 +14,10 @@ use crate::models::Representation;
 pub struct ViewGrad<'a> {
     /// `dL/d means2d` `[N, 2]` in pixels.
     pub grad: Option<&'a Tensor<f32>>,
+    /// The sums of absolute per-pixel gradients `[N, 2]` (AbsGS), present when the
+    /// run densifies on them (`densify.gradient` `abs`); the statistics then use them
+    /// in place of `grad`.
+    pub abs_grad: Option<&'a Tensor<f32>>,
     /// Screen radii (0 = not drawn).
     pub radii: &'a [u32],
     /// Image width in pixels.
@@ -46,8 +50,9 @@ impl DensifyStats {
     }
 
     /// Adds one iteration's views. Per view, `grad` is `dL/d means2d` `[N,2]` in
-    /// pixels of the iteration's objective, which `loss_scale` turns into that view's
-    /// own objective; 3DGS thresholds the gradient with respect to NDC coordinates,
+    /// pixels of the iteration's objective (or `abs_grad` when present), which
+    /// `loss_scale` turns into that view's own objective; 3DGS thresholds the
+    /// gradient with respect to NDC coordinates,
     /// `d/d ndc_x = (W/2) d/d px`, so the norm is taken of `(gx W/2, gy H/2)`. A
     /// Gaussian's entry is the mean of its norms over the views where its radius is
     /// positive, and counts once (SaRO-GS `train.py` with `batch`: the summed norms
@@ -63,7 +68,7 @@ impl DensifyStats {
                 if r == 0 {
                     continue;
                 }
-                if let Some(g) = v.grad {
+                if let Some(g) = v.abs_grad.or(v.grad) {
                     let (gx, gy) = (g.data()[2 * i] * hw, g.data()[2 * i + 1] * hh);
                     sum[i] += (gx * gx + gy * gy).sqrt() * loss_scale;
                 }
@@ -268,6 +273,7 @@ mod tests {
         let g = Tensor::from_vec(vec![1.0, 0.0, 5.0, 5.0], &[2, 2]);
         let view = ViewGrad {
             grad: Some(&g),
+            abs_grad: None,
             radii: &[3, 0],
             width: 10,
             height: 20,
@@ -292,12 +298,14 @@ mod tests {
         let views = [
             ViewGrad {
                 grad: Some(&ga),
+                abs_grad: None,
                 radii: &[2, 4, 0],
                 width: 10,
                 height: 20,
             },
             ViewGrad {
                 grad: Some(&gb),
+                abs_grad: None,
                 radii: &[6, 0, 0],
                 width: 10,
                 height: 20,

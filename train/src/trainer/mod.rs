@@ -35,8 +35,8 @@ pub use densify::{DensifyPlan, DensifyStats, ViewGrad, plan as plan_densify};
 /// The run's configuration, its timings and what it starts from: `maaf-scene` types,
 /// here under the trainer's paths.
 pub use maaf_scene::{
-    DensifyConfig, MAX_BATCH, OpacityReset, PruneConfig, Timings, TrainConfig, camera_extent,
-    model_init, repair_run_dir,
+    DensifyConfig, DensifyGradient, MAX_BATCH, OpacityReset, PruneConfig, Timings, TrainConfig,
+    camera_extent, model_init, repair_run_dir,
 };
 pub use prune::{keep_highest, removal_sensitivity};
 pub use reset::{Liveness, opacity_caps};

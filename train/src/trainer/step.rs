@@ -10,9 +10,9 @@ use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_pcg::Pcg64;
 
-use super::ViewGrad;
 use super::cpu_clock::process_cpu_seconds;
 use super::strategy::StepInfo;
+use super::{DensifyGradient, ViewGrad};
 use super::{Trainer, log_line};
 use crate::forward::forward_bound;
 use crate::loss::{Evaluated, ForwardTerms, batch_mean};
@@ -99,7 +99,18 @@ impl Trainer {
         let total = batch_mean(&totals);
         let t2 = Instant::now();
 
+        let abs_stat =
+            self.config.densify.gradient == DensifyGradient::Abs && it <= self.config.densify.until;
+        if abs_stat {
+            for fwd in &fwds {
+                fwd.render.abs_means2d.request();
+            }
+        }
         let grads = tape.backward(total);
+        let abs_grads: Vec<Option<Tensor<f32>>> = fwds
+            .iter()
+            .map(|fwd| fwd.render.abs_means2d.take())
+            .collect();
         let t3 = Instant::now();
         let finite = |t: &Tensor<f32>| t.first_non_finite().is_none();
         let grads = grads.map_err(|e| e.to_string()).and_then(|gr| {
@@ -144,8 +155,10 @@ impl Trainer {
                 // `batch` times its share of the mean.
                 let seen: Vec<ViewGrad> = fwds
                     .iter()
-                    .map(|fwd| ViewGrad {
+                    .zip(&abs_grads)
+                    .map(|(fwd, abs)| ViewGrad {
                         grad: grads.wrt(fwd.render.means2d),
+                        abs_grad: abs.as_ref(),
                         radii: &fwd.render.radii,
                         width: fwd.camera.width,
                         height: fwd.camera.height,
