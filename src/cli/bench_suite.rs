@@ -73,17 +73,32 @@ pub struct BenchSuiteArgs {
     /// then `maaf bench-suite --out OUT --report-only`).
     #[arg(long)]
     pub jobs_only: bool,
-    /// Only write the report from the runs evaluated so far (reads OUT/suite.json).
-    #[arg(long, conflicts_with = "jobs_only")]
+    /// Only write the report from the runs evaluated so far (reads OUT/suite.json;
+    /// the options that plan a suite are refused with it).
+    #[arg(long, conflicts_with_all = PLANNING)]
     pub report_only: bool,
     /// Only run job N of the suite written in --out (1-based, the line number in
     /// jobs.txt), as the whole suite would: skipped when evaluated, resumed from its
     /// newest checkpoint when interrupted, else trained; then evaluated. Reads
-    /// OUT/suite.json; no report is written (`--report-only` does that) [default: every
-    /// job].
-    #[arg(long, conflicts_with_all = ["jobs_only", "report_only"])]
+    /// OUT/suite.json (the options that plan a suite are refused with it); no report
+    /// is written (`--report-only` does that) [default: every job].
+    #[arg(long, conflicts_with_all = PLANNING, conflicts_with = "report_only")]
     pub job: Option<usize>,
 }
+
+/// The options that plan a suite: `--job` and `--report-only` read the plan from
+/// OUT/suite.json, so these given with them would be ignored; clap refuses them.
+const PLANNING: [&str; 9] = [
+    "jobs_only",
+    "data",
+    "scenes",
+    "presets",
+    "filters",
+    "backgrounds",
+    "splits",
+    "iters",
+    "eval_args",
+];
 
 /// `--backgrounds` values.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]

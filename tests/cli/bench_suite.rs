@@ -137,6 +137,22 @@ fn suite_writes_jobs_runs_them_once_and_reports_every_scene_beside_the_published
         maaf(&["bench-suite", "--out", s(&out), "--job", "7"]),
         &["--job 7", "suite.json", "1..=6"],
     );
+    // The plan is read from suite.json: planning options beside --job or
+    // --report-only would be ignored, so they are refused by name.
+    for (read, arg) in [
+        (["--job", "1"].as_slice(), ["--iters", "9"]),
+        (["--report-only"].as_slice(), ["--filters", "none"]),
+    ] {
+        let mut argv = vec!["bench-suite", "--out", s(&out)];
+        argv.extend(read);
+        argv.extend(arg);
+        let out = maaf(&argv);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "a usage error: {err}");
+        for needle in [arg[0], read[0], "cannot be used with"] {
+            assert!(err.contains(needle), "`{needle}` not in: {err}");
+        }
+    }
 
     let printed = ok(suite(&data, &preset, &out, &[]));
     assert_eq!(count(&printed, "skipped (evaluated)"), 2, "{printed}");
