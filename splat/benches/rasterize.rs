@@ -84,7 +84,9 @@ fn camera(size: u32) -> Camera {
     Camera::new(size, size, f, f, size as f64 / 2.0, size as f64 / 2.0, w2c).expect("camera")
 }
 
-fn run(scene: &Scene, cam: &Camera, backward: bool) -> f32 {
+/// One render; with `backward` also its backward pass, and with `abs` that pass also
+/// sums AbsGS's absolute per-pixel gradients (`densify.gradient` `abs`).
+fn run(scene: &Scene, cam: &Camera, backward: bool, abs: bool) -> f32 {
     let t = Tape::<f32>::new();
     let mk = |x: &Tensor<f32>| {
         if backward {
@@ -101,6 +103,9 @@ fn run(scene: &Scene, cam: &Camera, backward: bool) -> f32 {
         sh: mk(&scene.sh),
     };
     let out = render(&t, &g, cam, &RenderSettings::default());
+    if abs {
+        out.abs_means2d.request();
+    }
     if backward {
         let loss = out.image.mean();
         let grads = t.backward(loss).expect("finite");
@@ -147,10 +152,13 @@ fn full(c: &mut Criterion) {
             let label = format!("{size}x{size} {}k", n / 1000);
             group.throughput(Throughput::Elements(pairs(&scene, &cam)));
             group.bench_function(format!("fwd {label}"), |b| {
-                b.iter(|| run(&scene, &cam, false))
+                b.iter(|| run(&scene, &cam, false, false))
             });
             group.bench_function(format!("fwd+bwd {label}"), |b| {
-                b.iter(|| run(&scene, &cam, true))
+                b.iter(|| run(&scene, &cam, true, false))
+            });
+            group.bench_function(format!("fwd+bwd+abs {label}"), |b| {
+                b.iter(|| run(&scene, &cam, true, true))
             });
         }
     }
