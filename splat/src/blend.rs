@@ -331,14 +331,14 @@ pub(crate) struct TileGrads<'a, T> {
 /// contributor, recovering `T_i = T_{i+1} / (1 - alpha_i)`, and returns one gradient
 /// row per list entry: `d/d(mx, my, A, B, C, o, r, g, b, z)`, then in 10 and 11 the
 /// sums over pixels of `|d/dmx|` and `|d/dmy|` per pixel (AbsGS's statistic), which
-/// are left zero unless `abs_means` is set.
-pub(crate) fn backward_tile<T: SplatFloat>(
+/// are left zero unless `ABS_MEANS` (a compile-time switch, so the plain backward
+/// keeps ten accumulators and no branch).
+pub(crate) fn backward_tile<T: SplatFloat, const ABS_MEANS: bool>(
     splats: &[Splat<T>],
     rect: TileRect,
     cut: AlphaCutoff,
     background: [T; 3],
     inp: &TileGrads<'_, T>,
-    abs_means: bool,
 ) -> Vec<[T; 12]> {
     let l = T::L::splat;
     let (zero, one, half) = (T::zero(), T::one(), T::of(0.5));
@@ -402,7 +402,7 @@ pub(crate) fn backward_tile<T: SplatFloat>(
             let v_my = -(v_power * (w.b * dx + w.c * dy));
             acc[0] = acc[0] + v_mx;
             acc[1] = acc[1] + v_my;
-            if abs_means {
+            if ABS_MEANS {
                 acc[10] = acc[10] + v_mx.abs();
                 acc[11] = acc[11] + v_my.abs();
             }

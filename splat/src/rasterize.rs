@@ -284,7 +284,11 @@ impl<T: SplatFloat> Op<T> for Rasterize<T> {
                     inp.v_render_alphas[k] = v_render_alphas[p];
                     inp.v_render_depths[k] = v_render_depths[p];
                 }
-                backward_tile(&splats, rect, self.cutoff, self.background, &inp, abs_means)
+                if abs_means {
+                    backward_tile::<T, true>(&splats, rect, self.cutoff, self.background, &inp)
+                } else {
+                    backward_tile::<T, false>(&splats, rect, self.cutoff, self.background, &inp)
+                }
             })
             .collect();
         let mut v_means2d = vec![T::zero(); 2 * n];
