@@ -327,22 +327,26 @@ pub(crate) struct TileGrads<'a, T> {
     pub end: &'a TileEnd<T>,
 }
 
+/// What [`backward_tile`] returns: per list entry `d/d(mx, my, A, B, C, o, r, g, b, z)`,
+/// and per entry `(sum |d/dmx|, sum |d/dmy|)` when asked (else empty).
+pub(crate) type TileBackward<T> = (Vec<[T; 10]>, Vec<[T; 2]>);
+
 /// Backward of [`forward_tile`]: walks each pixel back to front from its last
 /// contributor, recovering `T_i = T_{i+1} / (1 - alpha_i)`, and returns one gradient
-/// row per list entry: `d/d(mx, my, A, B, C, o, r, g, b, z)`, then in 10 and 11 the
-/// sums over pixels of `|d/dmx|` and `|d/dmy|` per pixel (AbsGS's statistic), which
-/// are left zero unless `ABS_MEANS` (a compile-time switch, so the plain backward
-/// keeps ten accumulators and no branch).
+/// row per list entry, `d/d(mx, my, A, B, C, o, r, g, b, z)`, and, when `ABS_MEANS`
+/// (a compile-time switch, so the plain backward is unchanged), one row per entry of
+/// the sums over pixels of `|d/dmx|` and `|d/dmy|` (AbsGS's statistic; else empty).
 pub(crate) fn backward_tile<T: SplatFloat, const ABS_MEANS: bool>(
     splats: &[Splat<T>],
     rect: TileRect,
     cut: AlphaCutoff,
     background: [T; 3],
     inp: &TileGrads<'_, T>,
-) -> Vec<[T; 12]> {
+) -> TileBackward<T> {
     let l = T::L::splat;
     let (zero, one, half) = (T::zero(), T::one(), T::of(0.5));
-    let mut grads = vec![[zero; 12]; splats.len()];
+    let mut grads = vec![[zero; 10]; splats.len()];
+    let mut abs_grads = vec![[zero; 2]; if ABS_MEANS { splats.len() } else { 0 }];
     let (t_final, n_last) = (&inp.end.t_final, &inp.end.n_last);
     let mut tr = t_final.clone();
     let mut behind: [Vec<T>; 4] = [
@@ -363,7 +367,8 @@ pub(crate) fn backward_tile<T: SplatFloat, const ABS_MEANS: bool>(
             active[order[next_in]] = one;
             next_in += 1;
         }
-        let mut acc = [l(zero); 12];
+        let mut acc = [l(zero); 10];
+        let mut abs_acc = [l(zero); 2];
         for_each_group(rect, &splats[j], cut, &mut active, |w, g, _| {
             let Group { k, dx, dy, al } = g;
             let m = al.ok;
@@ -403,11 +408,14 @@ pub(crate) fn backward_tile<T: SplatFloat, const ABS_MEANS: bool>(
             acc[0] = acc[0] + v_mx;
             acc[1] = acc[1] + v_my;
             if ABS_MEANS {
-                acc[10] = acc[10] + v_mx.abs();
-                acc[11] = acc[11] + v_my.abs();
+                abs_acc[0] = abs_acc[0] + v_mx.abs();
+                abs_acc[1] = abs_acc[1] + v_my.abs();
             }
         });
         grads[j] = acc.map(|v| v.sum());
+        if ABS_MEANS {
+            abs_grads[j] = abs_acc.map(|v| v.sum());
+        }
     }
-    grads
+    (grads, abs_grads)
 }

@@ -13,7 +13,9 @@ use maaf_autodiff::{BackwardCtx, Float, Op, Tensor, Var};
 use rayon::prelude::*;
 
 use crate::binning::{Binning, bin_gaussians};
-use crate::blend::{NP, Splat, TileEnd, TileGrads, TileOut, TileRect, backward_tile, forward_tile};
+use crate::blend::{
+    NP, Splat, TileBackward, TileEnd, TileGrads, TileOut, TileRect, backward_tile, forward_tile,
+};
 use crate::compositing::{AlphaCutoff, TILE, support_power};
 use crate::lanes::SplatFloat;
 
@@ -261,8 +263,8 @@ impl<T: SplatFloat> Op<T> for Rasterize<T> {
         let w = self.width as usize;
         let abs_means = self.abs_means2d.wanted();
         // Per tile: one gradient row per list entry,
-        // (mx, my, A, B, C, o, r, g, b, z, |mx|, |my|).
-        let per_tile: Vec<Vec<[T; 12]>> = (0..ntiles)
+        // (mx, my, A, B, C, o, r, g, b, z), and (|mx|, |my|) when asked.
+        let per_tile: Vec<TileBackward<T>> = (0..ntiles)
             .into_par_iter()
             .map(|t| {
                 let splats = gather_splats(bins.tile(t), ctx.inputs, bins);
@@ -298,7 +300,7 @@ impl<T: SplatFloat> Op<T> for Rasterize<T> {
         let mut v_depths = vec![T::zero(); n];
         let mut abs_m = vec![T::zero(); if abs_means { 2 * n } else { 0 }];
         // Serial reduction in tile order: bit-identical for any thread count.
-        for (t, grads) in per_tile.iter().enumerate() {
+        for (t, (grads, abs_grads)) in per_tile.iter().enumerate() {
             for (&g, gr) in bins.tile(t).iter().zip(grads) {
                 let g = g as usize;
                 v_means2d[2 * g] += gr[0];
@@ -311,10 +313,11 @@ impl<T: SplatFloat> Op<T> for Rasterize<T> {
                 v_colors[3 * g + 1] += gr[7];
                 v_colors[3 * g + 2] += gr[8];
                 v_depths[g] += gr[9];
-                if abs_means {
-                    abs_m[2 * g] += gr[10];
-                    abs_m[2 * g + 1] += gr[11];
-                }
+            }
+            for (&g, gr) in bins.tile(t).iter().zip(abs_grads) {
+                let g = g as usize;
+                abs_m[2 * g] += gr[0];
+                abs_m[2 * g + 1] += gr[1];
             }
         }
         if abs_means {
