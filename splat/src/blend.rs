@@ -403,10 +403,12 @@ pub(crate) fn backward_tile<T: SplatFloat, const ABS_MEANS: bool>(
             acc[2] = acc[2] + v_power * l(half) * dx * dx;
             acc[3] = acc[3] + v_power * dx * dy;
             acc[4] = acc[4] + v_power * l(half) * dy * dy;
-            let v_mx = -(v_power * (w.a * dx + w.b * dy));
-            let v_my = -(v_power * (w.b * dx + w.c * dy));
-            acc[0] = acc[0] + v_mx;
-            acc[1] = acc[1] + v_my;
+            // d/dmx = -v_power * (A dx + B dy); |.| drops the sign, so the plain
+            // backward subtracts exactly as before.
+            let v_mx = v_power * (w.a * dx + w.b * dy);
+            let v_my = v_power * (w.b * dx + w.c * dy);
+            acc[0] = acc[0] - v_mx;
+            acc[1] = acc[1] - v_my;
             if ABS_MEANS {
                 abs_acc[0] = abs_acc[0] + v_mx.abs();
                 abs_acc[1] = abs_acc[1] + v_my.abs();
