@@ -17,7 +17,7 @@ use maaf_autodiff::ops::concat;
 use maaf_autodiff::{BackwardCtx, Op, Tape, Tensor, Var};
 use maaf_splat::cov3d::quat_scale_to_cov;
 use maaf_splat::project::project_ewa;
-use maaf_splat::rasterize::{Rasterize, rasterize};
+use maaf_splat::rasterize::{Rasterize, Rasterized, rasterize};
 use maaf_splat::sh::sh_color;
 use maaf_splat::{AlphaCutoff, Camera, Filter2d, GaussianVars, RenderSettings, reference, render};
 
@@ -174,9 +174,13 @@ fn raster_inputs(filter: Filter2d) -> Vec<Tensor<f64>> {
         .collect()
 }
 
-fn raster<'t>(x: &[Var<'t, f64>], radii: &Tensor<f64>, cut: AlphaCutoff) -> Vec<Var<'t, f64>> {
+fn rasterized<'t>(
+    x: &[Var<'t, f64>],
+    radii: &Tensor<f64>,
+    cut: AlphaCutoff,
+) -> Rasterized<'t, f64> {
     let radii = x[0].tape().constant(radii.clone());
-    let r = rasterize(
+    rasterize(
         x[0],
         x[1],
         x[2],
@@ -187,7 +191,26 @@ fn raster<'t>(x: &[Var<'t, f64>], radii: &Tensor<f64>, cut: AlphaCutoff) -> Vec<
         H,
         [0.1, 0.4, 0.8],
         cut,
-    );
+    )
+}
+
+/// The primitive-built reference compositor (smooth cutoff) on the same image.
+fn reference_raster<'t>(t: &'t Tape<f64>, x: &[Var<'t, f64>]) -> Vec<Var<'t, f64>> {
+    reference::tape::rasterize_smooth(
+        t,
+        x[0],
+        x[1],
+        x[2],
+        x[3],
+        x[4],
+        W as usize,
+        H as usize,
+        [0.1, 0.4, 0.8],
+    )
+}
+
+fn raster<'t>(x: &[Var<'t, f64>], radii: &Tensor<f64>, cut: AlphaCutoff) -> Vec<Var<'t, f64>> {
+    let r = rasterized(x, radii, cut);
     vec![r.image, r.alpha, r.depth]
 }
 
@@ -227,19 +250,7 @@ fn rasterize_vjp_against_primitive_composition() {
             );
             vec![o.image, o.alpha, o.depth]
         },
-        |t, x| {
-            reference::tape::rasterize_smooth(
-                t,
-                x[0],
-                x[1],
-                x[2],
-                x[3],
-                x[4],
-                W as usize,
-                H as usize,
-                [0.1, 0.4, 0.8],
-            )
-        },
+        reference_raster,
         &inputs[..5],
         3,
         &cfg(),
@@ -281,6 +292,18 @@ fn seeded_grad<'t>(
     g.wrt(means2d).unwrap().data().to_vec()
 }
 
+/// The rasterizer on `t` with the first five of `inputs` as variables: those
+/// variables and its outputs.
+fn raster_vars<'t>(
+    t: &'t Tape<f64>,
+    inputs: &[Tensor<f64>],
+    cut: AlphaCutoff,
+) -> (Vec<Var<'t, f64>>, Rasterized<'t, f64>) {
+    let x: Vec<_> = inputs[..5].iter().map(|v| t.var(v.clone())).collect();
+    let r = rasterized(&x, &inputs[5], cut);
+    (x, r)
+}
+
 /// AbsGS's statistic from the rasterizer's backward equals the sum over pixels of
 /// the absolute per-pixel gradients `|dL_p/d means2d|`, each computed on its own:
 /// with the smooth cutoff by the primitive-built reference compositor, with the hard
@@ -293,20 +316,7 @@ fn abs_means2d_is_the_sum_of_absolute_per_pixel_gradients() {
     let np = (W * H) as usize;
     for cut in [AlphaCutoff::Smooth, AlphaCutoff::Hard] {
         let t = Tape::new();
-        let x: Vec<_> = inputs[..5].iter().map(|v| t.var(v.clone())).collect();
-        let radii = t.constant(inputs[5].clone());
-        let r = rasterize(
-            x[0],
-            x[1],
-            x[2],
-            x[3],
-            x[4],
-            radii,
-            W,
-            H,
-            [0.1, 0.4, 0.8],
-            cut,
-        );
+        let (x, r) = raster_vars(&t, &inputs, cut);
         r.abs_means2d.request();
         assert!(r.abs_means2d.take().is_none(), "filled before the backward");
         let outputs = [r.image, r.alpha, r.depth];
@@ -319,17 +329,7 @@ fn abs_means2d_is_the_sum_of_absolute_per_pixel_gradients() {
             let t = Tape::new();
             let x: Vec<_> = inputs[..5].iter().map(|v| t.var(v.clone())).collect();
             let outs = match cut {
-                AlphaCutoff::Smooth => reference::tape::rasterize_smooth(
-                    &t,
-                    x[0],
-                    x[1],
-                    x[2],
-                    x[3],
-                    x[4],
-                    W as usize,
-                    H as usize,
-                    [0.1, 0.4, 0.8],
-                ),
+                AlphaCutoff::Smooth => reference_raster(&t, &x),
                 AlphaCutoff::Hard => raster(&x, &inputs[5], cut),
             };
             let g = seeded_grad(&t, &outs, x[0], pixel_seeds(Some(p)));
@@ -361,20 +361,7 @@ fn abs_means2d_is_the_sum_of_absolute_per_pixel_gradients() {
 fn abs_means2d_is_left_empty_unless_requested() {
     let inputs = raster_inputs(Filter2d::Mip);
     let t = Tape::new();
-    let x: Vec<_> = inputs[..5].iter().map(|v| t.var(v.clone())).collect();
-    let radii = t.constant(inputs[5].clone());
-    let r = rasterize(
-        x[0],
-        x[1],
-        x[2],
-        x[3],
-        x[4],
-        radii,
-        W,
-        H,
-        [0.1, 0.4, 0.8],
-        AlphaCutoff::Hard,
-    );
+    let (x, r) = raster_vars(&t, &inputs, AlphaCutoff::Hard);
     seeded_grad(&t, &[r.image, r.alpha, r.depth], x[0], pixel_seeds(None));
     assert!(r.abs_means2d.take().is_none());
 }
