@@ -193,6 +193,10 @@ fn suite_writes_jobs_runs_them_once_and_reports_every_scene_beside_the_published
         assert!(md.contains(published), "{published} missing: {md}");
     }
     assert!(md.contains("published"), "{md}");
+    assert!(
+        md.contains("VGG features"),
+        "the released LPIPS network: {md}"
+    );
 
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).expect("json"))

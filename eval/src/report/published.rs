@@ -10,7 +10,8 @@
 //!   `tab:supp_zoomout`) trains at 800x800 and renders below it, another protocol.
 //! - The released code's row (`val-iisc/MAAF-4DGS`, SpeeDe3DGS backbone), also the
 //!   paper's Tab. 7 (`tab:speede3dgs`, "Integration with SpeeDe3DGS"): 4x only, with
-//!   GPU training minutes and the number of Gaussians.
+//!   GPU training minutes and the number of Gaussians. Its LPIPS uses VGG features
+//!   (`metrics.py`), not AlexNet's as maaf's does.
 
 use serde::Serialize;
 

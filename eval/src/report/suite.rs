@@ -507,6 +507,11 @@ pub fn markdown(summary: &SuiteSummary) -> String {
     md.push_str("## Tab. 2 layout: 1x / 2x / 4x, averaged over scenes\n\n");
     md.push_str(&tab2_table(summary));
     md.push_str("\n## At 4x against the released code (SpeeDe3DGS backbone)\n\n");
+    md.push_str(
+        "The release's LPIPS is computed on VGG features (`lpips.LPIPS(net='vgg')` in its \
+         `metrics.py`), maaf's on AlexNet's, so the LPIPS column is not comparable \
+         across the two.\n\n",
+    );
     md.push_str(&released_table(summary));
     for metric in &METRICS {
         let _ = writeln!(md, "\n## Per scene: {}\n", metric.0);
