@@ -65,21 +65,13 @@ pub struct Rasterize<T: Float> {
 /// Ye et al. 2024; the `dL_dmean2D_densify` buffer of the MAAF release's rasterizer).
 /// Not a gradient: no op consumes it, so it has no finite-difference check; its test
 /// compares it with per-pixel gradients of the reference compositor.
-#[derive(Clone)]
+#[derive(Clone, Default)]
 pub struct AbsMeans2dGrad<T>(Arc<AbsSlot<T>>);
 
+#[derive(Default)]
 struct AbsSlot<T> {
     wanted: AtomicBool,
     value: Mutex<Option<Tensor<T>>>,
-}
-
-impl<T: Float> Default for AbsMeans2dGrad<T> {
-    fn default() -> Self {
-        AbsMeans2dGrad(Arc::new(AbsSlot {
-            wanted: AtomicBool::new(false),
-            value: Mutex::new(None),
-        }))
-    }
 }
 
 impl<T: Float> AbsMeans2dGrad<T> {

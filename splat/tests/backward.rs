@@ -292,16 +292,9 @@ fn seeded_grad<'t>(
     g.wrt(means2d).unwrap().data().to_vec()
 }
 
-/// The rasterizer on `t` with the first five of `inputs` as variables: those
-/// variables and its outputs.
-fn raster_vars<'t>(
-    t: &'t Tape<f64>,
-    inputs: &[Tensor<f64>],
-    cut: AlphaCutoff,
-) -> (Vec<Var<'t, f64>>, Rasterized<'t, f64>) {
-    let x: Vec<_> = inputs[..5].iter().map(|v| t.var(v.clone())).collect();
-    let r = rasterized(&x, &inputs[5], cut);
-    (x, r)
+/// The first five of `inputs` (all but the radii) as variables on `t`.
+fn raster_vars<'t>(t: &'t Tape<f64>, inputs: &[Tensor<f64>]) -> Vec<Var<'t, f64>> {
+    inputs[..5].iter().map(|v| t.var(v.clone())).collect()
 }
 
 /// AbsGS's statistic from the rasterizer's backward equals the sum over pixels of
@@ -316,7 +309,8 @@ fn abs_means2d_is_the_sum_of_absolute_per_pixel_gradients() {
     let np = (W * H) as usize;
     for cut in [AlphaCutoff::Smooth, AlphaCutoff::Hard] {
         let t = Tape::new();
-        let (x, r) = raster_vars(&t, &inputs, cut);
+        let x = raster_vars(&t, &inputs);
+        let r = rasterized(&x, &inputs[5], cut);
         r.abs_means2d.request();
         assert!(r.abs_means2d.take().is_none(), "filled before the backward");
         let outputs = [r.image, r.alpha, r.depth];
@@ -327,7 +321,7 @@ fn abs_means2d_is_the_sum_of_absolute_per_pixel_gradients() {
         let mut want = vec![0.0; 2 * n];
         for p in 0..np {
             let t = Tape::new();
-            let x: Vec<_> = inputs[..5].iter().map(|v| t.var(v.clone())).collect();
+            let x = raster_vars(&t, &inputs);
             let outs = match cut {
                 AlphaCutoff::Smooth => reference_raster(&t, &x),
                 AlphaCutoff::Hard => raster(&x, &inputs[5], cut),
@@ -361,7 +355,8 @@ fn abs_means2d_is_the_sum_of_absolute_per_pixel_gradients() {
 fn abs_means2d_is_left_empty_unless_requested() {
     let inputs = raster_inputs(Filter2d::Mip);
     let t = Tape::new();
-    let (x, r) = raster_vars(&t, &inputs, AlphaCutoff::Hard);
+    let x = raster_vars(&t, &inputs);
+    let r = rasterized(&x, &inputs[5], AlphaCutoff::Hard);
     seeded_grad(&t, &[r.image, r.alpha, r.depth], x[0], pixel_seeds(None));
     assert!(r.abs_means2d.take().is_none());
 }
