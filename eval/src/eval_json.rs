@@ -23,12 +23,13 @@ pub struct ScaleResult {
     pub psnr: f64,
     /// Mean over views of the per-image SSIM (scikit-image convention).
     pub ssim: f64,
-    /// Mean over views of LPIPS (AlexNet, lin v0.1, [`maaf_lpips::Lpips::distance`]:
-    /// RGB mapped to [-1, 1], no resizing); `null` when it could not be computed, with
-    /// the reason in [`ScaleResult::lpips_note`].
+    /// Mean over views of LPIPS (lin v0.1 on the backbone named in
+    /// [`EvalReport::lpips_net`], [`maaf_lpips::Lpips::distance`]: RGB mapped to
+    /// [-1, 1], no resizing); `null` when it could not be computed, with the reason in
+    /// [`ScaleResult::lpips_note`].
     pub lpips: Option<f64>,
     /// Why `lpips` is `null` (weights missing, image below
-    /// [`maaf_lpips::MIN_SIZE`] pixels); `null` when LPIPS was computed.
+    /// [`maaf_lpips::Net::min_size`] pixels); `null` when LPIPS was computed.
     #[serde(default)]
     pub lpips_note: Option<String>,
     /// W-Temporal Error (supplementary: `sum_t E_warp(I_t, I_{t+1})`) of the
@@ -228,6 +229,10 @@ pub struct EvalReport {
     /// the field is left out of `eval.json`, whose contract is unchanged).
     #[serde(default = "one", skip_serializing_if = "is_one")]
     pub frame_stride: usize,
+    /// Backbone of `lpips` and `w_lpips`: `alex` (then the field is left out of
+    /// `eval.json`, as files written before VGG was offered) or `vgg`.
+    #[serde(default = "alex", skip_serializing_if = "is_alex")]
+    pub lpips_net: String,
     /// One entry per evaluation scale, in the order asked.
     pub scales: Vec<ScaleResult>,
 }
@@ -238,6 +243,14 @@ fn one() -> usize {
 
 fn is_one(v: &usize) -> bool {
     *v == 1
+}
+
+fn alex() -> String {
+    maaf_lpips::Net::Alex.name().to_string()
+}
+
+fn is_alex(v: &String) -> bool {
+    *v == alex()
 }
 
 impl EvalReport {
@@ -316,6 +329,7 @@ mod tests {
             background: [1.0; 3],
             quantized_8bit: false,
             frame_stride: 1,
+            lpips_net: "alex".into(),
             scales: vec![ScaleResult::new(4.0, (8, 8), 30.0, 0.9)],
         };
         let v: serde_json::Value =
@@ -352,6 +366,18 @@ mod tests {
         ] {
             assert!(v["scales"][0][k].is_null(), "{k}");
         }
+        // VGG's LPIPS is named; a file without the field reads as AlexNet's.
+        let vgg = EvalReport {
+            lpips_net: "vgg".into(),
+            ..r.clone()
+        };
+        let text = serde_json::to_string(&vgg).expect("json");
+        assert!(text.contains(r#""lpips_net":"vgg""#), "{text}");
+        let back: EvalReport = serde_json::from_str(&text).expect("reads back");
+        assert_eq!(back, vgg);
+        let old: EvalReport =
+            serde_json::from_str(&serde_json::to_string(&r).expect("json")).expect("reads");
+        assert_eq!(old.lpips_net, "alex");
     }
 
     #[test]

@@ -37,7 +37,7 @@ use std::time::Instant;
 use maaf_autodiff::Tensor;
 use maaf_data::{Dataset, Image, Split};
 use maaf_filter::{FilterKind, FilterState};
-use maaf_lpips::Lpips;
+use maaf_lpips::{Lpips, Net};
 use maaf_scene::{ModelRegistry, TrainedScene};
 use rayon::prelude::*;
 
@@ -75,6 +75,9 @@ pub struct EvalOptions {
     /// Also measure temporal stability of a fixed-camera video at every scale
     /// ([`temporal::evaluate_temporal`]: W-Temporal Error, W-SSIM, W-LPIPS).
     pub temporal: bool,
+    /// Backbone of LPIPS and W-LPIPS ([`Net::Alex`], the package's default, or
+    /// [`Net::Vgg`], what 3DGS-family papers and the MAAF release report).
+    pub lpips_net: Net,
 }
 
 impl Default for EvalOptions {
@@ -86,6 +89,7 @@ impl Default for EvalOptions {
             frame_stride: 1,
             save_images: true,
             temporal: false,
+            lpips_net: Net::Alex,
         }
     }
 }
@@ -315,6 +319,7 @@ pub fn run_report(scene: &TrainedScene, data: &Dataset) -> EvalReport {
         background: data.background(),
         quantized_8bit: false,
         frame_stride: 1,
+        lpips_net: Net::Alex.name().to_string(),
         scales: Vec::new(),
     }
 }
@@ -405,7 +410,8 @@ pub fn evaluate_scene(
     let mut report = run_report(scene, data);
     report.frame_stride = options.frame_stride;
     // LPIPS is optional: without weights every scale gets `lpips: null` and the reason.
-    let lpips = Lpips::load_default().map_err(|e| e.to_string());
+    let lpips = Lpips::load_default(options.lpips_net).map_err(|e| e.to_string());
+    report.lpips_net = options.lpips_net.name().to_string();
 
     let final_dir = run.join("eval");
     let tmp_dir = maaf_io::temp_sibling(&final_dir);

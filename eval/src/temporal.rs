@@ -82,9 +82,10 @@ pub fn evaluate_temporal(
         .iter()
         .map(|&t| scene.render_with(&v.camera, t, &settings))
         .collect();
-    // LPIPS needs frames of at least MIN_SIZE pixels; smaller scales get W-LPIPS null.
-    let big_enough = (v.camera.width.min(v.camera.height) as usize) >= maaf_lpips::MIN_SIZE;
-    let lpips = lpips.filter(|_| big_enough);
+    // LPIPS needs frames of at least its network's min_size pixels; smaller scales get
+    // W-LPIPS null.
+    let side = v.camera.width.min(v.camera.height) as usize;
+    let lpips = lpips.filter(|m| side >= m.net().min_size());
     // One pair of deformed frames in memory at a time (a large run's SH is big).
     let mut model = Vec::with_capacity(v.times.len() - 1);
     let pixels = v.camera.width as usize * v.camera.height as usize;

@@ -33,6 +33,7 @@ fn fake_run(dir: &Path, filter: &str, psnr_at: impl Fn(f64) -> f64, seconds: f64
         background: [1.0; 3],
         quantized_8bit: false,
         frame_stride: 1,
+        lpips_net: "alex".into(),
         scales,
     };
     write_atomic(

@@ -10,7 +10,7 @@ use maaf_data::synthetic::render::{forward_flow, render_rgba};
 use maaf_data::synthetic::rig::{camera_at, video_position};
 use maaf_eval::metrics::ssim;
 use maaf_eval::metrics::temporal::{TemporalError, temporal_metrics, warp_error, warp_forward};
-use maaf_lpips::Lpips;
+use maaf_lpips::{Lpips, Net};
 
 /// A deterministic pseudo-random value on [0, 1] for integer coordinates (a hash), so
 /// that content entering the image is unrelated to what was there.
@@ -130,7 +130,7 @@ fn translating(
 
 #[test]
 fn an_exact_integer_shift_gives_zero_error_and_wrong_flows_do_not() {
-    let lpips = Lpips::load_default().expect("weights");
+    let lpips = Lpips::load_default(Net::Alex).expect("weights");
     let (h, w) = (40, 48);
     let (frames, flows) = translating(4, h, w, 3, -2);
     let m = temporal_metrics(&frames, &flows, Some(&lpips)).expect("metrics");
@@ -182,7 +182,7 @@ fn sums_warp_errors_and_averages_ssim_and_lpips_over_steps() {
         &[h, w, 3],
     );
     let flows = vec![still; 3];
-    let lpips = Lpips::load_default().expect("weights");
+    let lpips = Lpips::load_default(Net::Alex).expect("weights");
     let m = temporal_metrics(&frames, &flows, Some(&lpips)).expect("metrics");
     // Zero flow: the warped frame is frame t + 1 itself.
     let want: Vec<f64> = (0..3)

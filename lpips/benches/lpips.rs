@@ -1,10 +1,11 @@
-//! Cost of one LPIPS distance (two AlexNet passes) at the evaluation sizes.
+//! Cost of one LPIPS distance (two backbone passes) at the evaluation sizes, AlexNet and,
+//! when its weights were fetched (`bash lpips/tools/fetch_vgg_weights.sh`), VGG16.
 //!
 //! `cargo bench -p maaf-lpips --bench lpips`
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 use maaf_autodiff::Tensor;
-use maaf_lpips::Lpips;
+use maaf_lpips::{Lpips, Net};
 
 /// A deterministic smooth colour image with some texture, `[n, n, 3]` on [0, 1].
 fn image(n: usize, phase: f32) -> Tensor<f32> {
@@ -19,14 +20,23 @@ fn image(n: usize, phase: f32) -> Tensor<f32> {
 }
 
 fn bench(c: &mut Criterion) {
-    let lpips = Lpips::load_default().expect("weights");
     let mut group = c.benchmark_group("lpips_distance");
     group.sample_size(10);
-    for n in [100, 200, 800] {
-        let (a, b) = (image(n, 0.0), image(n, 0.3));
-        group.bench_with_input(BenchmarkId::from_parameter(n), &n, |bch, _| {
-            bch.iter(|| lpips.distance(&a, &b).expect("distance"))
-        });
+    for net in [Net::Alex, Net::Vgg] {
+        let lpips = match Lpips::load_default(net) {
+            Ok(m) => m,
+            Err(e) if net == Net::Vgg => {
+                eprintln!("skipping VGG16: {e}");
+                continue;
+            }
+            Err(e) => panic!("{e}"),
+        };
+        for n in [100, 200, 800] {
+            let (a, b) = (image(n, 0.0), image(n, 0.3));
+            group.bench_with_input(BenchmarkId::new(net.name(), n), &n, |bch, _| {
+                bch.iter(|| lpips.distance(&a, &b).expect("distance"))
+            });
+        }
     }
     group.finish();
 }

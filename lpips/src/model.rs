@@ -1,5 +1,5 @@
-//! The LPIPS distance: scaling layer, AlexNet features, unit-normalised squared
-//! differences weighted by the v0.1 linear layers, spatial mean, sum over layers.
+//! The LPIPS distance: scaling layer, backbone features (AlexNet or VGG16), unit-normalised
+//! squared differences weighted by the v0.1 linear layers, spatial mean, sum over layers.
 
 use std::path::Path;
 
@@ -7,13 +7,9 @@ use maaf_autodiff::{Float, Tensor};
 use rayon::prelude::*;
 
 use crate::LpipsError;
-use crate::alexnet::AlexNet;
+use crate::backbone::{Backbone, Net};
 use crate::layers::FeatureMap;
-use crate::weights::{default_weights_path, load};
-
-/// Smallest height and width LPIPS accepts: AlexNet's second max-pool needs a 3 x 3
-/// input, which takes a conv0 output of 7, i.e. `(31 + 4 - 11) / 4 + 1 = 7`.
-pub const MIN_SIZE: usize = 31;
+use crate::weights::load;
 
 /// LPIPS scaling-layer shift (per RGB channel), applied to inputs on `[-1, 1]`.
 const SHIFT: [f32; 3] = [-0.030, -0.088, -0.188];
@@ -22,32 +18,37 @@ const SCALE: [f32; 3] = [0.458, 0.448, 0.450];
 /// Added to the channel norm before dividing (LPIPS `normalize_tensor`).
 const NORM_EPS: f32 = 1e-10;
 
-/// A loaded LPIPS model (AlexNet, v0.1 linear layers). Cheap to share between
+/// A loaded LPIPS model (a backbone and its v0.1 linear layers). Cheap to share between
 /// threads (`&Lpips` is all [`Lpips::distance`] needs).
 pub struct Lpips {
-    net: AlexNet,
+    net: Backbone,
     /// `w^l_c >= 0`, one vector per layer.
     lins: Vec<Vec<f32>>,
 }
 
 impl Lpips {
-    /// Loads the weights from [`default_weights_path`] (the committed
-    /// `lpips/weights/alex_v0.1.safetensors`, or `$MAAF_LPIPS_WEIGHTS`).
-    pub fn load_default() -> Result<Lpips, LpipsError> {
-        Lpips::load(&default_weights_path())
+    /// Loads `net`'s weights from [`Net::default_weights_path`] (for AlexNet the
+    /// committed `lpips/weights/alex_v0.1.safetensors`, or `$MAAF_LPIPS_WEIGHTS`).
+    pub fn load_default(net: Net) -> Result<Lpips, LpipsError> {
+        Lpips::load(net, &net.default_weights_path())
     }
 
-    /// Loads the weights from a safetensors file written by
+    /// Loads `net`'s weights from a safetensors file written by
     /// `lpips/tools/convert_weights.py`. A missing file gives
-    /// [`LpipsError::WeightsMissing`]; a wrong tensor name, dtype or shape gives
-    /// [`LpipsError::WeightsInvalid`] naming it.
-    pub fn load(path: &Path) -> Result<Lpips, LpipsError> {
-        let (net, lins) = load(path)?;
+    /// [`LpipsError::WeightsMissing`]; a wrong tensor name, dtype or shape (another
+    /// network's file among them) gives [`LpipsError::WeightsInvalid`] naming it.
+    pub fn load(net: Net, path: &Path) -> Result<Lpips, LpipsError> {
+        let (net, lins) = load(net, path)?;
         Ok(Lpips { net, lins })
     }
 
+    /// The backbone this model compares features of.
+    pub fn net(&self) -> Net {
+        self.net.net
+    }
+
     /// LPIPS distance of two `[H, W, 3]` RGB images with values on `[0, 1]` (no
-    /// resizing, `H, W >=` [`MIN_SIZE`]); symmetric, `>= 0`, exactly 0 for identical
+    /// resizing, `H, W >=` [`Net::min_size`]); symmetric, `>= 0`, exactly 0 for identical
     /// images. See the crate documentation for the formula. Values are converted to
     /// f32 (the network runs in f32); the per-layer means are summed in f64.
     pub fn distance<T: Float>(&self, a: &Tensor<T>, b: &Tensor<T>) -> Result<f64, LpipsError> {
@@ -74,8 +75,10 @@ impl Lpips {
             return Err(LpipsError::NotAnImage { shape: s.to_vec() });
         }
         let (h, w) = (s[0], s[1]);
-        if h < MIN_SIZE || w < MIN_SIZE {
+        let min = self.net().min_size();
+        if h < min || w < min {
             return Err(LpipsError::TooSmall {
+                net: self.net(),
                 height: h,
                 width: w,
             });
@@ -89,6 +92,7 @@ impl Lpips {
             .collect();
         let x = FeatureMap { h, w, c: 3, data };
         let mut feats = self.net.features(&x).ok_or(LpipsError::TooSmall {
+            net: self.net(),
             height: h,
             width: w,
         })?;

@@ -1,43 +1,31 @@
-//! Reading the converted LPIPS AlexNet weights (safetensors, written by
-//! `lpips/tools/convert_weights.py`).
+//! Reading converted LPIPS weights (safetensors, written by
+//! `lpips/tools/convert_weights.py`): `conv{i}.weight` `[k, k, c_in, c_out]` and
+//! `conv{i}.bias` `[c_out]` for every stage `i` of the network, `lin{l}.weight` `[c]` for
+//! each of the five tapped maps.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use safetensors::{Dtype, SafeTensors};
 
 use crate::LpipsError;
-use crate::alexnet::{AlexNet, LAYERS};
+use crate::backbone::{Backbone, Net};
 use crate::layers::ConvRelu;
 
-/// Environment variable that overrides the weights path of [`default_weights_path`].
-pub const WEIGHTS_ENV: &str = "MAAF_LPIPS_WEIGHTS";
-
-/// The committed weights file, `lpips/weights/alex_v0.1.safetensors` in the source tree.
-pub const DEFAULT_WEIGHTS: &str =
-    concat!(env!("CARGO_MANIFEST_DIR"), "/weights/alex_v0.1.safetensors");
-
-/// Where [`crate::Lpips::load_default`] reads the weights: `$MAAF_LPIPS_WEIGHTS` when set
-/// and non-empty, else [`DEFAULT_WEIGHTS`].
-pub fn default_weights_path() -> PathBuf {
-    match std::env::var_os(WEIGHTS_ENV) {
-        Some(p) if !p.is_empty() => PathBuf::from(p),
-        _ => PathBuf::from(DEFAULT_WEIGHTS),
-    }
-}
-
-/// The backbone and the five v0.1 linear-layer weight vectors read from `path`.
-pub(crate) fn load(path: &Path) -> Result<(AlexNet, Vec<Vec<f32>>), LpipsError> {
+/// The backbone `net` and its five v0.1 linear-layer weight vectors read from `path`.
+pub(crate) fn load(net: Net, path: &Path) -> Result<(Backbone, Vec<Vec<f32>>), LpipsError> {
     let bytes = std::fs::read(path).map_err(|e| match e.kind() {
         std::io::ErrorKind::NotFound => LpipsError::WeightsMissing {
+            net,
             path: path.to_path_buf(),
         },
         _ => invalid(path, format!("cannot read: {e}")),
     })?;
     let st = SafeTensors::deserialize(&bytes)
         .map_err(|e| invalid(path, format!("not a safetensors file: {e}")))?;
-    let mut convs = Vec::with_capacity(LAYERS.len());
-    let mut lins = Vec::with_capacity(LAYERS.len());
-    for (i, l) in LAYERS.iter().enumerate() {
+    let stages = net.stages();
+    let mut convs = Vec::with_capacity(stages.len());
+    let mut lins = Vec::with_capacity(5);
+    for (i, l) in stages.iter().enumerate() {
         let weight = tensor(
             &st,
             path,
@@ -45,7 +33,10 @@ pub(crate) fn load(path: &Path) -> Result<(AlexNet, Vec<Vec<f32>>), LpipsError> 
             &[l.k, l.k, l.c_in, l.c_out],
         )?;
         let bias = tensor(&st, path, &format!("conv{i}.bias"), &[l.c_out])?;
-        lins.push(tensor(&st, path, &format!("lin{i}.weight"), &[l.c_out])?);
+        if l.tap {
+            let name = format!("lin{}.weight", lins.len());
+            lins.push(tensor(&st, path, &name, &[l.c_out])?);
+        }
         convs.push(ConvRelu {
             k: l.k,
             stride: l.stride,
@@ -56,7 +47,7 @@ pub(crate) fn load(path: &Path) -> Result<(AlexNet, Vec<Vec<f32>>), LpipsError> 
             bias,
         });
     }
-    Ok((AlexNet { convs }, lins))
+    Ok((Backbone { net, convs }, lins))
 }
 
 fn invalid(path: &Path, message: String) -> LpipsError {

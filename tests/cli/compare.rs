@@ -18,9 +18,10 @@ fn maaf(args: &[&str]) -> Output {
         .expect("run maaf")
 }
 
-/// The reference LPIPS of a fixture pair (`lpips_fixtures.txt`).
-fn reference_lpips(a: &str) -> f64 {
-    let text = std::fs::read_to_string(fixture("lpips_fixtures.txt")).expect("fixtures");
+/// The reference LPIPS of a fixture pair in `file` (`lpips_fixtures.txt`: AlexNet,
+/// `lpips_vgg_fixtures.txt`: VGG16).
+fn reference_lpips(file: &str, a: &str) -> f64 {
+    let text = std::fs::read_to_string(fixture(file)).expect("fixtures");
     let line = text
         .lines()
         .find(|l| l.starts_with(a))
@@ -71,7 +72,10 @@ fn json_output_has_the_eval_psnr_ssim_and_the_reference_lpips() {
         "{v}"
     );
     let lpips = v["lpips"].as_f64().expect("lpips");
-    assert!((lpips - reference_lpips("blur_a.png")).abs() < 1e-5, "{v}");
+    assert!(
+        (lpips - reference_lpips("lpips_fixtures.txt", "blur_a.png")).abs() < 1e-5,
+        "{v}"
+    );
     assert_eq!(
         (v["width"].as_u64(), v["height"].as_u64()),
         (Some(100), Some(100))
@@ -109,6 +113,59 @@ fn identical_images_and_missing_weights_are_reported_not_failed() {
         s.contains("PSNR") && s.contains("SSIM") && s.contains("LPIPS 0.00"),
         "{s}"
     );
+}
+
+#[test]
+fn the_vgg_backbone_is_chosen_by_flag_and_its_missing_weights_are_named() {
+    let (a, b) = (fixture("near_a.png"), fixture("near_b.png"));
+    let (a, b) = (a.to_str().expect("utf8"), b.to_str().expect("utf8"));
+    let missing = "/nonexistent/vgg.safetensors";
+    let out = Command::new(env!("CARGO_BIN_EXE_maaf"))
+        .args(["compare", "--render", a, "--gt", b, "--json"])
+        .args(["--lpips-net", "vgg"])
+        .env("MAAF_LPIPS_VGG_WEIGHTS", missing)
+        .output()
+        .expect("run");
+    assert!(out.status.success());
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    assert!(v["lpips"].is_null(), "{v}");
+    let why = v["lpips_unavailable"].as_str().expect("reason");
+    for part in [missing, "MAAF_LPIPS_VGG_WEIGHTS", "fetch_vgg_weights.sh"] {
+        assert!(why.contains(part), "{why}");
+    }
+    // A backbone maaf does not offer is a usage error naming it.
+    let out = maaf(&["--render", a, "--gt", b, "--lpips-net", "squeeze"]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("squeeze") && err.contains("alex or vgg"),
+        "{err}"
+    );
+}
+
+#[test]
+#[ignore = "needs the fetched VGG weights: bash lpips/tools/fetch_vgg_weights.sh"]
+fn vgg_lpips_of_the_cli_is_the_reference_vgg_value() {
+    let (a, b) = (fixture("blur_a.png"), fixture("blur_b.png"));
+    let out = maaf(&[
+        "--render",
+        a.to_str().expect("utf8"),
+        "--gt",
+        b.to_str().expect("utf8"),
+        "--json",
+        "--lpips-net",
+        "vgg",
+    ]);
+    assert!(out.status.success());
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    let lpips = v["lpips"].as_f64().expect("lpips");
+    let want = reference_lpips("lpips_vgg_fixtures.txt", "blur_a.png");
+    assert!(
+        (lpips - want).abs() < 1e-5,
+        "maaf {lpips}, reference {want}"
+    );
+    // AlexNet's value on the same pair is another number (0.192 against 0.324).
+    assert!((lpips - reference_lpips("lpips_fixtures.txt", "blur_a.png")).abs() > 0.05);
 }
 
 #[test]

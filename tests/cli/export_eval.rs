@@ -226,4 +226,35 @@ fn exported_frame_renders_as_the_run_and_eval_survives_missing_weights() {
     let steps = sc["temporal"][0]["times"].as_array().expect("times").len() - 1;
     assert_eq!(sc["popping"]["pops"].as_array().expect("pops").len(), steps);
     assert_eq!(sc["popping"]["mass"].as_array().expect("mass").len(), steps);
+    assert!(
+        v.get("lpips_net").is_none(),
+        "AlexNet keeps the old contract: {v}"
+    );
+
+    // --lpips-net vgg is recorded in eval.json; without its weights, null and the reason.
+    let missing = "/nonexistent/vgg.safetensors";
+    maaf(
+        &[
+            "eval",
+            "--run",
+            s(&run),
+            "--scales",
+            "1",
+            "--max-views",
+            "1",
+            "--no-images",
+            "--lpips-net",
+            "vgg",
+        ],
+        Some(("MAAF_LPIPS_VGG_WEIGHTS", missing)),
+    );
+    let v: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(run.join("eval.json")).expect("eval.json"))
+            .expect("json");
+    assert_eq!(v["lpips_net"], "vgg", "{v}");
+    let note = v["scales"][0]["lpips_note"].as_str().expect("reason");
+    assert!(
+        note.contains(missing) && note.contains("MAAF_LPIPS_VGG_WEIGHTS"),
+        "{note}"
+    );
 }

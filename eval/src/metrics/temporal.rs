@@ -161,7 +161,7 @@ pub struct TemporalMetrics {
 
 /// [`TemporalMetrics`] of `T` frames `[H, W, 3]` on [0, 1] and the `T - 1` forward
 /// flows `[H, W, 3]` between them (`flows[t]` from frame `t` to `t + 1`). Frames must
-/// be at least 11 x 11 (SSIM window), and at least [`maaf_lpips::MIN_SIZE`] with LPIPS.
+/// be at least 11 x 11 (SSIM window), and at least [`maaf_lpips::Net::min_size`] with LPIPS.
 pub fn temporal_metrics(
     frames: &[Tensor<f32>],
     flows: &[Tensor<f32>],

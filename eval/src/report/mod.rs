@@ -70,6 +70,7 @@ impl ReportRun {
                 background: [1.0; 3],
                 quantized_8bit: false,
                 frame_stride: 1,
+                lpips_net: "alex".into(),
                 scales,
             },
             analysis: None,
@@ -356,7 +357,11 @@ pub fn write_report(runs: &[PathBuf], out: &Path) -> Result<ReportOutput, Error>
         );
         md.push_str(&by_region);
     }
-    md.push_str("\n## LPIPS (AlexNet, lin v0.1; lower is better)\n\n");
+    let _ = writeln!(
+        md,
+        "\n## LPIPS ({}, lin v0.1; lower is better)\n",
+        temporal::lpips_nets(&runs)
+    );
     md.push_str(&temporal::lpips_table(&runs, &scales));
     let tab3 = temporal::temporal_tables(&runs);
     if !tab3.is_empty() {

@@ -11,7 +11,7 @@
 //! - The released code's row (`val-iisc/MAAF-4DGS`, SpeeDe3DGS backbone), also the
 //!   paper's Tab. 7 (`tab:speede3dgs`, "Integration with SpeeDe3DGS"): 4x only, with
 //!   GPU training minutes and the number of Gaussians. Its LPIPS uses VGG features
-//!   (`metrics.py`), not AlexNet's as maaf's does.
+//!   (`metrics.py`): maaf's compares with it when evaluated with `--lpips-net vgg`.
 
 use serde::Serialize;
 

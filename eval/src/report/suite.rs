@@ -85,6 +85,8 @@ pub struct SceneResult {
     /// Training seconds per phase (`RUN/summary.json`'s `timings`; absent when the
     /// run has no summary).
     pub phases: Option<Timings>,
+    /// LPIPS backbone of its evaluation (`alex` or `vgg`, `eval.json`'s `lpips_net`).
+    pub lpips_net: String,
 }
 
 /// A method's mean over its evaluated scenes.
@@ -93,8 +95,10 @@ pub struct Average {
     /// Scenes averaged.
     pub scenes: usize,
     /// Per scale; a scale some scene lacks is left out, LPIPS is `None` when a scene
-    /// lacks it.
+    /// lacks it or the scenes were evaluated with different LPIPS backbones.
     pub scales: Vec<Cell>,
+    /// The scenes' common LPIPS backbone; `None` when they differ.
+    pub lpips_net: Option<String>,
     /// Mean training wall time, seconds.
     pub train_seconds: f64,
     /// Mean Gaussians.
@@ -168,6 +172,7 @@ fn scene_result(run: &SuiteRun, eval: &EvalReport) -> SceneResult {
         model_bytes: eval.model_bytes,
         filter_bytes: eval.filter_bytes,
         phases: None,
+        lpips_net: eval.lpips_net.clone(),
     }
 }
 
@@ -180,6 +185,11 @@ fn average(scenes: &[SceneResult], scales: &[f64]) -> Option<Average> {
         return None;
     }
     let n = scenes.len() as f64;
+    let net = &scenes[0].lpips_net;
+    let lpips_net = scenes
+        .iter()
+        .all(|r| &r.lpips_net == net)
+        .then(|| net.clone());
     let cells = scales
         .iter()
         .filter_map(|&s| {
@@ -192,6 +202,7 @@ fn average(scenes: &[SceneResult], scales: &[f64]) -> Option<Average> {
                     .iter()
                     .map(|c| c.lpips)
                     .sum::<Option<f64>>()
+                    .filter(|_| lpips_net.is_some())
                     .map(|v| v / n),
             })
         })
@@ -199,6 +210,7 @@ fn average(scenes: &[SceneResult], scales: &[f64]) -> Option<Average> {
     Some(Average {
         scenes: scenes.len(),
         scales: cells,
+        lpips_net,
         train_seconds: scenes.iter().map(|r| r.train_seconds).sum::<f64>() / n,
         gaussians: scenes.iter().map(|r| r.gaussians as f64).sum::<f64>() / n,
         model_bytes: scenes.iter().map(|r| r.model_bytes as f64).sum::<f64>() / n,
@@ -321,6 +333,35 @@ pub fn tab2_table(summary: &SuiteSummary) -> String {
         t.push('\n');
     }
     t
+}
+
+/// Whether maaf's LPIPS column compares with the release's: it computes LPIPS on VGG
+/// features (`lpips.LPIPS(net='vgg')` in its `metrics.py`); maaf's methods on the
+/// backbone each was evaluated with (`maaf eval --lpips-net`, passed through
+/// `bench-suite --eval-args`).
+fn lpips_net_note(summary: &SuiteSummary) -> String {
+    let mut nets: Vec<&str> = summary
+        .methods
+        .iter()
+        .filter_map(|m| m.average.as_ref())
+        .map(|a| match a.lpips_net.as_deref() {
+            Some("alex") => "AlexNet",
+            Some("vgg") => "VGG",
+            _ => "mixed",
+        })
+        .collect();
+    nets.dedup();
+    let release = "The release's LPIPS is computed on VGG features (`lpips.LPIPS(net='vgg')` \
+                   in its `metrics.py`)";
+    if nets == ["VGG"] {
+        format!("{release}, as maaf's here (`--lpips-net vgg`): the LPIPS column compares.\n\n")
+    } else {
+        format!(
+            "{release}; maaf's rows here use {} features, so only a VGG row compares with it \
+             (evaluate with `--eval-args \"--no-images --lpips-net vgg\"` for that).\n\n",
+            nets.join(" / ")
+        )
+    }
 }
 
 /// Each method's average at 4x with its cost, beside the released code's rows.
@@ -507,11 +548,7 @@ pub fn markdown(summary: &SuiteSummary) -> String {
     md.push_str("## Tab. 2 layout: 1x / 2x / 4x, averaged over scenes\n\n");
     md.push_str(&tab2_table(summary));
     md.push_str("\n## At 4x against the released code (SpeeDe3DGS backbone)\n\n");
-    md.push_str(
-        "The release's LPIPS is computed on VGG features (`lpips.LPIPS(net='vgg')` in its \
-         `metrics.py`), maaf's on AlexNet's, so the LPIPS column is not comparable \
-         across the two.\n\n",
-    );
+    md.push_str(&lpips_net_note(summary));
     md.push_str(&released_table(summary));
     for metric in &METRICS {
         let _ = writeln!(md, "\n## Per scene: {}\n", metric.0);
@@ -694,5 +731,37 @@ mod tests {
             "{table}"
         );
         assert_eq!(phase_shares(Some(&Timings::default())), None);
+    }
+
+    #[test]
+    fn lpips_is_averaged_only_over_one_backbone_and_the_note_says_which() {
+        let vgg = |psnr| {
+            let mut e = eval(psnr, &[1.0, 4.0]);
+            e.lpips_net = "vgg".into();
+            e
+        };
+        let all_vgg = summarise(&[
+            (run("a", "motion"), Some(vgg(30.0))),
+            (run("b", "motion"), Some(vgg(31.0))),
+        ]);
+        let avg = all_vgg.methods[0].average.as_ref().expect("average");
+        assert_eq!(avg.lpips_net.as_deref(), Some("vgg"));
+        assert!((avg.scales[1].lpips.expect("lpips") - 0.4).abs() < 1e-12);
+        assert!(lpips_net_note(&all_vgg).contains("the LPIPS column compares"));
+
+        let mixed = summarise(&[
+            (run("a", "motion"), Some(vgg(30.0))),
+            (run("b", "motion"), Some(eval(31.0, &[1.0, 4.0]))),
+        ]);
+        let avg = mixed.methods[0].average.as_ref().expect("average");
+        assert_eq!(avg.lpips_net, None);
+        assert!(avg.scales.iter().all(|c| c.lpips.is_none()), "{avg:?}");
+        assert!(avg.scales.iter().all(|c| c.psnr > 0.0));
+        let note = lpips_net_note(&mixed);
+        assert!(note.contains("use mixed features"), "{note}");
+
+        let alex = summarise(&[(run("a", "none"), Some(eval(30.0, &[4.0])))]);
+        let note = lpips_net_note(&alex);
+        assert!(note.contains("use AlexNet features") && note.contains("--lpips-net vgg"));
     }
 }

@@ -20,6 +20,35 @@ fn cell(v: Option<f64>, digits: usize) -> String {
     v.map_or("-".to_string(), |v| format!("{v:.digits$}"))
 }
 
+/// The LPIPS backbones of `runs` for the table's heading: `AlexNet`, `VGG16`, or
+/// both with the runs on each when they differ (`maaf eval --lpips-net`).
+pub fn lpips_nets(runs: &[ReportRun]) -> String {
+    let name = |n: &str| match n {
+        "alex" => "AlexNet".to_string(),
+        "vgg" => "VGG16".to_string(),
+        other => other.to_string(),
+    };
+    let mut nets: Vec<&str> = runs.iter().map(|r| r.eval.lpips_net.as_str()).collect();
+    nets.sort_unstable();
+    nets.dedup();
+    match nets.as_slice() {
+        [] => name("alex"),
+        [one] => name(one),
+        _ => nets
+            .iter()
+            .map(|&n| {
+                let labels: Vec<&str> = runs
+                    .iter()
+                    .filter(|r| r.eval.lpips_net == n)
+                    .map(|r| r.label.as_str())
+                    .collect();
+                format!("{} for {}", name(n), labels.join(", "))
+            })
+            .collect::<Vec<_>>()
+            .join("; "),
+    }
+}
+
 /// A markdown table of mean LPIPS per scale (lower is better), one row per run;
 /// `-` where a scale has none (its `lpips_note` says why).
 pub fn lpips_table(runs: &[ReportRun], scales: &[f64]) -> String {
