@@ -18,6 +18,26 @@ fn maaf(args: &[&str]) -> Output {
         .expect("run maaf")
 }
 
+/// `maaf compare --json` of two fixtures with `extra` arguments and, when given, one
+/// environment variable set: its JSON object.
+fn compare_json(a: &str, b: &str, extra: &[&str], env: Option<(&str, &str)>) -> serde_json::Value {
+    let (a, b) = (fixture(a), fixture(b));
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_maaf"));
+    cmd.args(["compare", "--render", a.to_str().expect("utf8")])
+        .args(["--gt", b.to_str().expect("utf8"), "--json"])
+        .args(extra);
+    if let Some((k, v)) = env {
+        cmd.env(k, v);
+    }
+    let out = cmd.output().expect("run maaf");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("one JSON object")
+}
+
 /// The reference LPIPS of a fixture pair in `file` (`lpips_fixtures.txt`: AlexNet,
 /// `lpips_vgg_fixtures.txt`: VGG16).
 fn reference_lpips(file: &str, a: &str) -> f64 {
@@ -46,20 +66,7 @@ fn tensor(name: &str) -> maaf::autodiff::Tensor<f32> {
 
 #[test]
 fn json_output_has_the_eval_psnr_ssim_and_the_reference_lpips() {
-    let (a, b) = (fixture("blur_a.png"), fixture("blur_b.png"));
-    let out = maaf(&[
-        "--render",
-        a.to_str().expect("utf8"),
-        "--gt",
-        b.to_str().expect("utf8"),
-        "--json",
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+    let v = compare_json("blur_a.png", "blur_b.png", &[], None);
     let (ta, tb) = (tensor("blur_a.png"), tensor("blur_b.png"));
     let psnr = maaf::train::metrics::psnr(&ta, &tb).expect("psnr");
     let ssim = maaf::train::metrics::ssim(&ta, &tb).expect("ssim");
@@ -95,13 +102,12 @@ fn identical_images_and_missing_weights_are_reported_not_failed() {
         v["psnr"].is_null() && v["lpips"].as_f64() == Some(0.0),
         "{v}"
     );
-    let out = Command::new(env!("CARGO_BIN_EXE_maaf"))
-        .args(["compare", "--render", a, "--gt", a, "--json"])
-        .env("MAAF_LPIPS_WEIGHTS", "/nonexistent/alex.safetensors")
-        .output()
-        .expect("run");
-    assert!(out.status.success());
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    let v = compare_json(
+        "near_a.png",
+        "near_a.png",
+        &[],
+        Some(("MAAF_LPIPS_WEIGHTS", "/nonexistent/alex.safetensors")),
+    );
     assert!(v["lpips"].is_null(), "{v}");
     let why = v["lpips_unavailable"].as_str().expect("reason");
     assert!(why.contains("/nonexistent/alex.safetensors"), "{why}");
@@ -117,23 +123,21 @@ fn identical_images_and_missing_weights_are_reported_not_failed() {
 
 #[test]
 fn the_vgg_backbone_is_chosen_by_flag_and_its_missing_weights_are_named() {
-    let (a, b) = (fixture("near_a.png"), fixture("near_b.png"));
-    let (a, b) = (a.to_str().expect("utf8"), b.to_str().expect("utf8"));
     let missing = "/nonexistent/vgg.safetensors";
-    let out = Command::new(env!("CARGO_BIN_EXE_maaf"))
-        .args(["compare", "--render", a, "--gt", b, "--json"])
-        .args(["--lpips-net", "vgg"])
-        .env("MAAF_LPIPS_VGG_WEIGHTS", missing)
-        .output()
-        .expect("run");
-    assert!(out.status.success());
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    let v = compare_json(
+        "near_a.png",
+        "near_b.png",
+        &["--lpips-net", "vgg"],
+        Some(("MAAF_LPIPS_VGG_WEIGHTS", missing)),
+    );
     assert!(v["lpips"].is_null(), "{v}");
     let why = v["lpips_unavailable"].as_str().expect("reason");
     for part in [missing, "MAAF_LPIPS_VGG_WEIGHTS", "fetch_vgg_weights.sh"] {
         assert!(why.contains(part), "{why}");
     }
     // A backbone maaf does not offer is a usage error naming it.
+    let (a, b) = (fixture("near_a.png"), fixture("near_b.png"));
+    let (a, b) = (a.to_str().expect("utf8"), b.to_str().expect("utf8"));
     let out = maaf(&["--render", a, "--gt", b, "--lpips-net", "squeeze"]);
     assert_eq!(out.status.code(), Some(2));
     let err = String::from_utf8_lossy(&out.stderr);
@@ -146,18 +150,7 @@ fn the_vgg_backbone_is_chosen_by_flag_and_its_missing_weights_are_named() {
 #[test]
 #[ignore = "needs the fetched VGG weights: bash lpips/tools/fetch_vgg_weights.sh"]
 fn vgg_lpips_of_the_cli_is_the_reference_vgg_value() {
-    let (a, b) = (fixture("blur_a.png"), fixture("blur_b.png"));
-    let out = maaf(&[
-        "--render",
-        a.to_str().expect("utf8"),
-        "--gt",
-        b.to_str().expect("utf8"),
-        "--json",
-        "--lpips-net",
-        "vgg",
-    ]);
-    assert!(out.status.success());
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("json");
+    let v = compare_json("blur_a.png", "blur_b.png", &["--lpips-net", "vgg"], None);
     let lpips = v["lpips"].as_f64().expect("lpips");
     let want = reference_lpips("lpips_vgg_fixtures.txt", "blur_a.png");
     assert!(

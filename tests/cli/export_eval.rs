@@ -194,25 +194,19 @@ fn exported_frame_renders_as_the_run_and_eval_survives_missing_weights() {
     );
     assert_eq!(std::fs::read(&notes).expect("notes"), b"my notes");
 
+    // One view at 1x with `extra` arguments and one environment variable set; the
+    // eval.json it wrote.
+    let eval_1x = |extra: &[&str], env: (&str, &str)| -> serde_json::Value {
+        let mut args = vec!["eval", "--run", s(&run), "--scales", "1"];
+        args.extend(["--max-views", "1", "--no-images"]);
+        args.extend(extra);
+        maaf(&args, Some(env));
+        serde_json::from_slice(&std::fs::read(run.join("eval.json")).expect("eval.json"))
+            .expect("json")
+    };
     // eval --temporal with no LPIPS weights: null and the reason, temporal still filled.
     let missing = "/nonexistent/alex.safetensors";
-    maaf(
-        &[
-            "eval",
-            "--run",
-            s(&run),
-            "--scales",
-            "1",
-            "--max-views",
-            "1",
-            "--no-images",
-            "--temporal",
-        ],
-        Some(("MAAF_LPIPS_WEIGHTS", missing)),
-    );
-    let v: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(run.join("eval.json")).expect("eval.json"))
-            .expect("json");
+    let v = eval_1x(&["--temporal"], ("MAAF_LPIPS_WEIGHTS", missing));
     let sc = &v["scales"][0];
     assert!(sc["lpips"].is_null() && sc["w_lpips"].is_null(), "{sc}");
     assert!(
@@ -233,24 +227,7 @@ fn exported_frame_renders_as_the_run_and_eval_survives_missing_weights() {
 
     // --lpips-net vgg is recorded in eval.json; without its weights, null and the reason.
     let missing = "/nonexistent/vgg.safetensors";
-    maaf(
-        &[
-            "eval",
-            "--run",
-            s(&run),
-            "--scales",
-            "1",
-            "--max-views",
-            "1",
-            "--no-images",
-            "--lpips-net",
-            "vgg",
-        ],
-        Some(("MAAF_LPIPS_VGG_WEIGHTS", missing)),
-    );
-    let v: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(run.join("eval.json")).expect("eval.json"))
-            .expect("json");
+    let v = eval_1x(&["--lpips-net", "vgg"], ("MAAF_LPIPS_VGG_WEIGHTS", missing));
     assert_eq!(v["lpips_net"], "vgg", "{v}");
     let note = v["scales"][0]["lpips_note"].as_str().expect("reason");
     assert!(
