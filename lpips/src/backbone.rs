@@ -28,6 +28,23 @@ impl Net {
         }
     }
 
+    /// The network's usual name, for tables and messages: `AlexNet` or `VGG16`.
+    pub fn label(self) -> &'static str {
+        match self {
+            Net::Alex => "AlexNet",
+            Net::Vgg => "VGG16",
+        }
+    }
+
+    /// How a missing weights file is made: converted once (AlexNet's is committed) or
+    /// fetched (VGG16's).
+    pub(crate) fn weights_source(self) -> &'static str {
+        match self {
+            Net::Alex => "lpips/tools/convert_weights.py",
+            Net::Vgg => "bash lpips/tools/fetch_vgg_weights.sh",
+        }
+    }
+
     /// Smallest height and width the network accepts. AlexNet: its second max-pool
     /// needs a 3 x 3 input, which takes a conv0 output of 7, i.e.
     /// `(31 + 4 - 11) / 4 + 1 = 7`. VGG16: four 2 x 2 pools halve (rounding down) to

@@ -43,10 +43,7 @@ pub enum LpipsError {
     #[error(
         "LPIPS-{net} weights not found at {path} (set {env}, or fetch them: {fetch})",
         env = net.weights_env(),
-        fetch = match net {
-            Net::Alex => "lpips/tools/convert_weights.py",
-            Net::Vgg => "bash lpips/tools/fetch_vgg_weights.sh",
-        }
+        fetch = net.weights_source()
     )]
     WeightsMissing {
         /// The network whose weights were looked for.

@@ -28,6 +28,15 @@ use maaf_filter::AnalysisExport;
 use crate::{Error, write_atomic};
 use crate::{EvalReport, FILTER_ANALYSIS_FILE, trim_float};
 
+/// The display name of an `eval.json` `lpips_net` (`alex` -> `AlexNet`, `vgg` ->
+/// `VGG16`, [`maaf_lpips::Net::label`]); an unknown name as written.
+pub(crate) fn lpips_label(name: &str) -> &str {
+    match name.parse::<maaf_lpips::Net>() {
+        Ok(net) => net.label(),
+        Err(_) => name,
+    }
+}
+
 /// One evaluated run as the report shows it.
 #[derive(Clone, Debug)]
 pub struct ReportRun {

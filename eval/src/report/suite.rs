@@ -344,16 +344,12 @@ fn lpips_net_note(summary: &SuiteSummary) -> String {
         .methods
         .iter()
         .filter_map(|m| m.average.as_ref())
-        .map(|a| match a.lpips_net.as_deref() {
-            Some("alex") => "AlexNet",
-            Some("vgg") => "VGG",
-            _ => "mixed",
-        })
+        .map(|a| a.lpips_net.as_deref().map_or("mixed", super::lpips_label))
         .collect();
     nets.dedup();
     let release = "The release's LPIPS is computed on VGG features (`lpips.LPIPS(net='vgg')` \
                    in its `metrics.py`)";
-    if nets == ["VGG"] {
+    if nets == [maaf_lpips::Net::Vgg.label()] {
         format!("{release}, as maaf's here (`--lpips-net vgg`): the LPIPS column compares.\n\n")
     } else {
         format!(

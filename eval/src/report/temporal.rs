@@ -23,17 +23,13 @@ fn cell(v: Option<f64>, digits: usize) -> String {
 /// The LPIPS backbones of `runs` for the table's heading: `AlexNet`, `VGG16`, or
 /// both with the runs on each when they differ (`maaf eval --lpips-net`).
 pub fn lpips_nets(runs: &[ReportRun]) -> String {
-    let name = |n: &str| match n {
-        "alex" => "AlexNet".to_string(),
-        "vgg" => "VGG16".to_string(),
-        other => other.to_string(),
-    };
+    let name = super::lpips_label;
     let mut nets: Vec<&str> = runs.iter().map(|r| r.eval.lpips_net.as_str()).collect();
     nets.sort_unstable();
     nets.dedup();
     match nets.as_slice() {
-        [] => name("alex"),
-        [one] => name(one),
+        [] => name("alex").to_string(),
+        [one] => name(one).to_string(),
         _ => nets
             .iter()
             .map(|&n| {
