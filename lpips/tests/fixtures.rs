@@ -3,7 +3,7 @@
 //!
 //! The VGG16 tests need the fetched weights (`bash lpips/tools/fetch_vgg_weights.sh`), so
 //! they are `#[ignore]`d in the plain test run; CI fetches them and runs them with
-//! `cargo test --release -p maaf-lpips -- --ignored`.
+//! `cargo test -p maaf-lpips -- --ignored`.
 
 use std::path::{Path, PathBuf};
 

@@ -401,7 +401,7 @@ fn thread_cpu_seconds() -> f64 {
 }
 
 /// Cost of the default configuration at N = 20 000 (one view per step):
-/// `cargo test -p maaf-train --release cost_report -- --ignored --nocapture`.
+/// `cargo test -p maaf-models cost_report -- --ignored --nocapture`.
 /// Prints thread CPU times (single-threaded code); never asserts a time (the
 /// machine's speed drifts; docs/performance.md).
 #[test]
