@@ -11,8 +11,14 @@ pub struct Timings {
     pub render_forward: f64,
     /// Reverse sweep of the tape.
     pub backward: f64,
-    /// Adam updates, statistics and observation recording.
+    /// The gradients' finiteness check and the Adam updates (in runs that predate
+    /// [`Self::statistics`], also what that field now holds).
     pub optimiser: f64,
+    /// Bookkeeping after the update: the densification statistics (screen-space
+    /// gradient sums), opacity liveness and the filter's observation recording
+    /// (0 in runs that predate it).
+    #[serde(default)]
+    pub statistics: f64,
     /// Filter refreshes (static nu or motion-aware KDE).
     pub filter_refresh: f64,
     /// Densification, pruning and opacity resets.
@@ -31,6 +37,7 @@ impl Timings {
             + self.render_forward
             + self.backward
             + self.optimiser
+            + self.statistics
             + self.filter_refresh
             + self.densification
     }
@@ -44,6 +51,7 @@ impl Timings {
             ("render forward", self.render_forward),
             ("backward", self.backward),
             ("optimiser", self.optimiser),
+            ("statistics", self.statistics),
             ("filter refresh", self.filter_refresh),
             ("densification", self.densification),
         ]

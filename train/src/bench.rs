@@ -11,7 +11,8 @@
 //!   fraction is of the measured GEMM rate;
 //! - optimiser: Adam reads parameter, gradient and both moments and writes three of
 //!   them, `7 x 4` bytes per scalar; the fraction is of the measured copy rate;
-//! - renderer, K-plane field, loss and elementwise ops: time only (not GEMM-shaped).
+//! - renderer, K-plane field, loss and elementwise ops, and the statistics recorded
+//!   after the update: time only (not GEMM-shaped).
 
 use std::time::Instant;
 
@@ -287,11 +288,18 @@ pub fn bench_step(
             row("loss (L1, SSIM)", loss_f, loss_b, None, None),
             row("elementwise, concat, slice, sum", oth_f, oth_b, None, None),
             row(
-                "optimiser (Adam) + statistics",
+                "optimiser (Adam)",
                 per(trainer.timings.optimiser),
                 0.0,
                 None,
                 Some(28.0 * scalars as f64),
+            ),
+            row(
+                "statistics (densification, liveness, observations)",
+                per(trainer.timings.statistics),
+                0.0,
+                None,
+                None,
             ),
         ],
     };

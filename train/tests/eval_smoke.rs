@@ -78,6 +78,12 @@ fn eval_writes_the_contract_and_refuses_bad_input() {
         cpu > 0.0 && cpu <= wall * cores * 1.1 + 0.05,
         "cpu {cpu} s, wall {wall} s"
     );
+    // Every step records statistics after the update, timed apart from Adam.
+    assert!(
+        summary.timings.statistics > 0.0 && summary.timings.optimiser > 0.0,
+        "{:?}",
+        summary.timings
+    );
 
     let options = EvalOptions {
         scales: vec![0.5, 1.0, 2.0],

@@ -437,27 +437,28 @@ fn per_scene_table(summary: &SuiteSummary, metric: &Metric) -> String {
 type Phase = (&'static str, fn(&Timings) -> f64);
 
 /// The training phases in the cost table's order.
-const PHASES: [Phase; 6] = [
+const PHASES: [Phase; 7] = [
     ("field + MLPs", |t| t.field_mlp),
     ("render", |t| t.render_forward),
     ("backward", |t| t.backward),
     ("optimiser", |t| t.optimiser),
+    ("statistics", |t| t.statistics),
     ("filter", |t| t.filter_refresh),
     ("densify", |t| t.densification),
 ];
 
 /// Each phase's share of the phases' sum, in percent, in the order field + MLPs,
-/// render, backward, optimiser, filter, densify; `None` when the timings are absent
+/// render, backward, optimiser, statistics, filter, densify; `None` when the timings are absent
 /// or sum to zero.
-pub fn phase_shares(timings: Option<&Timings>) -> Option<[f64; 6]> {
+pub fn phase_shares(timings: Option<&Timings>) -> Option<[f64; PHASES.len()]> {
     let t = timings?;
     let total = t.total();
     (total > 0.0).then(|| PHASES.map(|(_, f)| 100.0 * f(t) / total))
 }
 
 /// The mean of each phase's share over the scenes that have timings.
-fn mean_shares(scenes: &[SceneResult]) -> Option<[f64; 6]> {
-    let all: Vec<[f64; 6]> = scenes
+fn mean_shares(scenes: &[SceneResult]) -> Option<[f64; PHASES.len()]> {
+    let all: Vec<[f64; PHASES.len()]> = scenes
         .iter()
         .filter_map(|r| phase_shares(r.phases.as_ref()))
         .collect();
@@ -466,7 +467,7 @@ fn mean_shares(scenes: &[SceneResult]) -> Option<[f64; 6]> {
 }
 
 /// `| a | b | ...` of the shares with no decimals, or dashes.
-fn share_cells(shares: Option<[f64; 6]>) -> String {
+fn share_cells(shares: Option<[f64; PHASES.len()]>) -> String {
     match shares {
         Some(s) => s.iter().map(|v| format!(" {v:.0} |")).collect(),
         None => " - |".repeat(PHASES.len()),
@@ -699,31 +700,38 @@ mod tests {
             render_forward: 1.0,
             backward,
             optimiser: 1.0,
+            statistics: 1.0,
             filter_refresh: 0.5,
             densification: 0.5,
             cpu,
         };
-        // a: 2 + 1 + 4 + 1 + 0.5 + 0.5 = 9 s; b: 6 + 1 + 2 + 1 + 0.5 + 0.5 = 11 s.
+        // a: 2 + 1 + 4 + 1 + 1 + 0.5 + 0.5 = 10 s; b: 6 + 1 + 2 + 1 + 1 + 0.5 + 0.5 = 12 s.
         // CPU: a 0.25 min, b 0.35 min; the phases' sum leaves CPU time out.
         s.methods[0].scenes[0].phases = Some(timings(2.0, 4.0, 15.0));
         s.methods[0].scenes[1].phases = Some(timings(6.0, 2.0, 21.0));
         let a = phase_shares(s.methods[0].scenes[0].phases.as_ref()).expect("shares");
-        assert!((a[0] - 200.0 / 9.0).abs() < 1e-9 && (a[2] - 400.0 / 9.0).abs() < 1e-9);
+        assert!(
+            (a[0] - 20.0).abs() < 1e-9 && (a[2] - 40.0).abs() < 1e-9 && (a[4] - 10.0).abs() < 1e-9
+        );
         assert!((a.iter().sum::<f64>() - 100.0).abs() < 1e-9);
         let table = cost_table(&s);
         assert!(
-            table.contains("| 0.25 | 22 | 11 | 44 | 11 | 6 | 6 |"),
+            table.contains("| 0.25 | 20 | 10 | 40 | 10 | 10 | 5 | 5 |"),
             "{table}"
         );
         assert!(
-            table.contains("| 0.35 | 55 | 9 | 18 | 9 | 5 | 5 |"),
+            table.contains("| 0.35 | 50 | 8 | 17 | 8 | 8 | 4 | 4 |"),
             "{table}"
         );
         // Scene c has no summary: dashes, and the average is over a and b only
-        // (field + MLPs (22.2 + 54.5) / 2 = 38.4; CPU (0.25 + 0.35) / 2 = 0.30).
-        assert!(table.contains("| - | - | - | - | - | - | - |"), "{table}");
+        // (field + MLPs (20 + 50) / 2 = 35, filter (5 + 4.17) / 2 = 4.58; CPU
+        // (0.25 + 0.35) / 2 = 0.30).
         assert!(
-            table.contains("| 0.30 | 38 | 10 | 31 | 10 | 5 | 5 |"),
+            table.contains("| - | - | - | - | - | - | - | - |"),
+            "{table}"
+        );
+        assert!(
+            table.contains("| 0.30 | 35 | 9 | 28 | 9 | 9 | 5 | 5 |"),
             "{table}"
         );
         assert_eq!(phase_shares(Some(&Timings::default())), None);

@@ -1,5 +1,5 @@
 //! One training iteration: forward (the shared pipeline), objective, backward, Adam,
-//! statistics, then densification and filter refresh when due.
+//! statistics (each timed as its own phase, [`maaf_scene::Timings`]), then densification and filter refresh when due.
 
 use std::time::Instant;
 
@@ -128,6 +128,8 @@ impl Trainer {
                 None => Ok(gr),
             }
         });
+        // Set after the Adam updates: what follows is bookkeeping (`Timings::statistics`).
+        let mut t_updated = None;
         match grads {
             Ok(grads) => {
                 let densifying = it <= self.config.densify.until;
@@ -150,6 +152,7 @@ impl Trainer {
                         );
                     }
                 }
+                t_updated = Some(Instant::now());
                 // Each view's screen-space gradient is that of its own objective
                 // (SaRO-GS backpropagates every view's loss before averaging), i.e.
                 // `batch` times its share of the mean.
@@ -208,7 +211,9 @@ impl Trainer {
         self.timings.field_mlp += bind_seconds + deform;
         self.timings.render_forward += render + (t2 - t_obj).as_secs_f64();
         self.timings.backward += (t3 - t2).as_secs_f64();
-        self.timings.optimiser += (t4 - t3).as_secs_f64();
+        let t_updated = t_updated.unwrap_or(t4);
+        self.timings.optimiser += (t_updated - t3).as_secs_f64();
+        self.timings.statistics += (t4 - t_updated).as_secs_f64();
         drop(fwds);
         drop(bound);
         drop(params);
