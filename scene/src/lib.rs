@@ -46,7 +46,7 @@ pub use record::{RawTensor, SceneRecord};
 pub use registry::{ModelLoader, ModelRegistry};
 pub use run_dir::repair_run_dir;
 pub use term_name::{RESERVED, name_problem};
-pub use timings::Timings;
+pub use timings::{PHASE_COUNT, Timings};
 
 use maaf_data::Dataset;
 use maaf_models::Representation;

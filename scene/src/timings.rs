@@ -30,22 +30,13 @@ pub struct Timings {
     pub cpu: f64,
 }
 
-impl Timings {
-    /// Sum of all phases.
-    pub fn total(&self) -> f64 {
-        self.field_mlp
-            + self.render_forward
-            + self.backward
-            + self.optimiser
-            + self.statistics
-            + self.filter_refresh
-            + self.densification
-    }
+/// How many timed phases a step has ([`Timings::phases`]).
+pub const PHASE_COUNT: usize = 7;
 
-    /// One line per phase with seconds, ms per iteration and share of the total.
-    pub fn report(&self, iterations: usize) -> String {
-        let total = self.total().max(1e-12);
-        let per = |s: f64| 1e3 * s / iterations.max(1) as f64;
+impl Timings {
+    /// Each timed phase with its name, in the step's order: field + MLPs, render
+    /// forward, backward, optimiser, statistics, filter refresh, densification.
+    pub fn phases(&self) -> [(&'static str, f64); PHASE_COUNT] {
         [
             ("field+MLP", self.field_mlp),
             ("render forward", self.render_forward),
@@ -55,22 +46,34 @@ impl Timings {
             ("filter refresh", self.filter_refresh),
             ("densification", self.densification),
         ]
-        .iter()
-        .map(|(name, s)| {
-            format!(
-                "{name:>15}: {s:8.1} s  {:7.2} ms/it  {:5.1}%\n",
-                per(*s),
-                100.0 * s / total
-            )
-        })
-        .chain((self.cpu > 0.0).then(|| {
-            format!(
-                "{:>15}: {:8.1} s  {:5.2} cores busy on average\n",
-                "CPU (all)",
-                self.cpu,
-                self.cpu / total
-            )
-        }))
-        .collect()
+    }
+
+    /// Sum of all phases.
+    pub fn total(&self) -> f64 {
+        self.phases().iter().map(|(_, s)| s).sum()
+    }
+
+    /// One line per phase with seconds, ms per iteration and share of the total.
+    pub fn report(&self, iterations: usize) -> String {
+        let total = self.total().max(1e-12);
+        let per = |s: f64| 1e3 * s / iterations.max(1) as f64;
+        self.phases()
+            .iter()
+            .map(|(name, s)| {
+                format!(
+                    "{name:>15}: {s:8.1} s  {:7.2} ms/it  {:5.1}%\n",
+                    per(*s),
+                    100.0 * s / total
+                )
+            })
+            .chain((self.cpu > 0.0).then(|| {
+                format!(
+                    "{:>15}: {:8.1} s  {:5.2} cores busy on average\n",
+                    "CPU (all)",
+                    self.cpu,
+                    self.cpu / total
+                )
+            }))
+            .collect()
     }
 }

@@ -13,7 +13,7 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use maaf_scene::Timings;
+use maaf_scene::{PHASE_COUNT, Timings};
 use serde::{Deserialize, Serialize};
 
 use super::published::{PublishedRow, paper_tab2, released};
@@ -433,32 +433,29 @@ fn per_scene_table(summary: &SuiteSummary, metric: &Metric) -> String {
     t
 }
 
-/// A training phase: its column name and its seconds in [`Timings`].
-type Phase = (&'static str, fn(&Timings) -> f64);
-
-/// The training phases in the cost table's order.
-const PHASES: [Phase; 7] = [
-    ("field + MLPs", |t| t.field_mlp),
-    ("render", |t| t.render_forward),
-    ("backward", |t| t.backward),
-    ("optimiser", |t| t.optimiser),
-    ("statistics", |t| t.statistics),
-    ("filter", |t| t.filter_refresh),
-    ("densify", |t| t.densification),
+/// The cost table's short names of [`Timings::phases`], in that order.
+const PHASES: [&str; PHASE_COUNT] = [
+    "field + MLPs",
+    "render",
+    "backward",
+    "optimiser",
+    "statistics",
+    "filter",
+    "densify",
 ];
 
 /// Each phase's share of the phases' sum, in percent, in the order field + MLPs,
 /// render, backward, optimiser, statistics, filter, densify; `None` when the timings are absent
 /// or sum to zero.
-pub fn phase_shares(timings: Option<&Timings>) -> Option<[f64; PHASES.len()]> {
+pub fn phase_shares(timings: Option<&Timings>) -> Option<[f64; PHASE_COUNT]> {
     let t = timings?;
     let total = t.total();
-    (total > 0.0).then(|| PHASES.map(|(_, f)| 100.0 * f(t) / total))
+    (total > 0.0).then(|| t.phases().map(|(_, s)| 100.0 * s / total))
 }
 
 /// The mean of each phase's share over the scenes that have timings.
-fn mean_shares(scenes: &[SceneResult]) -> Option<[f64; PHASES.len()]> {
-    let all: Vec<[f64; PHASES.len()]> = scenes
+fn mean_shares(scenes: &[SceneResult]) -> Option<[f64; PHASE_COUNT]> {
+    let all: Vec<[f64; PHASE_COUNT]> = scenes
         .iter()
         .filter_map(|r| phase_shares(r.phases.as_ref()))
         .collect();
@@ -467,7 +464,7 @@ fn mean_shares(scenes: &[SceneResult]) -> Option<[f64; PHASES.len()]> {
 }
 
 /// `| a | b | ...` of the shares with no decimals, or dashes.
-fn share_cells(shares: Option<[f64; PHASES.len()]>) -> String {
+fn share_cells(shares: Option<[f64; PHASE_COUNT]>) -> String {
     match shares {
         Some(s) => s.iter().map(|v| format!(" {v:.0} |")).collect(),
         None => " - |".repeat(PHASES.len()),
@@ -490,7 +487,7 @@ fn mean_cpu_minutes(scenes: &[SceneResult]) -> Option<f64> {
 /// (percent of the timed phases), Gaussians, bytes.
 fn cost_table(summary: &SuiteSummary) -> String {
     let mut t = String::from("| Method | Scene | Iterations | Train time (min) | CPU time (min) |");
-    for (name, _) in PHASES {
+    for name in PHASES {
         let _ = write!(t, " {name} % |");
     }
     t.push_str(" Gaussians | Model (MB) | Filter state (MB) |\n|---|---|---:|---:|---:|");

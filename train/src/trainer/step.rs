@@ -1,5 +1,6 @@
 //! One training iteration: forward (the shared pipeline), objective, backward, Adam,
-//! statistics (each timed as its own phase, [`maaf_scene::Timings`]), then densification and filter refresh when due.
+//! statistics (each timed as its own phase, [`maaf_scene::Timings`]), then
+//! densification and filter refresh when due.
 
 use std::time::Instant;
 
