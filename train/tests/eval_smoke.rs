@@ -84,6 +84,16 @@ fn eval_writes_the_contract_and_refuses_bad_input() {
         "{:?}",
         summary.timings
     );
+    // On Linux the machine's clock covers the same phases and includes the training's
+    // own CPU, and no more than every core for the wall time. It counts 10 ms ticks,
+    // so over 30 short iterations it is only roughly the process's: at least half.
+    if cfg!(target_os = "linux") {
+        let machine = summary.timings.machine_cpu;
+        assert!(
+            machine >= 0.5 * cpu && machine <= wall * cores * 1.1 + 0.5,
+            "machine {machine} s, cpu {cpu} s, wall {wall} s"
+        );
+    }
 
     let options = EvalOptions {
         scales: vec![0.5, 1.0, 2.0],

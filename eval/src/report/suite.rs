@@ -483,26 +483,41 @@ fn mean_cpu_minutes(scenes: &[SceneResult]) -> Option<f64> {
     (!all.is_empty()).then(|| all.iter().sum::<f64>() / all.len() as f64)
 }
 
-/// Per scene and method: iterations, training wall and CPU time, the phase split
-/// (percent of the timed phases), Gaussians, bytes.
+/// The cores other processes kept busy beside a run's training
+/// ([`Timings::others_busy`]), `None` when its summary predates the machine's clock.
+fn others_busy(r: &SceneResult) -> Option<f64> {
+    r.phases.as_ref().and_then(Timings::others_busy)
+}
+
+/// The mean load beside the runs over the scenes that recorded it.
+fn mean_others_busy(scenes: &[SceneResult]) -> Option<f64> {
+    let all: Vec<f64> = scenes.iter().filter_map(others_busy).collect();
+    (!all.is_empty()).then(|| all.iter().sum::<f64>() / all.len() as f64)
+}
+
+/// Per scene and method: iterations, training wall and CPU time, the load beside it,
+/// the phase split (percent of the timed phases), Gaussians, bytes.
 fn cost_table(summary: &SuiteSummary) -> String {
-    let mut t = String::from("| Method | Scene | Iterations | Train time (min) | CPU time (min) |");
+    let mut t = String::from(
+        "| Method | Scene | Iterations | Train time (min) | CPU time (min) | Others busy (cores) |",
+    );
     for name in PHASES {
         let _ = write!(t, " {name} % |");
     }
-    t.push_str(" Gaussians | Model (MB) | Filter state (MB) |\n|---|---|---:|---:|---:|");
+    t.push_str(" Gaussians | Model (MB) | Filter state (MB) |\n|---|---|---:|---:|---:|---:|");
     t.push_str(&"---:|".repeat(PHASES.len() + 3));
     t.push('\n');
     for m in &summary.methods {
         for r in &m.scenes {
             let _ = writeln!(
                 t,
-                "| {} | {} | {} | {:.2} | {} |{} {} | {:.2} | {:.3} |",
+                "| {} | {} | {} | {:.2} | {} | {} |{} {} | {:.2} | {:.3} |",
                 m.method,
                 r.scene,
                 r.iterations,
                 r.train_seconds / 60.0,
                 num(cpu_minutes(r), 2),
+                num(others_busy(r), 2),
                 share_cells(phase_shares(r.phases.as_ref())),
                 r.gaussians,
                 r.model_bytes as f64 / 1e6,
@@ -512,11 +527,12 @@ fn cost_table(summary: &SuiteSummary) -> String {
         if let Some(avg) = &m.average {
             let _ = writeln!(
                 t,
-                "| {} | **average ({} scenes)** | | {:.2} | {} |{} {:.0} | {:.2} | |",
+                "| {} | **average ({} scenes)** | | {:.2} | {} | {} |{} {:.0} | {:.2} | |",
                 m.method,
                 avg.scenes,
                 avg.train_seconds / 60.0,
                 num(mean_cpu_minutes(&m.scenes), 2),
+                num(mean_others_busy(&m.scenes), 2),
                 share_cells(mean_shares(&m.scenes)),
                 avg.gaussians,
                 avg.model_bytes / 1e6
@@ -548,7 +564,7 @@ pub fn markdown(summary: &SuiteSummary) -> String {
         let _ = writeln!(md, "\n## Per scene: {}\n", metric.0);
         md.push_str(&per_scene_table(summary, metric));
     }
-    md.push_str("\n## Per scene: cost (training wall time as each run recorded it, the machine's load not recorded; the phase split in percent of the timed phases, from each run's `summary.json`)\n\n");
+    md.push_str("\n## Per scene: cost (training wall time as each run recorded it; \"Others busy\" is the load it was measured under, the cores other processes kept busy on average beside the training, blank for runs that predate it; the phase split in percent of the timed phases, from each run's `summary.json`)\n\n");
     md.push_str(&cost_table(summary));
     if !summary.missing.is_empty() {
         md.push_str("\n## Not evaluated yet\n\n");
@@ -692,7 +708,7 @@ mod tests {
             (run("c", "motion"), Some(eval(30.0, &[1.0]))),
         ];
         let mut s = summarise(&runs);
-        let timings = |field_mlp, backward, cpu| Timings {
+        let timings = |field_mlp, backward, cpu, machine_cpu| Timings {
             field_mlp,
             render_forward: 1.0,
             backward,
@@ -701,11 +717,13 @@ mod tests {
             filter_refresh: 0.5,
             densification: 0.5,
             cpu,
+            machine_cpu,
         };
         // a: 2 + 1 + 4 + 1 + 1 + 0.5 + 0.5 = 10 s; b: 6 + 1 + 2 + 1 + 1 + 0.5 + 0.5 = 12 s.
-        // CPU: a 0.25 min, b 0.35 min; the phases' sum leaves CPU time out.
-        s.methods[0].scenes[0].phases = Some(timings(2.0, 4.0, 15.0));
-        s.methods[0].scenes[1].phases = Some(timings(6.0, 2.0, 21.0));
+        // CPU: a 0.25 min, b 0.35 min; the phases' sum leaves CPU time out. Others
+        // busy: a (20 - 15) / 10 = 0.50 cores; b predates the machine clock (blank).
+        s.methods[0].scenes[0].phases = Some(timings(2.0, 4.0, 15.0, 20.0));
+        s.methods[0].scenes[1].phases = Some(timings(6.0, 2.0, 21.0, 0.0));
         let a = phase_shares(s.methods[0].scenes[0].phases.as_ref()).expect("shares");
         assert!(
             (a[0] - 20.0).abs() < 1e-9 && (a[2] - 40.0).abs() < 1e-9 && (a[4] - 10.0).abs() < 1e-9
@@ -713,22 +731,22 @@ mod tests {
         assert!((a.iter().sum::<f64>() - 100.0).abs() < 1e-9);
         let table = cost_table(&s);
         assert!(
-            table.contains("| 0.25 | 20 | 10 | 40 | 10 | 10 | 5 | 5 |"),
+            table.contains("| 0.25 | 0.50 | 20 | 10 | 40 | 10 | 10 | 5 | 5 |"),
             "{table}"
         );
         assert!(
-            table.contains("| 0.35 | 50 | 8 | 17 | 8 | 8 | 4 | 4 |"),
+            table.contains("| 0.35 | - | 50 | 8 | 17 | 8 | 8 | 4 | 4 |"),
             "{table}"
         );
         // Scene c has no summary: dashes, and the average is over a and b only
         // (field + MLPs (20 + 50) / 2 = 35, filter (5 + 4.17) / 2 = 4.58; CPU
-        // (0.25 + 0.35) / 2 = 0.30).
+        // (0.25 + 0.35) / 2 = 0.30; others busy over a alone).
         assert!(
-            table.contains("| - | - | - | - | - | - | - | - |"),
+            table.contains("| - | - | - | - | - | - | - | - | - |"),
             "{table}"
         );
         assert!(
-            table.contains("| 0.30 | 35 | 9 | 28 | 9 | 9 | 5 | 5 |"),
+            table.contains("| 0.30 | 0.50 | 35 | 9 | 28 | 9 | 9 | 5 | 5 |"),
             "{table}"
         );
         assert_eq!(phase_shares(Some(&Timings::default())), None);
