@@ -1,5 +1,5 @@
 //! `maaf bench-suite`: the D-NeRF protocol over a folder of scenes. Every scene x preset
-//! x filter x background is one run (train with the preset, then `maaf eval` at
+//! x filter x background (x seed, with `--seeds`) is one run (train with the preset, then `maaf eval` at
 //! 1/4x..4x on the scene's evaluation split), written as a job list like `maaf sweep`
 //! (`jobs.txt`, one `maaf bench-suite --out OUT --job N` line per run, so scenes can run
 //! on several machines and a line run again resumes its run) and, without
@@ -63,6 +63,12 @@ pub struct BenchSuiteArgs {
     /// --data is ignored.
     #[arg(long = "split", value_delimiter = ',', default_value = "lego=val")]
     pub splits: Vec<String>,
+    /// Seeds (comma-separated), one run each per scene x preset x filter x background,
+    /// so that the report can say how far two runs differ by chance (its seeds table)
+    /// and average each scene over its seeds; the run folders end in `-seedN`
+    /// [default: the preset's seed, one run each].
+    #[arg(long, value_delimiter = ',')]
+    pub seeds: Vec<u64>,
     /// Iterations of every run (quick checks) [default: each preset's].
     #[arg(long)]
     pub iters: Option<usize>,
@@ -88,7 +94,7 @@ pub struct BenchSuiteArgs {
 
 /// The options that plan a suite: `--job` and `--report-only` read the plan from
 /// OUT/suite.json, so these given with them would be ignored; clap refuses them.
-const PLANNING: [&str; 9] = [
+const PLANNING: [&str; 10] = [
     "jobs_only",
     "data",
     "scenes",
@@ -96,6 +102,7 @@ const PLANNING: [&str; 9] = [
     "filters",
     "backgrounds",
     "splits",
+    "seeds",
     "iters",
     "eval_args",
 ];
@@ -242,25 +249,38 @@ fn plan(args: &BenchSuiteArgs, out: &Path) -> anyhow::Result<SuiteSpec> {
             ));
         }
     }
+    for (i, seed) in args.seeds.iter().enumerate() {
+        if args.seeds[..i].contains(seed) {
+            bail!("--seeds: seed {seed} is given twice");
+        }
+    }
+    let seeds: Vec<Option<u64>> = if args.seeds.is_empty() {
+        vec![None]
+    } else {
+        args.seeds.iter().copied().map(Some).collect()
+    };
     let mut runs = Vec::new();
     for scene in &scene_names {
         let split = split_of(&data, scene, &args.splits)?;
         for (preset, _) in &presets {
             for &f in &args.filters {
                 for &bg in &args.backgrounds {
-                    let dir = out.join("runs").join(scene).join(format!(
-                        "{preset}-{}-{}",
-                        FilterKind::from(f).name(),
-                        bg.name()
-                    ));
-                    runs.push(SuiteRun {
-                        scene: scene.clone(),
-                        split: split.clone(),
-                        preset: preset.clone(),
-                        filter: FilterKind::from(f).name().to_string(),
-                        background: bg.name().to_string(),
-                        dir,
-                    });
+                    for &seed in &seeds {
+                        let mut name =
+                            format!("{preset}-{}-{}", FilterKind::from(f).name(), bg.name());
+                        if let Some(seed) = seed {
+                            let _ = write!(name, "-seed{seed}");
+                        }
+                        runs.push(SuiteRun {
+                            scene: scene.clone(),
+                            split: split.clone(),
+                            preset: preset.clone(),
+                            filter: FilterKind::from(f).name().to_string(),
+                            background: bg.name().to_string(),
+                            seed,
+                            dir: out.join("runs").join(scene).join(name),
+                        });
+                    }
                 }
             }
         }
@@ -279,10 +299,10 @@ fn config_path(out: &Path, run: &SuiteRun) -> PathBuf {
         .join(format!("{}-{}.json", run.preset, run.filter))
 }
 
-/// `maaf train` arguments of a new run.
+/// `maaf train` arguments of a new run (`--seed` when the suite gives seeds).
 fn train_args(spec: &SuiteSpec, out: &Path, run: &SuiteRun) -> Vec<String> {
     let scene = spec.data.join(&run.scene);
-    [
+    let mut args = [
         "train",
         "--data",
         &scene.display().to_string(),
@@ -294,7 +314,11 @@ fn train_args(spec: &SuiteSpec, out: &Path, run: &SuiteRun) -> Vec<String> {
         &run.background,
     ]
     .map(String::from)
-    .to_vec()
+    .to_vec();
+    if let Some(seed) = run.seed {
+        args.extend(["--seed".to_string(), seed.to_string()]);
+    }
+    args
 }
 
 /// `maaf eval` arguments of a run.
@@ -315,7 +339,7 @@ fn write_suite(spec: &SuiteSpec, out: &Path, exe: &Path) -> anyhow::Result<()> {
         let old = read_spec(out)?;
         if old != *spec {
             bail!(
-                "{}: holds a suite written with other options (scenes, presets, filters, backgrounds, splits, --iters or --eval-args); give the same options or another --out",
+                "{}: holds a suite written with other options (scenes, presets, filters, backgrounds, splits, seeds, --iters or --eval-args); give the same options or another --out",
                 spec_path.display()
             );
         }
@@ -335,12 +359,11 @@ fn write_suite(spec: &SuiteSpec, out: &Path, exe: &Path) -> anyhow::Result<()> {
     for (i, run) in spec.runs.iter().enumerate() {
         writeln!(
             jobs,
-            "{} bench-suite --out {} --job {}   # {} {}",
+            "{} bench-suite --out {} --job {}   # {}",
             shell_quote(&exe.display().to_string()),
             shell_quote(&out.display().to_string()),
             i + 1,
-            run.scene,
-            run.method()
+            run_name(run)
         )?;
     }
     write_atomic(&out.join("jobs.txt"), jobs.as_bytes())?;
@@ -391,10 +414,22 @@ fn run_one(
     Ok(what)
 }
 
+/// `scene method` of a run, with its seed when the suite gives seeds.
+fn run_name(r: &SuiteRun) -> String {
+    match r.seed {
+        Some(seed) => format!("{} {} / seed {seed}", r.scene, r.method()),
+        None => format!("{} {}", r.scene, r.method()),
+    }
+}
+
 /// `[N/M] scene method`: how the suite's output names run `i` (0-based).
 fn label(spec: &SuiteSpec, i: usize) -> String {
-    let r = &spec.runs[i];
-    format!("[{}/{}] {} {}", i + 1, spec.runs.len(), r.scene, r.method())
+    format!(
+        "[{}/{}] {}",
+        i + 1,
+        spec.runs.len(),
+        run_name(&spec.runs[i])
+    )
 }
 
 /// The running `maaf` executable, which spawns the runs' commands.

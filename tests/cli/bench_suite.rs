@@ -218,3 +218,85 @@ fn suite_writes_jobs_runs_them_once_and_reports_every_scene_beside_the_published
     ok(maaf(&["bench-suite", "--out", s(&out), "--report-only"]));
     assert!(out.join("report.md").is_file());
 }
+
+#[test]
+fn seeds_give_one_run_each_and_the_report_averages_a_scene_over_them() {
+    let tmp = TempDir::fresh("cli_bench_suite_seeds");
+    let data = tmp.0.join("scenes");
+    std::fs::create_dir_all(&data).expect("mkdir");
+    scene(&data.join("a"));
+    let preset = tmp.0.join("small.json");
+    std::fs::write(
+        &preset,
+        r#"{"init_points": 200, "train_scale": 0.25, "val_every": 0}"#,
+    )
+    .expect("preset");
+    let out = tmp.0.join("suite");
+    refused(
+        suite(
+            &data,
+            &preset,
+            &out,
+            &["--filters", "motion", "--seeds", "1,1"],
+        ),
+        &["--seeds", "seed 1 is given twice"],
+    );
+    assert!(!out.exists(), "a refused plan writes nothing");
+
+    let printed = ok(suite(
+        &data,
+        &preset,
+        &out,
+        &["--filters", "motion", "--seeds", "3,4"],
+    ));
+    assert!(
+        printed.contains("[2/2] a small / motion / black / seed 4: trained and evaluated"),
+        "{printed}"
+    );
+    let jobs = std::fs::read_to_string(out.join("jobs.txt")).expect("jobs.txt");
+    assert!(
+        jobs.contains("# a small / motion / black / seed 3\n"),
+        "{jobs}"
+    );
+    // Each run trained with its own seed, which its resolved config records.
+    let mut psnr = Vec::new();
+    for seed in [3, 4] {
+        let run = out.join(format!("runs/a/small-motion-black-seed{seed}"));
+        let config = std::fs::read_to_string(run.join("config.json")).expect("config");
+        assert!(config.contains(&format!(r#""seed": {seed}"#)), "{config}");
+        let eval: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(run.join("eval.json")).expect("eval"))
+                .expect("eval.json parses");
+        psnr.push(eval["scales"][0]["psnr"].as_f64().expect("psnr"));
+    }
+    assert_ne!(psnr[0], psnr[1], "two seeds, two different models");
+
+    let md = std::fs::read_to_string(out.join("report.md")).expect("report.md");
+    assert!(md.contains("| small / motion / black (maaf) | 1 |"), "{md}");
+    assert!(md.contains("**average (1 scenes, 2 runs)**"), "{md}");
+    assert!(md.contains("| a seed 3 | test |"), "{md}");
+    assert!(md.contains("## Seeds"), "{md}");
+    assert!(md.contains("| small / motion / black | a | 2 |"), "{md}");
+    // The same suite again is this suite; other seeds are other options.
+    assert_eq!(
+        count(
+            &ok(suite(
+                &data,
+                &preset,
+                &out,
+                &["--filters", "motion", "--seeds", "3,4"]
+            )),
+            "skipped (evaluated)"
+        ),
+        2
+    );
+    refused(
+        suite(
+            &data,
+            &preset,
+            &out,
+            &["--filters", "motion", "--seeds", "3"],
+        ),
+        &["suite.json", "seeds"],
+    );
+}

@@ -8,7 +8,9 @@
 //!
 //! Averages are plain means over the scenes present: a cell is averaged only when every
 //! evaluated scene of the method has it, and a scene is counted only once it has an
-//! `eval.json`. The "avg" columns are the mean over 1x, 2x and 4x, the paper's "Avg.".
+//! `eval.json`. A scene trained with several seeds (`bench-suite --seeds`) counts once,
+//! as the mean of its seeds, and a table of the seeds' spread says how far runs differ
+//! by chance. The "avg" columns are the mean over 1x, 2x and 4x, the paper's "Avg.".
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -37,12 +39,18 @@ pub struct SuiteRun {
     pub filter: String,
     /// Background: `white` or `black`.
     pub background: String,
+    /// Seed it was trained with when the suite gives seeds (`--seeds`); `None`: the
+    /// preset's own, and left out of `suite.json` so suites without seeds read as
+    /// before.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub seed: Option<u64>,
     /// Run folder.
     pub dir: PathBuf,
 }
 
 impl SuiteRun {
-    /// `preset / filter / background`, the row label of its method.
+    /// `preset / filter / background`, the row label of its method (seeds of one
+    /// method share it).
     pub fn method(&self) -> String {
         format!("{} / {} / {}", self.preset, self.filter, self.background)
     }
@@ -87,13 +95,28 @@ pub struct SceneResult {
     pub phases: Option<Timings>,
     /// LPIPS backbone of its evaluation (`alex` or `vgg`, `eval.json`'s `lpips_net`).
     pub lpips_net: String,
+    /// The run's seed when the suite gives seeds.
+    pub seed: Option<u64>,
 }
 
-/// A method's mean over its evaluated scenes.
+impl SceneResult {
+    /// The scene's name, with the seed when the suite gives seeds (`mutant seed 1`).
+    pub fn label(&self) -> String {
+        match self.seed {
+            Some(seed) => format!("{} seed {seed}", self.scene),
+            None => self.scene.clone(),
+        }
+    }
+}
+
+/// A method's mean over its evaluated scenes, each scene first averaged over its
+/// seeds.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Average {
     /// Scenes averaged.
     pub scenes: usize,
+    /// Runs averaged (more than `scenes` when scenes have several seeds).
+    pub runs: usize,
     /// Per scale; a scale some scene lacks is left out, LPIPS is `None` when a scene
     /// lacks it or the scenes were evaluated with different LPIPS backbones.
     pub scales: Vec<Cell>,
@@ -173,6 +196,7 @@ fn scene_result(run: &SuiteRun, eval: &EvalReport) -> SceneResult {
         filter_bytes: eval.filter_bytes,
         phases: None,
         lpips_net: eval.lpips_net.clone(),
+        seed: run.seed,
     }
 }
 
@@ -180,21 +204,18 @@ fn cell_at(scene: &SceneResult, s: f64) -> Option<&Cell> {
     scene.scales.iter().find(|c| (c.scale - s).abs() < 1e-9)
 }
 
-fn average(scenes: &[SceneResult], scales: &[f64]) -> Option<Average> {
-    if scenes.is_empty() {
-        return None;
-    }
-    let n = scenes.len() as f64;
-    let net = &scenes[0].lpips_net;
-    let lpips_net = scenes
-        .iter()
-        .all(|r| &r.lpips_net == net)
-        .then(|| net.clone());
-    let cells = scales
+/// The mean of each metric over `runs` at every scale in `scales` that all of them
+/// have; LPIPS only when `with_lpips` and every run has it.
+fn mean_cells(runs: &[&[Cell]], scales: &[f64], with_lpips: bool) -> Vec<Cell> {
+    let n = runs.len() as f64;
+    scales
         .iter()
         .filter_map(|&s| {
-            let at: Vec<&Cell> = scenes.iter().filter_map(|r| cell_at(r, s)).collect();
-            (at.len() == scenes.len()).then(|| Cell {
+            let at: Vec<&Cell> = runs
+                .iter()
+                .filter_map(|cells| cells.iter().find(|c| (c.scale - s).abs() < 1e-9))
+                .collect();
+            (!runs.is_empty() && at.len() == runs.len()).then(|| Cell {
                 scale: s,
                 psnr: at.iter().map(|c| c.psnr).sum::<f64>() / n,
                 ssim: at.iter().map(|c| c.ssim).sum::<f64>() / n,
@@ -202,19 +223,107 @@ fn average(scenes: &[SceneResult], scales: &[f64]) -> Option<Average> {
                     .iter()
                     .map(|c| c.lpips)
                     .sum::<Option<f64>>()
-                    .filter(|_| lpips_net.is_some())
+                    .filter(|_| with_lpips)
                     .map(|v| v / n),
             })
         })
+        .collect()
+}
+
+/// The runs of `scenes` grouped by scene (a scene's seeds together), in the order the
+/// scenes first appear.
+fn by_scene(scenes: &[SceneResult]) -> Vec<Vec<&SceneResult>> {
+    let mut groups: Vec<Vec<&SceneResult>> = Vec::new();
+    for r in scenes {
+        match groups.iter_mut().find(|g| g[0].scene == r.scene) {
+            Some(g) => g.push(r),
+            None => groups.push(vec![r]),
+        }
+    }
+    groups
+}
+
+/// The mean over scenes of each scene's mean over its seeds.
+fn average(scenes: &[SceneResult], scales: &[f64]) -> Option<Average> {
+    if scenes.is_empty() {
+        return None;
+    }
+    let net = &scenes[0].lpips_net;
+    let lpips_net = scenes
+        .iter()
+        .all(|r| &r.lpips_net == net)
+        .then(|| net.clone());
+    let groups = by_scene(scenes);
+    let per_scene: Vec<Vec<Cell>> = groups
+        .iter()
+        .map(|g| {
+            let runs: Vec<&[Cell]> = g.iter().map(|r| r.scales.as_slice()).collect();
+            mean_cells(&runs, scales, lpips_net.is_some())
+        })
         .collect();
+    let per_scene: Vec<&[Cell]> = per_scene.iter().map(Vec::as_slice).collect();
+    let scene_mean = |f: fn(&SceneResult) -> f64| {
+        groups
+            .iter()
+            .map(|g| g.iter().map(|r| f(r)).sum::<f64>() / g.len() as f64)
+            .sum::<f64>()
+            / groups.len() as f64
+    };
     Some(Average {
-        scenes: scenes.len(),
-        scales: cells,
+        scenes: groups.len(),
+        runs: scenes.len(),
+        scales: mean_cells(&per_scene, scales, lpips_net.is_some()),
         lpips_net,
-        train_seconds: scenes.iter().map(|r| r.train_seconds).sum::<f64>() / n,
-        gaussians: scenes.iter().map(|r| r.gaussians as f64).sum::<f64>() / n,
-        model_bytes: scenes.iter().map(|r| r.model_bytes as f64).sum::<f64>() / n,
+        train_seconds: scene_mean(|r| r.train_seconds),
+        gaussians: scene_mean(|r| r.gaussians as f64),
+        model_bytes: scene_mean(|r| r.model_bytes as f64),
     })
+}
+
+/// `**average (N scenes)**`, or `**average (N scenes, M runs)**` when scenes have
+/// several seeds.
+fn average_label(avg: &Average) -> String {
+    if avg.runs == avg.scenes {
+        format!("**average ({} scenes)**", avg.scenes)
+    } else {
+        format!("**average ({} scenes, {} runs)**", avg.scenes, avg.runs)
+    }
+}
+
+/// Per method and scene with two or more evaluated seeds: PSNR's mean and sample
+/// standard deviation over the seeds at every scale, `s = sqrt(sum (x - mean)^2 /
+/// (n - 1))`; `None` when no scene has two seeds.
+fn seed_spread_table(summary: &SuiteSummary) -> Option<String> {
+    let mut t = String::from("| Method | Scene | Seeds |");
+    for &s in &summary.scales {
+        let _ = write!(t, " {} |", scale_header(s));
+    }
+    t.push_str("\n|---|---|---:|");
+    t.push_str(&"---:|".repeat(summary.scales.len()));
+    t.push('\n');
+    let mut any = false;
+    for m in &summary.methods {
+        for g in by_scene(&m.scenes).into_iter().filter(|g| g.len() > 1) {
+            any = true;
+            let _ = write!(t, "| {} | {} | {} |", m.method, g[0].scene, g.len());
+            for &s in &summary.scales {
+                let v: Vec<f64> = g
+                    .iter()
+                    .filter_map(|r| cell_at(r, s).map(|c| c.psnr))
+                    .collect();
+                if v.len() < 2 {
+                    t.push_str(" - |");
+                    continue;
+                }
+                let n = v.len() as f64;
+                let mean = v.iter().sum::<f64>() / n;
+                let sd = (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+                let _ = write!(t, " {mean:.2} ± {sd:.2} |");
+            }
+            t.push('\n');
+        }
+    }
+    any.then_some(t)
 }
 
 /// Groups `runs` (with their `eval.json`, `None` while not evaluated) by method, in
@@ -423,11 +532,10 @@ fn per_scene_table(summary: &SuiteSummary, metric: &Metric) -> String {
     };
     for m in &summary.methods {
         for r in &m.scenes {
-            row(&mut t, &m.method, &r.scene, &r.split, &r.scales);
+            row(&mut t, &m.method, &r.label(), &r.split, &r.scales);
         }
         if let Some(avg) = &m.average {
-            let label = format!("**average ({} scenes)**", avg.scenes);
-            row(&mut t, &m.method, &label, "", &avg.scales);
+            row(&mut t, &m.method, &average_label(avg), "", &avg.scales);
         }
     }
     t
@@ -513,7 +621,7 @@ fn cost_table(summary: &SuiteSummary) -> String {
                 t,
                 "| {} | {} | {} | {:.2} | {} | {} |{} {} | {:.2} | {:.3} |",
                 m.method,
-                r.scene,
+                r.label(),
                 r.iterations,
                 r.train_seconds / 60.0,
                 num(cpu_minutes(r), 2),
@@ -527,9 +635,9 @@ fn cost_table(summary: &SuiteSummary) -> String {
         if let Some(avg) = &m.average {
             let _ = writeln!(
                 t,
-                "| {} | **average ({} scenes)** | | {:.2} | {} | {} |{} {:.0} | {:.2} | |",
+                "| {} | {} | | {:.2} | {} | {} |{} {:.0} | {:.2} | |",
                 m.method,
-                avg.scenes,
+                average_label(avg),
                 avg.train_seconds / 60.0,
                 num(mean_cpu_minutes(&m.scenes), 2),
                 num(mean_others_busy(&m.scenes), 2),
@@ -563,6 +671,12 @@ pub fn markdown(summary: &SuiteSummary) -> String {
     for metric in &METRICS {
         let _ = writeln!(md, "\n## Per scene: {}\n", metric.0);
         md.push_str(&per_scene_table(summary, metric));
+    }
+    if let Some(spread) = seed_spread_table(summary) {
+        md.push_str(
+            "\n## Seeds: PSNR mean ± sample standard deviation over each scene's seeds\n\n",
+        );
+        md.push_str(&spread);
     }
     md.push_str("\n## Per scene: cost (training wall time as each run recorded it; \"Others busy\" is the load it was measured under, the cores other processes kept busy on average beside the training, blank for runs that predate it; the phase split in percent of the timed phases, from each run's `summary.json`)\n\n");
     md.push_str(&cost_table(summary));
@@ -636,6 +750,7 @@ mod tests {
             preset: "dnerf".into(),
             filter: filter.into(),
             background: "black".into(),
+            seed: None,
             dir: format!("{scene}/{filter}").into(),
         }
     }
@@ -684,6 +799,44 @@ mod tests {
             "{table}"
         );
         assert!(released_table(&s).contains("32.28"));
+    }
+
+    #[test]
+    fn a_scene_with_several_seeds_counts_once_and_its_spread_is_reported() {
+        let seeded = |scene: &str, seed| SuiteRun {
+            seed: Some(seed),
+            dir: format!("{scene}/motion-seed{seed}").into(),
+            ..run(scene, "motion")
+        };
+        let runs = vec![
+            (seeded("a", 0), Some(eval(30.0, &[1.0, 4.0]))),
+            (seeded("a", 1), Some(eval(32.0, &[1.0, 4.0]))),
+            (seeded("a", 2), Some(eval(34.0, &[1.0, 4.0]))),
+            (seeded("b", 0), Some(eval(40.0, &[1.0, 4.0]))),
+        ];
+        let s = summarise(&runs);
+        let avg = s.methods[0].average.as_ref().expect("average");
+        assert_eq!((avg.scenes, avg.runs), (2, 4));
+        // At 1x a's seeds give 31, 33, 35 (mean 33) and b 41: the scenes' mean is 37,
+        // where the runs' mean would be 35; likewise the time, (32 + 40) / 2.
+        assert!((avg.scales[0].psnr - 37.0).abs() < 1e-12, "{avg:?}");
+        assert!((avg.train_seconds - 36.0).abs() < 1e-12);
+        let md = markdown(&s);
+        // The sample standard deviation of 31, 33, 35 is 2; b has one seed, no row.
+        assert!(
+            md.contains("| dnerf / motion / black | a | 3 | 33.00 ± 2.00 | 36.00 ± 2.00 |"),
+            "{md}"
+        );
+        assert!(!md.contains("| dnerf / motion / black | b | 1 |"), "{md}");
+        assert!(md.contains("| a seed 1 |") && md.contains("**average (2 scenes, 4 runs)**"));
+        // A suite without seeds has no such section and reads as before.
+        let plain = markdown(&summarise(&[(
+            run("a", "motion"),
+            Some(eval(30.0, &[1.0])),
+        )]));
+        assert!(!plain.contains("## Seeds") && plain.contains("**average (1 scenes)**"));
+        let json = serde_json::to_string(&run("a", "motion")).expect("json");
+        assert!(!json.contains("seed"), "{json}");
     }
 
     #[test]
