@@ -1,0 +1,266 @@
+//! The markdown of a suite's report: the Tab. 2 layout, the released row at 4x, the
+//! per-scene tables of each metric and the seeds' spread.
+
+use std::fmt::Write as _;
+
+use super::cost::cost_table;
+use super::{Average, Cell, SuiteSummary, TAB2_SCALES, by_scene, cell_at, mean};
+use crate::report::{lpips_label, scale_header};
+
+/// `v` with `digits` decimals, `-` when absent.
+pub(super) fn num(v: Option<f64>, digits: usize) -> String {
+    v.map_or("-".into(), |v| format!("{v:.digits$}"))
+}
+
+/// The mean over [`TAB2_SCALES`] of one metric, when every one is present.
+fn tab2_avg(cells: &[Cell], f: fn(&Cell) -> Option<f64>) -> Option<f64> {
+    let v: Vec<f64> = TAB2_SCALES
+        .iter()
+        .map(|&s| {
+            cells
+                .iter()
+                .find(|c| (c.scale - s).abs() < 1e-9)
+                .and_then(f)
+        })
+        .collect::<Option<Vec<f64>>>()?;
+    mean(v.into_iter())
+}
+
+type Metric = (&'static str, usize, fn(&Cell) -> Option<f64>);
+
+const METRICS: [Metric; 3] = [
+    ("PSNR", 2, |c| Some(c.psnr)),
+    ("SSIM", 3, |c| Some(c.ssim)),
+    ("LPIPS", 3, |c| c.lpips),
+];
+
+/// The Tab. 2-shaped table: each method's average over its scenes at 1x, 2x, 4x and
+/// their mean for PSNR, SSIM and LPIPS, then the paper's rows (published).
+pub fn tab2_table(summary: &SuiteSummary) -> String {
+    let mut t = String::from("| Method | Scenes |");
+    for (name, _, _) in METRICS {
+        for s in TAB2_SCALES {
+            let _ = write!(t, " {name} {} |", scale_header(s));
+        }
+        let _ = write!(t, " {name} avg |");
+    }
+    t.push_str("\n|---|---:|");
+    t.push_str(&"---:|".repeat(METRICS.len() * (TAB2_SCALES.len() + 1)));
+    t.push('\n');
+    for m in &summary.methods {
+        let Some(avg) = &m.average else { continue };
+        let _ = write!(t, "| {} (maaf) | {} |", m.method, avg.scenes);
+        for (_, digits, f) in METRICS {
+            for s in TAB2_SCALES {
+                let v = avg
+                    .scales
+                    .iter()
+                    .find(|c| (c.scale - s).abs() < 1e-9)
+                    .and_then(f);
+                let _ = write!(t, " {} |", num(v, digits));
+            }
+            let _ = write!(t, " {} |", num(tab2_avg(&avg.scales, f), digits));
+        }
+        t.push('\n');
+    }
+    for row in &summary.paper_tab2 {
+        let _ = write!(
+            t,
+            "| {} [published: {}] | {} |",
+            row.method, row.source, row.scenes
+        );
+        let avg = row.average;
+        for (i, digits) in [2, 3, 3].into_iter().enumerate() {
+            let pick = |p: &crate::report::published::PublishedScale| [p.psnr, p.ssim, p.lpips][i];
+            for s in TAB2_SCALES {
+                let v = row.scales.iter().find(|p| p.scale == s).map(pick);
+                let _ = write!(t, " {} |", num(v, digits));
+            }
+            let _ = write!(t, " {} |", num(avg.as_ref().map(pick), digits));
+        }
+        t.push('\n');
+    }
+    t
+}
+
+/// Whether maaf's LPIPS column compares with the release's: it computes LPIPS on VGG
+/// features (`lpips.LPIPS(net='vgg')` in its `metrics.py`); maaf's methods on the
+/// backbone each was evaluated with (`maaf eval --lpips-net`, passed through
+/// `bench-suite --eval-args`).
+pub(super) fn lpips_net_note(summary: &SuiteSummary) -> String {
+    let mut nets: Vec<&str> = summary
+        .methods
+        .iter()
+        .filter_map(|m| m.average.as_ref())
+        .map(|a| a.lpips_net.as_deref().map_or("mixed", lpips_label))
+        .collect();
+    nets.dedup();
+    let release = "The release's LPIPS is computed on VGG features (`lpips.LPIPS(net='vgg')` \
+                   in its `metrics.py`)";
+    if nets == [maaf_lpips::Net::Vgg.label()] {
+        format!("{release}, as maaf's here (`--lpips-net vgg`): the LPIPS column compares.\n\n")
+    } else {
+        format!(
+            "{release}; maaf's rows here use {} features, so only a VGG row compares with it \
+             (evaluate with `--eval-args \"--no-images --lpips-net vgg\"` for that).\n\n",
+            nets.join(" / ")
+        )
+    }
+}
+
+/// Each method's average at 4x with its cost, beside the released code's rows.
+pub fn released_table(summary: &SuiteSummary) -> String {
+    let mut t = String::from(
+        "| Method | Scenes | PSNR 4x | SSIM 4x | LPIPS 4x | Train time (min) | Gaussians | Model (MB) |\n|---|---:|---:|---:|---:|---:|---:|---:|\n",
+    );
+    for m in &summary.methods {
+        let Some(avg) = &m.average else { continue };
+        let c = avg.scales.iter().find(|c| (c.scale - 4.0).abs() < 1e-9);
+        let _ = writeln!(
+            t,
+            "| {} (maaf, CPU) | {} | {} | {} | {} | {:.2} | {:.0} | {:.2} |",
+            m.method,
+            avg.scenes,
+            num(c.map(|c| c.psnr), 2),
+            num(c.map(|c| c.ssim), 3),
+            num(c.and_then(|c| c.lpips), 3),
+            avg.train_seconds / 60.0,
+            avg.gaussians,
+            avg.model_bytes / 1e6
+        );
+    }
+    for row in &summary.released {
+        let c = row.scales.iter().find(|p| p.scale == 4.0);
+        let _ = writeln!(
+            t,
+            "| {} [published, GPU: {}] | {} | {} | {} | {} | {} | {} | - |",
+            row.method,
+            row.source,
+            row.scenes,
+            num(c.map(|c| c.psnr), 2),
+            num(c.map(|c| c.ssim), 3),
+            num(c.map(|c| c.lpips), 3),
+            num(row.train_minutes, 2),
+            row.gaussians.map_or("-".into(), |g| g.to_string())
+        );
+    }
+    t
+}
+
+/// Per scene and method, one metric at every evaluated scale and the mean over
+/// 1x..4x, with each method's average row.
+fn per_scene_table(summary: &SuiteSummary, metric: &Metric) -> String {
+    let (_, digits, f) = *metric;
+    let mut t = String::from("| Method | Scene | Split |");
+    for &s in &summary.scales {
+        let _ = write!(t, " {} |", scale_header(s));
+    }
+    let _ = write!(t, " avg 1x-4x |\n|---|---|---|");
+    t.push_str(&"---:|".repeat(summary.scales.len() + 1));
+    t.push('\n');
+    let row = |t: &mut String, method: &str, scene: &str, split: &str, cells: &[Cell]| {
+        let _ = write!(t, "| {method} | {scene} | {split} |");
+        for &s in &summary.scales {
+            let v = cells
+                .iter()
+                .find(|c| (c.scale - s).abs() < 1e-9)
+                .and_then(f);
+            let _ = write!(t, " {} |", num(v, digits));
+        }
+        let _ = writeln!(t, " {} |", num(tab2_avg(cells, f), digits));
+    };
+    for m in &summary.methods {
+        for r in &m.scenes {
+            row(&mut t, &m.method, &r.label(), &r.split, &r.scales);
+        }
+        if let Some(avg) = &m.average {
+            row(&mut t, &m.method, &average_label(avg), "", &avg.scales);
+        }
+    }
+    t
+}
+
+/// `**average (N scenes)**`, or `**average (N scenes, M runs)**` when scenes have
+/// several seeds.
+pub(super) fn average_label(avg: &Average) -> String {
+    if avg.runs == avg.scenes {
+        format!("**average ({} scenes)**", avg.scenes)
+    } else {
+        format!("**average ({} scenes, {} runs)**", avg.scenes, avg.runs)
+    }
+}
+
+/// Per method and scene with two or more evaluated seeds: PSNR's mean and sample
+/// standard deviation over the seeds at every scale, `s = sqrt(sum (x - mean)^2 /
+/// (n - 1))`; `None` when no scene has two seeds.
+fn seed_spread_table(summary: &SuiteSummary) -> Option<String> {
+    let mut t = String::from("| Method | Scene | Seeds |");
+    for &s in &summary.scales {
+        let _ = write!(t, " {} |", scale_header(s));
+    }
+    t.push_str("\n|---|---|---:|");
+    t.push_str(&"---:|".repeat(summary.scales.len()));
+    t.push('\n');
+    let mut any = false;
+    for m in &summary.methods {
+        for g in by_scene(&m.scenes).into_iter().filter(|g| g.len() > 1) {
+            any = true;
+            let _ = write!(t, "| {} | {} | {} |", m.method, g[0].scene, g.len());
+            for &s in &summary.scales {
+                let v: Vec<f64> = g
+                    .iter()
+                    .filter_map(|r| cell_at(r, s).map(|c| c.psnr))
+                    .collect();
+                if v.len() < 2 {
+                    t.push_str(" - |");
+                    continue;
+                }
+                let n = v.len() as f64;
+                let mean = v.iter().sum::<f64>() / n;
+                let sd = (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+                let _ = write!(t, " {mean:.2} ± {sd:.2} |");
+            }
+            t.push('\n');
+        }
+    }
+    any.then_some(t)
+}
+
+/// The markdown report of `summary`.
+pub fn markdown(summary: &SuiteSummary) -> String {
+    let evaluated: usize = summary.methods.iter().map(|m| m.scenes.len()).sum();
+    let mut md = String::from("# D-NeRF suite report\n\n");
+    let _ = writeln!(
+        md,
+        "{evaluated} of {} runs evaluated. Scales are relative to the training scale. maaf's \
+         rows average the scenes present (the Scenes column); the published rows average \
+         the eight D-NeRF scenes on a GPU: the two are not the same scenes, and the \
+         published figures are copied from their sources, not measured here. \"avg\" is \
+         the mean over 1x, 2x and 4x (Tab. 2's Avg.).\n",
+        evaluated + summary.missing.len()
+    );
+    md.push_str("## Tab. 2 layout: 1x / 2x / 4x, averaged over scenes\n\n");
+    md.push_str(&tab2_table(summary));
+    md.push_str("\n## At 4x against the released code (SpeeDe3DGS backbone)\n\n");
+    md.push_str(&lpips_net_note(summary));
+    md.push_str(&released_table(summary));
+    for metric in &METRICS {
+        let _ = writeln!(md, "\n## Per scene: {}\n", metric.0);
+        md.push_str(&per_scene_table(summary, metric));
+    }
+    if let Some(spread) = seed_spread_table(summary) {
+        md.push_str(
+            "\n## Seeds: PSNR mean ± sample standard deviation over each scene's seeds\n\n",
+        );
+        md.push_str(&spread);
+    }
+    md.push_str("\n## Per scene: cost (training wall time as each run recorded it; \"Others busy\" is the load it was measured under, the cores other processes kept busy on average beside the training, blank for runs that predate it; the phase split in percent of the timed phases, from each run's `summary.json`)\n\n");
+    md.push_str(&cost_table(summary));
+    if !summary.missing.is_empty() {
+        md.push_str("\n## Not evaluated yet\n\n");
+        for d in &summary.missing {
+            let _ = writeln!(md, "- `{}`", d.display());
+        }
+    }
+    md
+}

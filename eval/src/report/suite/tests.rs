@@ -1,0 +1,196 @@
+use super::cost::cost_table;
+use super::tables::lpips_net_note;
+use super::*;
+use crate::ScaleResult;
+
+fn run(scene: &str, filter: &str) -> SuiteRun {
+    SuiteRun {
+        scene: scene.into(),
+        split: "test".into(),
+        preset: "dnerf".into(),
+        filter: filter.into(),
+        background: "black".into(),
+        seed: None,
+        dir: format!("{scene}/{filter}").into(),
+    }
+}
+
+fn eval(psnr: f64, scales: &[f64]) -> EvalReport {
+    let cells = scales
+        .iter()
+        .map(|&s| {
+            let mut c = ScaleResult::new(s, (8, 8), psnr + s, 0.9);
+            c.lpips = Some(0.1 * s);
+            c
+        })
+        .collect();
+    let mut r = crate::report::ReportRun::for_test("x", "saro", "motion", cells).eval;
+    r.train_seconds = psnr;
+    r
+}
+
+#[test]
+fn methods_average_their_evaluated_scenes_and_list_the_rest() {
+    let all = [0.25, 1.0, 2.0, 4.0];
+    let runs = vec![
+        (run("a", "motion"), Some(eval(30.0, &all))),
+        (run("a", "none"), Some(eval(20.0, &all))),
+        (run("b", "motion"), Some(eval(34.0, &all))),
+        (run("b", "none"), None),
+    ];
+    let s = summarise(&runs);
+    assert_eq!(s.methods.len(), 2);
+    assert_eq!(s.missing, vec![PathBuf::from("b/none")]);
+    let motion = s.methods[0].average.as_ref().expect("average");
+    assert_eq!(motion.scenes, 2);
+    let at4 = motion.scales.iter().find(|c| c.scale == 4.0).expect("4x");
+    assert!((at4.psnr - 36.0).abs() < 1e-12);
+    assert!((motion.train_seconds - 32.0).abs() < 1e-12);
+    let none = s.methods[1].average.as_ref().expect("average");
+    assert_eq!(none.scenes, 1);
+    // Tab. 2's avg: the mean of 1x, 2x, 4x (32 + 34 + 36) / 3.
+    let table = tab2_table(&s);
+    assert!(
+        table.contains("| dnerf / motion / black (maaf) | 2 | 33.00 | 34.00 | 36.00 | 34.33 |"),
+        "{table}"
+    );
+    assert!(
+        table.contains("37.10") && table.contains("36.61"),
+        "{table}"
+    );
+    assert!(released_table(&s).contains("32.28"));
+}
+
+#[test]
+fn a_scene_with_several_seeds_counts_once_and_its_spread_is_reported() {
+    let seeded = |scene: &str, seed| SuiteRun {
+        seed: Some(seed),
+        dir: format!("{scene}/motion-seed{seed}").into(),
+        ..run(scene, "motion")
+    };
+    let runs = vec![
+        (seeded("a", 0), Some(eval(30.0, &[1.0, 4.0]))),
+        (seeded("a", 1), Some(eval(32.0, &[1.0, 4.0]))),
+        (seeded("a", 2), Some(eval(34.0, &[1.0, 4.0]))),
+        (seeded("b", 0), Some(eval(40.0, &[1.0, 4.0]))),
+    ];
+    let s = summarise(&runs);
+    let avg = s.methods[0].average.as_ref().expect("average");
+    assert_eq!((avg.scenes, avg.runs), (2, 4));
+    // At 1x a's seeds give 31, 33, 35 (mean 33) and b 41: the scenes' mean is 37,
+    // where the runs' mean would be 35; likewise the time, (32 + 40) / 2.
+    assert!((avg.scales[0].psnr - 37.0).abs() < 1e-12, "{avg:?}");
+    assert!((avg.train_seconds - 36.0).abs() < 1e-12);
+    let md = markdown(&s);
+    // The sample standard deviation of 31, 33, 35 is 2; b has one seed, no row.
+    assert!(
+        md.contains("| dnerf / motion / black | a | 3 | 33.00 ± 2.00 | 36.00 ± 2.00 |"),
+        "{md}"
+    );
+    assert!(!md.contains("| dnerf / motion / black | b | 1 |"), "{md}");
+    assert!(md.contains("| a seed 1 |") && md.contains("**average (2 scenes, 4 runs)**"));
+    // A suite without seeds has no such section and reads as before.
+    let plain = markdown(&summarise(&[(
+        run("a", "motion"),
+        Some(eval(30.0, &[1.0])),
+    )]));
+    assert!(!plain.contains("## Seeds") && plain.contains("**average (1 scenes)**"));
+    let json = serde_json::to_string(&run("a", "motion")).expect("json");
+    assert!(!json.contains("seed"), "{json}");
+}
+
+#[test]
+fn a_scale_missing_in_one_scene_is_left_out_of_the_average() {
+    let runs = vec![
+        (run("a", "motion"), Some(eval(30.0, &[1.0, 2.0, 4.0]))),
+        (run("b", "motion"), Some(eval(30.0, &[1.0, 2.0]))),
+    ];
+    let s = summarise(&runs);
+    let avg = s.methods[0].average.as_ref().expect("average");
+    let scales: Vec<f64> = avg.scales.iter().map(|c| c.scale).collect();
+    assert_eq!(scales, vec![1.0, 2.0]);
+    let md = markdown(&s);
+    assert!(md.contains("**average (2 scenes)**"), "{md}");
+}
+
+#[test]
+fn the_cost_table_splits_training_time_by_phase_and_averages_the_shares() {
+    let runs = vec![
+        (run("a", "motion"), Some(eval(30.0, &[1.0]))),
+        (run("b", "motion"), Some(eval(30.0, &[1.0]))),
+        (run("c", "motion"), Some(eval(30.0, &[1.0]))),
+    ];
+    let mut s = summarise(&runs);
+    let timings = |field_mlp, backward, cpu, machine_cpu| Timings {
+        field_mlp,
+        render_forward: 1.0,
+        backward,
+        optimiser: 1.0,
+        statistics: 1.0,
+        filter_refresh: 0.5,
+        densification: 0.5,
+        cpu,
+        machine_cpu,
+    };
+    // a: 2 + 1 + 4 + 1 + 1 + 0.5 + 0.5 = 10 s; b: 6 + 1 + 2 + 1 + 1 + 0.5 + 0.5 = 12 s.
+    // CPU: a 0.25 min, b 0.35 min; the phases' sum leaves CPU time out. Others
+    // busy: a (20 - 15) / 10 = 0.50 cores; b predates the machine clock (blank).
+    s.methods[0].scenes[0].phases = Some(timings(2.0, 4.0, 15.0, 20.0));
+    s.methods[0].scenes[1].phases = Some(timings(6.0, 2.0, 21.0, 0.0));
+    let a = phase_shares(s.methods[0].scenes[0].phases.as_ref()).expect("shares");
+    assert!((a[0] - 20.0).abs() < 1e-9 && (a[2] - 40.0).abs() < 1e-9 && (a[4] - 10.0).abs() < 1e-9);
+    assert!((a.iter().sum::<f64>() - 100.0).abs() < 1e-9);
+    let table = cost_table(&s);
+    assert!(
+        table.contains("| 0.25 | 0.50 | 20 | 10 | 40 | 10 | 10 | 5 | 5 |"),
+        "{table}"
+    );
+    assert!(
+        table.contains("| 0.35 | - | 50 | 8 | 17 | 8 | 8 | 4 | 4 |"),
+        "{table}"
+    );
+    // Scene c has no summary: dashes, and the average is over a and b only
+    // (field + MLPs (20 + 50) / 2 = 35, filter (5 + 4.17) / 2 = 4.58; CPU
+    // (0.25 + 0.35) / 2 = 0.30; others busy over a alone).
+    assert!(
+        table.contains("| - | - | - | - | - | - | - | - | - |"),
+        "{table}"
+    );
+    assert!(
+        table.contains("| 0.30 | 0.50 | 35 | 9 | 28 | 9 | 9 | 5 | 5 |"),
+        "{table}"
+    );
+    assert_eq!(phase_shares(Some(&Timings::default())), None);
+}
+
+#[test]
+fn lpips_is_averaged_only_over_one_backbone_and_the_note_says_which() {
+    let vgg = |psnr| {
+        let mut e = eval(psnr, &[1.0, 4.0]);
+        e.lpips_net = "vgg".into();
+        e
+    };
+    let all_vgg = summarise(&[
+        (run("a", "motion"), Some(vgg(30.0))),
+        (run("b", "motion"), Some(vgg(31.0))),
+    ]);
+    let avg = all_vgg.methods[0].average.as_ref().expect("average");
+    assert_eq!(avg.lpips_net.as_deref(), Some("vgg"));
+    assert!((avg.scales[1].lpips.expect("lpips") - 0.4).abs() < 1e-12);
+    assert!(lpips_net_note(&all_vgg).contains("the LPIPS column compares"));
+
+    let mixed = summarise(&[
+        (run("a", "motion"), Some(vgg(30.0))),
+        (run("b", "motion"), Some(eval(31.0, &[1.0, 4.0]))),
+    ]);
+    let avg = mixed.methods[0].average.as_ref().expect("average");
+    assert_eq!(avg.lpips_net, None);
+    assert!(avg.scales.iter().all(|c| c.lpips.is_none()), "{avg:?}");
+    assert!(avg.scales.iter().all(|c| c.psnr > 0.0));
+    let note = lpips_net_note(&mixed);
+    assert!(note.contains("use mixed features"), "{note}");
+
+    let alex = summarise(&[(run("a", "none"), Some(eval(30.0, &[4.0])))]);
+    let note = lpips_net_note(&alex);
+    assert!(note.contains("use AlexNet features") && note.contains("--lpips-net vgg"));
+}
