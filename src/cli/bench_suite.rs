@@ -1,11 +1,11 @@
 //! `maaf bench-suite`: the D-NeRF protocol over a folder of scenes. Every scene x preset
-//! x filter x background (x seed, with `--seeds`) is one run (train with the preset, then `maaf eval` at
-//! 1/4x..4x on the scene's evaluation split), written as a job list like `maaf sweep`
-//! (`jobs.txt`, one `maaf bench-suite --out OUT --job N` line per run, so scenes can run
-//! on several machines and a line run again resumes its run) and, without
-//! `--jobs-only`, run here one at a time, skipping evaluated runs and resuming
-//! interrupted ones. Then one report ([`maaf_eval::report::suite`]):
-//! the paper's Tab. 2 layout with the published rows beside maaf's.
+//! x filter x background (x seed, with `--seeds`) is one run (train with the preset,
+//! then `maaf eval` at 1/4x..4x on the scene's evaluation split), written as a job list
+//! like `maaf sweep` (`jobs.txt`, one `maaf bench-suite --out OUT --job N` line per run,
+//! so scenes can run on several machines and a line run again resumes its run) and,
+//! without `--jobs-only`, run here one at a time, skipping evaluated runs and resuming
+//! interrupted ones. Then one report ([`maaf_eval::report::suite`]): the paper's Tab. 2
+//! layout with the published rows beside maaf's.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};

@@ -31,7 +31,9 @@ pub fn process_cpu_seconds() -> f64 {
 
 /// CPU seconds the whole machine has used since boot, every process and the kernel
 /// (Linux: the first line of `/proc/stat`, user + nice + system + irq + softirq +
-/// steal ticks over `sysconf(_SC_CLK_TCK)`); 0 where that file is unavailable.
+/// steal ticks over `sysconf(_SC_CLK_TCK)`; steal is the time a virtual machine's
+/// host ran something else, a load on the training too); 0 where that file is
+/// unavailable.
 #[cfg(target_os = "linux")]
 #[allow(unsafe_code)]
 pub fn machine_cpu_seconds() -> f64 {
