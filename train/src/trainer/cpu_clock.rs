@@ -5,6 +5,8 @@
 //! does, so a run's summary carries both (on an idle machine wall ≈ CPU / cores busy),
 //! and the machine's clock says how much else ran beside it.
 
+use maaf_scene::Timings;
+
 /// CPU seconds used so far by every thread of this process
 /// (`clock_gettime(CLOCK_PROCESS_CPUTIME_ID)`); 0 where the clock is unavailable.
 #[cfg(unix)]
@@ -27,6 +29,32 @@ pub fn process_cpu_seconds() -> f64 {
 #[cfg(not(unix))]
 pub fn process_cpu_seconds() -> f64 {
     0.0
+}
+
+/// Both CPU clocks read at one moment; [`Self::charge`] adds what each advanced since
+/// to a run's [`Timings`] (`cpu`, `machine_cpu`), over the same phases as its wall
+/// time.
+#[derive(Clone, Copy, Debug)]
+pub struct CpuStamp {
+    process: f64,
+    machine: f64,
+}
+
+impl CpuStamp {
+    /// Reads [`process_cpu_seconds`] and [`machine_cpu_seconds`].
+    pub fn now() -> Self {
+        CpuStamp {
+            process: process_cpu_seconds(),
+            machine: machine_cpu_seconds(),
+        }
+    }
+
+    /// Adds the CPU seconds of this process and of the machine since the stamp.
+    pub fn charge(self, timings: &mut Timings) {
+        let now = CpuStamp::now();
+        timings.cpu += now.process - self.process;
+        timings.machine_cpu += now.machine - self.machine;
+    }
 }
 
 /// CPU seconds the whole machine has used since boot, every process and the kernel

@@ -11,7 +11,7 @@ use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_pcg::Pcg64;
 
-use super::cpu_clock::{machine_cpu_seconds, process_cpu_seconds};
+use super::cpu_clock::CpuStamp;
 use super::strategy::StepInfo;
 use super::{DensifyGradient, ViewGrad};
 use super::{Trainer, log_line};
@@ -68,7 +68,7 @@ impl Trainer {
     /// advances `iteration`. What it trained is the model to validate at this
     /// iteration, before [`Self::schedule`] densifies or resets opacities.
     pub fn update(&mut self) {
-        let (cpu0, machine0) = (process_cpu_seconds(), machine_cpu_seconds());
+        let cpu0 = CpuStamp::now();
         self.ensure_filter();
         let it = self.iteration + 1;
         self.model.set_iteration(it);
@@ -219,8 +219,7 @@ impl Trainer {
         drop(bound);
         drop(params);
         self.iteration = it;
-        self.timings.cpu += process_cpu_seconds() - cpu0;
-        self.timings.machine_cpu += machine_cpu_seconds() - machine0;
+        cpu0.charge(&mut self.timings);
     }
 
     /// What the schedule does after the gradient step of iteration `iteration`: the
@@ -228,7 +227,7 @@ impl Trainer {
     /// densification, pruning and opacity reset), then the filter refresh, when due.
     pub fn schedule(&mut self) {
         let it = self.iteration;
-        let (cpu0, machine0) = (process_cpu_seconds(), machine_cpu_seconds());
+        let cpu0 = CpuStamp::now();
         let t4 = Instant::now();
         let densified = self.strategy_refine(it);
         let t5 = Instant::now();
@@ -242,8 +241,7 @@ impl Trainer {
             self.refresh_filter();
         }
         self.timings.filter_refresh += t5.elapsed().as_secs_f64();
-        self.timings.cpu += process_cpu_seconds() - cpu0;
-        self.timings.machine_cpu += machine_cpu_seconds() - machine0;
+        cpu0.charge(&mut self.timings);
     }
 }
 

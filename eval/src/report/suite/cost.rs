@@ -6,7 +6,7 @@ use std::fmt::Write as _;
 use maaf_scene::{PHASE_COUNT, Timings};
 
 use super::tables::{average_label, num};
-use super::{SceneResult, SuiteSummary};
+use super::{SceneResult, SuiteSummary, mean};
 
 /// The cost table's short names of [`Timings::phases`], in that order.
 const PHASES: [&str; PHASE_COUNT] = [
@@ -52,22 +52,10 @@ fn cpu_minutes(r: &SceneResult) -> Option<f64> {
     r.phases.as_ref().map(|t| t.cpu / 60.0).filter(|&m| m > 0.0)
 }
 
-/// The mean CPU minutes over the scenes that have them.
-fn mean_cpu_minutes(scenes: &[SceneResult]) -> Option<f64> {
-    let all: Vec<f64> = scenes.iter().filter_map(cpu_minutes).collect();
-    (!all.is_empty()).then(|| all.iter().sum::<f64>() / all.len() as f64)
-}
-
 /// The cores other processes kept busy beside a run's training
 /// ([`Timings::others_busy`]), `None` when its summary predates the machine's clock.
 fn others_busy(r: &SceneResult) -> Option<f64> {
     r.phases.as_ref().and_then(Timings::others_busy)
-}
-
-/// The mean load beside the runs over the scenes that recorded it.
-fn mean_others_busy(scenes: &[SceneResult]) -> Option<f64> {
-    let all: Vec<f64> = scenes.iter().filter_map(others_busy).collect();
-    (!all.is_empty()).then(|| all.iter().sum::<f64>() / all.len() as f64)
 }
 
 /// Per scene and method: iterations, training wall and CPU time, the load beside it,
@@ -106,8 +94,8 @@ pub(super) fn cost_table(summary: &SuiteSummary) -> String {
                 m.method,
                 average_label(avg),
                 avg.train_seconds / 60.0,
-                num(mean_cpu_minutes(&m.scenes), 2),
-                num(mean_others_busy(&m.scenes), 2),
+                num(mean(m.scenes.iter().filter_map(cpu_minutes)), 2),
+                num(mean(m.scenes.iter().filter_map(others_busy)), 2),
                 share_cells(mean_shares(&m.scenes)),
                 avg.gaussians,
                 avg.model_bytes / 1e6

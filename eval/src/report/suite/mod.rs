@@ -172,7 +172,7 @@ pub struct SuiteOutput {
 }
 
 /// The mean of `v`, `None` when it is empty.
-fn mean(v: impl Iterator<Item = f64>) -> Option<f64> {
+pub(super) fn mean(v: impl Iterator<Item = f64>) -> Option<f64> {
     let (sum, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x, n + 1));
     (n > 0).then(|| sum / n as f64)
 }
@@ -205,9 +205,9 @@ fn scene_result(run: &SuiteRun, eval: &EvalReport) -> SceneResult {
     }
 }
 
-/// `scene`'s metrics at scale `s`, if it was evaluated there.
-fn cell_at(scene: &SceneResult, s: f64) -> Option<&Cell> {
-    scene.scales.iter().find(|c| (c.scale - s).abs() < 1e-9)
+/// The metrics at scale `s` among `cells`, if it was evaluated there.
+fn cell_at(cells: &[Cell], s: f64) -> Option<&Cell> {
+    cells.iter().find(|c| (c.scale - s).abs() < 1e-9)
 }
 
 /// The mean of each metric over `runs` at every scale in `scales` that all of them
@@ -217,10 +217,7 @@ fn mean_cells(runs: &[&[Cell]], scales: &[f64], with_lpips: bool) -> Vec<Cell> {
     scales
         .iter()
         .filter_map(|&s| {
-            let at: Vec<&Cell> = runs
-                .iter()
-                .filter_map(|cells| cells.iter().find(|c| (c.scale - s).abs() < 1e-9))
-                .collect();
+            let at: Vec<&Cell> = runs.iter().filter_map(|cells| cell_at(cells, s)).collect();
             (!runs.is_empty() && at.len() == runs.len()).then(|| Cell {
                 scale: s,
                 psnr: at.iter().map(|c| c.psnr).sum::<f64>() / n,
@@ -269,11 +266,7 @@ fn average(scenes: &[SceneResult], scales: &[f64]) -> Option<Average> {
         .collect();
     let per_scene: Vec<&[Cell]> = per_scene.iter().map(Vec::as_slice).collect();
     let scene_mean = |f: fn(&SceneResult) -> f64| {
-        groups
-            .iter()
-            .map(|g| g.iter().map(|r| f(r)).sum::<f64>() / g.len() as f64)
-            .sum::<f64>()
-            / groups.len() as f64
+        mean(groups.iter().filter_map(|g| mean(g.iter().map(|r| f(r))))).unwrap_or(0.0)
     };
     Some(Average {
         scenes: groups.len(),

@@ -16,12 +16,7 @@ pub(super) fn num(v: Option<f64>, digits: usize) -> String {
 fn tab2_avg(cells: &[Cell], f: fn(&Cell) -> Option<f64>) -> Option<f64> {
     let v: Vec<f64> = TAB2_SCALES
         .iter()
-        .map(|&s| {
-            cells
-                .iter()
-                .find(|c| (c.scale - s).abs() < 1e-9)
-                .and_then(f)
-        })
+        .map(|&s| cell_at(cells, s).and_then(f))
         .collect::<Option<Vec<f64>>>()?;
     mean(v.into_iter())
 }
@@ -52,11 +47,7 @@ pub fn tab2_table(summary: &SuiteSummary) -> String {
         let _ = write!(t, "| {} (maaf) | {} |", m.method, avg.scenes);
         for (_, digits, f) in METRICS {
             for s in TAB2_SCALES {
-                let v = avg
-                    .scales
-                    .iter()
-                    .find(|c| (c.scale - s).abs() < 1e-9)
-                    .and_then(f);
+                let v = cell_at(&avg.scales, s).and_then(f);
                 let _ = write!(t, " {} |", num(v, digits));
             }
             let _ = write!(t, " {} |", num(tab2_avg(&avg.scales, f), digits));
@@ -115,7 +106,7 @@ pub fn released_table(summary: &SuiteSummary) -> String {
     );
     for m in &summary.methods {
         let Some(avg) = &m.average else { continue };
-        let c = avg.scales.iter().find(|c| (c.scale - 4.0).abs() < 1e-9);
+        let c = cell_at(&avg.scales, 4.0);
         let _ = writeln!(
             t,
             "| {} (maaf, CPU) | {} | {} | {} | {} | {:.2} | {:.0} | {:.2} |",
@@ -161,10 +152,7 @@ fn per_scene_table(summary: &SuiteSummary, metric: &Metric) -> String {
     let row = |t: &mut String, method: &str, scene: &str, split: &str, cells: &[Cell]| {
         let _ = write!(t, "| {method} | {scene} | {split} |");
         for &s in &summary.scales {
-            let v = cells
-                .iter()
-                .find(|c| (c.scale - s).abs() < 1e-9)
-                .and_then(f);
+            let v = cell_at(cells, s).and_then(f);
             let _ = write!(t, " {} |", num(v, digits));
         }
         let _ = writeln!(t, " {} |", num(tab2_avg(cells, f), digits));
@@ -209,16 +197,16 @@ fn seed_spread_table(summary: &SuiteSummary) -> Option<String> {
             for &s in &summary.scales {
                 let v: Vec<f64> = g
                     .iter()
-                    .filter_map(|r| cell_at(r, s).map(|c| c.psnr))
+                    .filter_map(|r| cell_at(&r.scales, s).map(|c| c.psnr))
                     .collect();
                 if v.len() < 2 {
                     t.push_str(" - |");
                     continue;
                 }
-                let n = v.len() as f64;
-                let mean = v.iter().sum::<f64>() / n;
-                let sd = (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
-                let _ = write!(t, " {mean:.2} ± {sd:.2} |");
+                let m = mean(v.iter().copied()).unwrap_or(0.0);
+                let sd =
+                    (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (v.len() - 1) as f64).sqrt();
+                let _ = write!(t, " {m:.2} ± {sd:.2} |");
             }
             t.push('\n');
         }
