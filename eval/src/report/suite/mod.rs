@@ -8,7 +8,9 @@
 //!
 //! Averages are plain means over the scenes present: a cell is averaged only when every
 //! evaluated scene of the method has it, and a scene is counted only once it has an
-//! `eval.json`. A scene trained with several seeds (`bench-suite --seeds`) counts once,
+//! `eval.json`. Because methods may cover different scenes, the report also pairs
+//! them ([`gains`]): a method's PSNR minus another's on the scenes both have. A scene
+//! trained with several seeds (`bench-suite --seeds`) counts once,
 //! as the mean of its seeds, and a table of the seeds' spread says how far runs differ
 //! by chance. The "avg" columns are the mean over 1x, 2x and 4x, the paper's "Avg.".
 
@@ -22,9 +24,11 @@ use crate::EvalReport;
 use crate::{Error, write_atomic};
 
 mod cost;
+mod gains;
 mod tables;
 
 pub use cost::phase_shares;
+pub use gains::{Gain, GainAt, gains, gains_table};
 pub use tables::{markdown, released_table, tab2_table};
 
 /// The scales of Tab. 2 (relative to the training scale), whose mean is its "Avg.".
@@ -139,6 +143,12 @@ pub struct Average {
 pub struct MethodResult {
     /// `preset / filter / background`.
     pub method: String,
+    /// Its preset.
+    pub preset: String,
+    /// Its filter.
+    pub filter: String,
+    /// Its background.
+    pub background: String,
     /// Evaluated scenes, in the suite's order.
     pub scenes: Vec<SceneResult>,
     /// Their mean (absent while no scene is evaluated).
@@ -152,6 +162,9 @@ pub struct SuiteSummary {
     pub scales: Vec<f64>,
     /// One entry per method, in the suite's order.
     pub methods: Vec<MethodResult>,
+    /// Each method against every one before it with the same preset and background,
+    /// on their shared scenes ([`gains`]).
+    pub gains: Vec<Gain>,
     /// Run folders without an `eval.json` yet.
     pub missing: Vec<PathBuf>,
     /// The paper's Tab. 2 rows (published, 8 scenes).
@@ -298,6 +311,9 @@ pub fn summarise(runs: &[(SuiteRun, Option<EvalReport>)]) -> SuiteSummary {
             None => {
                 methods.push(MethodResult {
                     method: name,
+                    preset: run.preset.clone(),
+                    filter: run.filter.clone(),
+                    background: run.background.clone(),
                     scenes: Vec::new(),
                     average: None,
                 });
@@ -313,6 +329,7 @@ pub fn summarise(runs: &[(SuiteRun, Option<EvalReport>)]) -> SuiteSummary {
         m.average = average(&m.scenes, &scales);
     }
     SuiteSummary {
+        gains: gains(&methods, &scales),
         scales,
         methods,
         missing,

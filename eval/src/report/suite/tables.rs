@@ -1,9 +1,10 @@
-//! The markdown of a suite's report: the Tab. 2 layout, the released row at 4x, the
+//! The markdown of a suite's report: the Tab. 2 layout, the paired gains, the released row at 4x, the
 //! per-scene tables of each metric and the seeds' spread.
 
 use std::fmt::Write as _;
 
 use super::cost::cost_table;
+use super::gains::gains_table;
 use super::{Average, Cell, SuiteSummary, TAB2_SCALES, by_scene, cell_at, mean};
 use crate::report::{lpips_label, scale_header};
 
@@ -229,6 +230,16 @@ pub fn markdown(summary: &SuiteSummary) -> String {
     );
     md.push_str("## Tab. 2 layout: 1x / 2x / 4x, averaged over scenes\n\n");
     md.push_str(&tab2_table(summary));
+    if let Some(gains) = gains_table(summary) {
+        md.push_str(
+            "\n## Paired gains: PSNR against each method listed before it, on the scenes both have\n\n\
+             Each cell is the mean over the shared scenes of the per-scene PSNR difference \
+             (dB), each scene first averaged over its seeds, and in brackets the shared \
+             scenes on which the method is ahead. The published rows are the differences of \
+             their sources' eight-scene averages.\n\n",
+        );
+        md.push_str(&gains);
+    }
     md.push_str("\n## At 4x against the released code (SpeeDe3DGS backbone)\n\n");
     md.push_str(&lpips_net_note(summary));
     md.push_str(&released_table(summary));

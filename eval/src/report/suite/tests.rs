@@ -194,3 +194,70 @@ fn lpips_is_averaged_only_over_one_backbone_and_the_note_says_which() {
     let note = lpips_net_note(&alex);
     assert!(note.contains("use AlexNet features") && note.contains("--lpips-net vgg"));
 }
+
+#[test]
+fn paired_gains_use_only_shared_scenes_of_one_preset_and_background() {
+    let all = [0.25, 1.0, 2.0, 4.0];
+    let seeded = |seed| SuiteRun {
+        seed: Some(seed),
+        dir: format!("a/motion-seed{seed}").into(),
+        ..run("a", "motion")
+    };
+    let white = SuiteRun {
+        background: "white".into(),
+        ..run("a", "motion")
+    };
+    let runs = vec![
+        (run("a", "none"), Some(eval(30.0, &all))),
+        // b's unfiltered run lacks 4x: no gain against none at 4x.
+        (run("b", "none"), Some(eval(20.0, &[0.25, 1.0, 2.0]))),
+        (run("a", "mip3d"), Some(eval(31.0, &all))),
+        (seeded(0), Some(eval(32.0, &all))),
+        (seeded(1), Some(eval(34.0, &all))),
+        (run("b", "motion"), Some(eval(19.0, &all))),
+        // c has no unfiltered run: it is in motion's average, not in its gain.
+        (run("c", "motion"), Some(eval(50.0, &all))),
+        (white, Some(eval(40.0, &all))),
+    ];
+    let s = summarise(&runs);
+    let pairs: Vec<(&str, &str, usize)> = s
+        .gains
+        .iter()
+        .map(|g| (g.method.as_str(), g.base.as_str(), g.scenes.len()))
+        .collect();
+    // The white run shares no preset and background with another method.
+    assert_eq!(
+        pairs,
+        vec![
+            ("dnerf / mip3d / black", "dnerf / none / black", 1),
+            ("dnerf / motion / black", "dnerf / none / black", 2),
+            ("dnerf / motion / black", "dnerf / mip3d / black", 1),
+        ]
+    );
+    // motion against none: a's seeds average 33 (+3 over 30), b 19 (-1 under 20): the
+    // mean +1, ahead on one of two; the plain averages would say 34 - 25 = +9.
+    let g = &s.gains[1];
+    let at1 = g.scales.iter().find(|c| c.scale == 1.0).expect("1x");
+    assert!((at1.psnr - 1.0).abs() < 1e-12 && at1.ahead == 1, "{g:?}");
+    assert!(g.scales.iter().all(|c| c.scale != 4.0), "{g:?}");
+    assert!((s.gains[2].scales[0].psnr - 2.0).abs() < 1e-12);
+    let md = markdown(&s);
+    assert!(
+        md.contains(
+            "| dnerf / motion / black | dnerf / none / black | 2 | +1.00 (1/2) | +1.00 (1/2) | +1.00 (1/2) | - |"
+        ),
+        "{md}"
+    );
+    // The published gains: MAAF over SaRO-GS (Tab. 2), the release's at 4x only.
+    assert!(
+        md.contains("| SaRO-GS | 8 | - | +0.49 | +4.46 | +5.21 |"),
+        "{md}"
+    );
+    assert!(
+        md.contains("| SpeeDe3DGS | 8 | - | - | - | +4.45 |"),
+        "{md}"
+    );
+    // One method alone: no pairs, no section.
+    let alone = summarise(&[(run("a", "motion"), Some(eval(30.0, &all)))]);
+    assert!(alone.gains.is_empty() && !markdown(&alone).contains("## Paired gains"));
+}
