@@ -11,9 +11,9 @@ use std::fmt::Write as _;
 
 use serde::Serialize;
 
+use super::tables::table_header;
 use super::{Cell, MethodResult, SuiteSummary, by_scene, cell_at, mean, mean_cells};
 use crate::report::published::PublishedRow;
-use crate::report::scale_header;
 
 /// One method against one listed before it with the same preset and background.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -135,13 +135,7 @@ pub fn gains_table(summary: &SuiteSummary) -> Option<String> {
     if summary.gains.is_empty() {
         return None;
     }
-    let mut t = String::from("| Method | Against | Scenes |");
-    for &s in &summary.scales {
-        let _ = write!(t, " {} |", scale_header(s));
-    }
-    t.push_str("\n|---|---|---:|");
-    t.push_str(&"---:|".repeat(summary.scales.len()));
-    t.push('\n');
+    let mut t = table_header(&["Method", "Against", "Scenes"], 1, &summary.scales, &[]);
     for g in &summary.gains {
         let _ = write!(t, "| {} | {} | {} |", g.method, g.base, g.scenes.len());
         for &s in &summary.scales {

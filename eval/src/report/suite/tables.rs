@@ -139,17 +139,42 @@ pub fn released_table(summary: &SuiteSummary) -> String {
     t
 }
 
+/// A table's header: the `labels` columns (left-aligned, the last `right` of them
+/// right-aligned), one right-aligned column per scale of `scales` and the `extra`
+/// right-aligned columns after them.
+pub(super) fn table_header(
+    labels: &[&str],
+    right: usize,
+    scales: &[f64],
+    extra: &[&str],
+) -> String {
+    let mut t = String::from("|");
+    for l in labels {
+        let _ = write!(t, " {l} |");
+    }
+    for &s in scales {
+        let _ = write!(t, " {} |", scale_header(s));
+    }
+    for e in extra {
+        let _ = write!(t, " {e} |");
+    }
+    t.push_str("\n|");
+    t.push_str(&"---|".repeat(labels.len() - right));
+    t.push_str(&"---:|".repeat(right + scales.len() + extra.len()));
+    t.push('\n');
+    t
+}
+
 /// Per scene and method, one metric at every evaluated scale and the mean over
 /// 1x..4x, with each method's average row.
 fn per_scene_table(summary: &SuiteSummary, metric: &Metric) -> String {
     let (_, digits, f) = *metric;
-    let mut t = String::from("| Method | Scene | Split |");
-    for &s in &summary.scales {
-        let _ = write!(t, " {} |", scale_header(s));
-    }
-    let _ = write!(t, " avg 1x-4x |\n|---|---|---|");
-    t.push_str(&"---:|".repeat(summary.scales.len() + 1));
-    t.push('\n');
+    let mut t = table_header(
+        &["Method", "Scene", "Split"],
+        0,
+        &summary.scales,
+        &["avg 1x-4x"],
+    );
     let row = |t: &mut String, method: &str, scene: &str, split: &str, cells: &[Cell]| {
         let _ = write!(t, "| {method} | {scene} | {split} |");
         for &s in &summary.scales {
@@ -183,13 +208,7 @@ pub(super) fn average_label(avg: &Average) -> String {
 /// standard deviation over the seeds at every scale, `s = sqrt(sum (x - mean)^2 /
 /// (n - 1))`; `None` when no scene has two seeds.
 fn seed_spread_table(summary: &SuiteSummary) -> Option<String> {
-    let mut t = String::from("| Method | Scene | Seeds |");
-    for &s in &summary.scales {
-        let _ = write!(t, " {} |", scale_header(s));
-    }
-    t.push_str("\n|---|---|---:|");
-    t.push_str(&"---:|".repeat(summary.scales.len()));
-    t.push('\n');
+    let mut t = table_header(&["Method", "Scene", "Seeds"], 1, &summary.scales, &[]);
     let mut any = false;
     for m in &summary.methods {
         for g in by_scene(&m.scenes).into_iter().filter(|g| g.len() > 1) {
