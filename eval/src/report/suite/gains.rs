@@ -12,7 +12,7 @@ use std::fmt::Write as _;
 use serde::Serialize;
 
 use super::tables::table_header;
-use super::{Cell, MethodResult, SuiteSummary, by_scene, cell_at, mean, mean_cells};
+use super::{Cell, MethodResult, SuiteSummary, at_scale, by_scene, cell_at, mean, seed_means};
 use crate::report::published::PublishedRow;
 
 /// One method against one listed before it with the same preset and background.
@@ -44,32 +44,37 @@ pub struct GainAt {
 /// the default `none,mip3d,motion`: mip3d and motion against none, motion against
 /// mip3d). Pairs without a shared scene are left out.
 pub fn gains(methods: &[MethodResult], scales: &[f64]) -> Vec<Gain> {
+    let means: Vec<SceneMeans> = methods.iter().map(|m| scene_means(m, scales)).collect();
     let mut out = Vec::new();
     for (i, base) in methods.iter().enumerate() {
-        for m in &methods[i + 1..] {
+        for (j, m) in methods.iter().enumerate().skip(i + 1) {
             if m.preset == base.preset && m.background == base.background {
-                out.extend(gain(m, base, scales));
+                out.extend(gain((m, &means[j]), (base, &means[i]), scales));
             }
         }
     }
     out
 }
 
-/// Each scene of `m` with its cells averaged over the scene's seeds.
-fn scene_means(m: &MethodResult, scales: &[f64]) -> Vec<(String, Vec<Cell>)> {
-    by_scene(&m.scenes)
+/// A method's scenes, each with its cells averaged over the scene's seeds.
+type SceneMeans = Vec<(String, Vec<Cell>)>;
+
+fn scene_means(m: &MethodResult, scales: &[f64]) -> SceneMeans {
+    let groups = by_scene(&m.scenes);
+    let cells = seed_means(&groups, scales, false);
+    groups
         .iter()
-        .map(|g| {
-            let runs: Vec<&[Cell]> = g.iter().map(|r| r.scales.as_slice()).collect();
-            (g[0].scene.clone(), mean_cells(&runs, scales, false))
-        })
+        .map(|g| g[0].scene.clone())
+        .zip(cells)
         .collect()
 }
 
 /// `m` against `base` on their shared scenes; `None` when they share none.
-fn gain(m: &MethodResult, base: &MethodResult, scales: &[f64]) -> Option<Gain> {
-    let ours = scene_means(m, scales);
-    let theirs = scene_means(base, scales);
+fn gain(
+    (m, ours): (&MethodResult, &SceneMeans),
+    (base, theirs): (&MethodResult, &SceneMeans),
+    scales: &[f64],
+) -> Option<Gain> {
     let pairs: Vec<(&str, &[Cell], &[Cell])> = ours
         .iter()
         .filter_map(|(scene, a)| {
@@ -121,7 +126,7 @@ fn published_gain(rows: &[PublishedRow]) -> Option<PublishedGain<'_>> {
         .scales
         .iter()
         .filter_map(|p| {
-            let b = base.scales.iter().find(|q| q.scale == p.scale)?;
+            let b = at_scale(&base.scales, p.scale, |q| q.scale)?;
             Some((p.scale, p.psnr - b.psnr))
         })
         .collect();
@@ -139,7 +144,7 @@ pub fn gains_table(summary: &SuiteSummary) -> Option<String> {
     for g in &summary.gains {
         let _ = write!(t, "| {} | {} | {} |", g.method, g.base, g.scenes.len());
         for &s in &summary.scales {
-            match g.scales.iter().find(|c| (c.scale - s).abs() < 1e-9) {
+            match at_scale(&g.scales, s, |c| c.scale) {
                 Some(c) => {
                     let _ = write!(t, " {:+.2} ({}/{}) |", c.psnr, c.ahead, g.scenes.len());
                 }
@@ -158,10 +163,7 @@ pub fn gains_table(summary: &SuiteSummary) -> Option<String> {
             method.method, method.source, base.method, method.scenes
         );
         for &s in &summary.scales {
-            let v = at
-                .iter()
-                .find(|(p, _)| (p - s).abs() < 1e-9)
-                .map(|&(_, d)| d);
+            let v = at_scale(&at, s, |&(p, _)| p).map(|&(_, d)| d);
             let _ = write!(t, " {} |", v.map_or("-".into(), |d| format!("{d:+.2}")));
         }
         t.push('\n');

@@ -145,8 +145,6 @@ pub struct MethodResult {
     pub method: String,
     /// Its preset.
     pub preset: String,
-    /// Its filter.
-    pub filter: String,
     /// Its background.
     pub background: String,
     /// Evaluated scenes, in the suite's order.
@@ -218,9 +216,14 @@ fn scene_result(run: &SuiteRun, eval: &EvalReport) -> SceneResult {
     }
 }
 
+/// The item of `items` at render scale `s` (`scale` reads an item's), if any.
+fn at_scale<T>(items: &[T], s: f64, scale: impl Fn(&T) -> f64) -> Option<&T> {
+    items.iter().find(|x| (scale(x) - s).abs() < 1e-9)
+}
+
 /// The metrics at scale `s` among `cells`, if it was evaluated there.
 fn cell_at(cells: &[Cell], s: f64) -> Option<&Cell> {
-    cells.iter().find(|c| (c.scale - s).abs() < 1e-9)
+    at_scale(cells, s, |c| c.scale)
 }
 
 /// The mean of each metric over `runs` at every scale in `scales` that all of them
@@ -259,6 +262,17 @@ fn by_scene(scenes: &[SceneResult]) -> Vec<Vec<&SceneResult>> {
     groups
 }
 
+/// Each scene group's cells averaged over its seeds (see [`mean_cells`]).
+fn seed_means(groups: &[Vec<&SceneResult>], scales: &[f64], with_lpips: bool) -> Vec<Vec<Cell>> {
+    groups
+        .iter()
+        .map(|g| {
+            let runs: Vec<&[Cell]> = g.iter().map(|r| r.scales.as_slice()).collect();
+            mean_cells(&runs, scales, with_lpips)
+        })
+        .collect()
+}
+
 /// The mean over scenes of each scene's mean over its seeds.
 fn average(scenes: &[SceneResult], scales: &[f64]) -> Option<Average> {
     if scenes.is_empty() {
@@ -270,13 +284,7 @@ fn average(scenes: &[SceneResult], scales: &[f64]) -> Option<Average> {
         .all(|r| &r.lpips_net == net)
         .then(|| net.clone());
     let groups = by_scene(scenes);
-    let per_scene: Vec<Vec<Cell>> = groups
-        .iter()
-        .map(|g| {
-            let runs: Vec<&[Cell]> = g.iter().map(|r| r.scales.as_slice()).collect();
-            mean_cells(&runs, scales, lpips_net.is_some())
-        })
-        .collect();
+    let per_scene = seed_means(&groups, scales, lpips_net.is_some());
     let per_scene: Vec<&[Cell]> = per_scene.iter().map(Vec::as_slice).collect();
     let scene_mean = |f: fn(&SceneResult) -> f64| {
         mean(groups.iter().filter_map(|g| mean(g.iter().map(|r| f(r))))).unwrap_or(0.0)
@@ -312,7 +320,6 @@ pub fn summarise(runs: &[(SuiteRun, Option<EvalReport>)]) -> SuiteSummary {
                 methods.push(MethodResult {
                     method: name,
                     preset: run.preset.clone(),
-                    filter: run.filter.clone(),
                     background: run.background.clone(),
                     scenes: Vec::new(),
                     average: None,

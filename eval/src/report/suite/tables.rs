@@ -5,7 +5,7 @@ use std::fmt::Write as _;
 
 use super::cost::cost_table;
 use super::gains::gains_table;
-use super::{Average, Cell, SuiteSummary, TAB2_SCALES, by_scene, cell_at, mean};
+use super::{Average, Cell, SuiteSummary, TAB2_SCALES, at_scale, by_scene, cell_at, mean};
 use crate::report::{lpips_label, scale_header};
 
 /// `v` with `digits` decimals, `-` when absent.
@@ -65,7 +65,7 @@ pub fn tab2_table(summary: &SuiteSummary) -> String {
         for (i, digits) in [2, 3, 3].into_iter().enumerate() {
             let pick = |p: &crate::report::published::PublishedScale| [p.psnr, p.ssim, p.lpips][i];
             for s in TAB2_SCALES {
-                let v = row.scales.iter().find(|p| p.scale == s).map(pick);
+                let v = at_scale(&row.scales, s, |p| p.scale).map(pick);
                 let _ = write!(t, " {} |", num(v, digits));
             }
             let _ = write!(t, " {} |", num(avg.as_ref().map(pick), digits));
@@ -122,7 +122,7 @@ pub fn released_table(summary: &SuiteSummary) -> String {
         );
     }
     for row in &summary.released {
-        let c = row.scales.iter().find(|p| p.scale == 4.0);
+        let c = at_scale(&row.scales, 4.0, |p| p.scale);
         let _ = writeln!(
             t,
             "| {} [published, GPU: {}] | {} | {} | {} | {} | {} | {} | - |",
