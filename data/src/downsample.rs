@@ -88,6 +88,26 @@ pub fn composite_premultiplied(rgba: &[f32], background: [f32; 3]) -> Vec<f32> {
     out
 }
 
+/// Moves an image composited on `from` onto the background `to`, given its coverage
+/// `a` (`[.., 1]`, the premultiplied alpha the colour was composited with):
+/// `rgb' = rgb + (1 - a) (to - from)`, which equals `P.rgb + to (1 - a)` (step 3 above
+/// with `to`). Training on a random background per step composites the ground truth
+/// this way (nerfstudio's `background_color = "random"`, 3DGS's `--random_background`).
+pub fn recomposite(rgb: &[f32], coverage: &[f32], from: [f32; 3], to: [f32; 3]) -> Vec<f32> {
+    let shift = [to[0] - from[0], to[1] - from[1], to[2] - from[2]];
+    rgb.chunks_exact(3)
+        .zip(coverage)
+        .flat_map(|(px, &a)| {
+            let t = 1.0 - a;
+            [
+                px[0] + shift[0] * t,
+                px[1] + shift[1] * t,
+                px[2] + shift[2] * t,
+            ]
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -179,6 +199,24 @@ mod tests {
         let cv2_style: Vec<f32> = (0..3).map(|c| s[c] * s[3] + bg[c] * (1.0 - s[3])).collect();
         assert_eq!(cv2_style, vec![0.75, 0.5, 0.75]);
         assert_ne!(cv2_style, ours);
+    }
+
+    #[test]
+    fn recomposite_equals_compositing_on_the_new_background() {
+        let mut p = pseudo_random(6 * 5 * 4, 11);
+        premultiply(&mut p);
+        let coverage: Vec<f32> = p.chunks_exact(4).map(|px| px[3]).collect();
+        let (from, to) = ([0.0, 0.0, 0.0], [0.9, 0.3, 0.6]);
+        let moved = recomposite(&composite_premultiplied(&p, from), &coverage, from, to);
+        let direct = composite_premultiplied(&p, to);
+        assert_eq!(moved.len(), direct.len());
+        for (x, y) in moved.iter().zip(&direct) {
+            assert!((x - y).abs() < 1e-6, "{x} vs {y}");
+        }
+        // An opaque pixel keeps its colour; a fully transparent one becomes `to`.
+        let rgb = [0.25, 0.5, 0.75, 0.0, 0.0, 0.0];
+        let out = recomposite(&rgb, &[1.0, 0.0], from, to);
+        assert_eq!(out, vec![0.25, 0.5, 0.75, 0.9, 0.3, 0.6]);
     }
 
     #[test]

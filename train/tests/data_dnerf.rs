@@ -6,7 +6,8 @@ use std::path::{Path, PathBuf};
 
 use common::TempDir;
 use glam::DVec3;
-use maaf_train::data::{DataError, Dataset, DatasetOptions, Split, WHITE};
+use maaf_train::data::downsample::recomposite;
+use maaf_train::data::{BLACK, DataError, Dataset, DatasetOptions, Split, WHITE};
 
 fn mutant() -> Option<PathBuf> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/dnerf/mutant");
@@ -227,6 +228,45 @@ fn tiny_data_set_loads() {
     // OpenGL camera at z = 4 looking down -z: in OpenCV axes the origin is in front.
     let (u, vv, z) = v.camera.project(DVec3::ZERO).expect("in front");
     assert_eq!((u, vv, z), (1.0, 1.0, 4.0));
+}
+
+#[test]
+fn coverage_recomposites_a_view_onto_another_background() {
+    let t = tiny("coverage");
+    // Opaque sources have no coverage.
+    let data = Dataset::open(&t.0, DatasetOptions { background: BLACK }).expect("valid");
+    assert!(
+        data.view(Split::Train, 0, 1.0)
+            .expect("view")
+            .coverage
+            .is_none()
+    );
+    // A source with transparent pixels keeps its alpha, box-averaged like the colour.
+    let img = image::RgbaImage::from_fn(4, 4, |x, y| {
+        image::Rgba([200, (x * 60) as u8, (y * 60) as u8, (x * 80 + y * 5) as u8])
+    });
+    img.save(t.0.join("train/r_001.png")).expect("png");
+    let black = Dataset::open(&t.0, DatasetOptions { background: BLACK }).expect("valid");
+    let white = Dataset::open(&t.0, DatasetOptions { background: WHITE }).expect("valid");
+    for scale in [1.0, 0.5] {
+        let v = black.view(Split::Train, 1, scale).expect("view");
+        let a = v
+            .coverage
+            .as_ref()
+            .expect("transparent source has coverage");
+        assert_eq!(
+            (a.width, a.height, a.channels),
+            (v.image.width, v.image.height, 1)
+        );
+        let moved = recomposite(&v.image.data, &a.data, BLACK, WHITE);
+        let w = white.view(Split::Train, 1, scale).expect("view");
+        for (x, y) in moved.iter().zip(&w.image.data) {
+            assert!((x - y).abs() < 1e-6, "scale {scale}: {x} vs {y}");
+        }
+    }
+    let v = black.view(Split::Train, 1, 1.0).expect("view");
+    let a = v.coverage.expect("coverage");
+    assert_eq!((a.pixel(0, 0), a.pixel(3, 3)), (&[0.0][..], &[1.0][..]));
 }
 
 #[test]

@@ -1,12 +1,13 @@
 //! The image cache of [`Dataset`]: decoding each view once, box-downsampling it to every
-//! requested factor (premultiplied, then composited on the background) in parallel, and
-//! handing out cached views.
+//! requested factor (premultiplied, then composited on the background; the alpha kept as
+//! the view's coverage when the source has any transparency) in parallel, and handing
+//! out cached views.
 
 use std::sync::Arc;
 
 use rayon::prelude::*;
 
-use super::{CacheKey, Dataset, View};
+use super::{CacheKey, CachedImage, Dataset, View};
 use crate::dnerf::Split;
 use crate::downsample::{box_downsample, composite_premultiplied, premultiply};
 use crate::error::DataError;
@@ -22,7 +23,7 @@ impl Dataset {
         k: u32,
     ) -> Result<View, DataError> {
         let frame = self.frame(split, index)?;
-        let image = self
+        let (image, coverage) = self
             .cache
             .lock()
             .ok()
@@ -32,6 +33,7 @@ impl Dataset {
             split,
             index,
             image,
+            coverage,
             camera: frame.camera.scaled(1.0 / k as f64),
             time: frame.time,
         })
@@ -64,7 +66,7 @@ impl Dataset {
                 .collect()
         };
         let background = self.background;
-        let decoded: Vec<Vec<(CacheKey, Arc<Image>)>> =
+        let decoded: Vec<Vec<(CacheKey, CachedImage)>> =
             missing
                 .par_iter()
                 .map(|(i, ks)| {
@@ -84,6 +86,7 @@ impl Dataset {
                             ),
                         ));
                     }
+                    let opaque = rgba.data.chunks_exact(4).all(|p| p[3] >= 1.0);
                     premultiply(&mut rgba.data);
                     let (w, h) = (rgba.width as usize, rgba.height as usize);
                     ks.iter()
@@ -94,13 +97,22 @@ impl Dataset {
                                     scale: 1.0 / k as f64,
                                     message: format!("factor {k} does not divide {w}x{h}"),
                                 })?;
+                            let (width, height) = (rgba.width / k, rgba.height / k);
                             let img = Image {
-                                width: rgba.width / k,
-                                height: rgba.height / k,
+                                width,
+                                height,
                                 channels: 3,
                                 data: composite_premultiplied(&small, background),
                             };
-                            Ok(((split, k, *i), Arc::new(img)))
+                            let coverage = (!opaque).then(|| {
+                                Arc::new(Image {
+                                    width,
+                                    height,
+                                    channels: 1,
+                                    data: small.chunks_exact(4).map(|p| p[3]).collect(),
+                                })
+                            });
+                            Ok(((split, k, *i), (Arc::new(img), coverage)))
                         })
                         .collect()
                 })

@@ -64,6 +64,11 @@ pub struct View {
     pub index: usize,
     /// Composited RGB image `[H, W, 3]` in `[0, 1]` at this scale (shared with the cache).
     pub image: Arc<Image>,
+    /// Coverage `a` `[H, W, 1]` of the source's alpha at this scale (box-averaged like
+    /// the colour), `None` when every source pixel is opaque. With it the view can be
+    /// composited on any other background `b`: `image + (1 - a) (b - background)`
+    /// ([`crate::downsample::recomposite`]).
+    pub coverage: Option<Arc<Image>>,
     /// Camera at this scale (OpenCV axes, intrinsics divided by the factor).
     pub camera: Camera,
     /// Time stamp from the json.
@@ -72,6 +77,9 @@ pub struct View {
 
 /// Cache key: split, downsampling factor, view index.
 type CacheKey = (Split, u32, usize);
+
+/// One cached view: the composited image and its coverage ([`View::coverage`]).
+type CachedImage = (Arc<Image>, Option<Arc<Image>>);
 
 /// The on-disk format of a data set.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -124,7 +132,7 @@ pub struct Dataset {
     masks: MaskSource,
     /// Foreground mask of each training image that has one (image path -> mask path).
     train_masks: HashMap<PathBuf, PathBuf>,
-    cache: Mutex<HashMap<CacheKey, Arc<Image>>>,
+    cache: Mutex<HashMap<CacheKey, CachedImage>>,
     /// Temporal median of each test camera group (for [`MaskSource::TemporalMedian`]).
     medians: Mutex<HashMap<usize, Arc<Rgb8>>>,
 }

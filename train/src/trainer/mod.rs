@@ -9,6 +9,7 @@
 //! terms can also be pushed onto [`Trainer::objective`]. [`train_run`] runs either in
 //! a run directory.
 
+mod background;
 mod checkpoint;
 mod cpu_clock;
 mod densify;
@@ -113,6 +114,9 @@ pub struct Trainer {
     view_times: Vec<f64>,
     held_out: Vec<validation::HeldOut>,
     gts: Vec<Tensor<f32>>,
+    /// Coverage (alpha) of each training view with transparency, kept only for
+    /// `random_background` ([`background`]).
+    coverage: Vec<Option<Vec<f32>>>,
     cameras: Vec<Camera>,
     /// The training views the motion filter observes (`camera` is the view's index),
     /// the observation table's frames; none for the other filters.
@@ -214,6 +218,15 @@ impl Trainer {
         }
         let bounds = data.scene_bounds();
         let gts = views.iter().map(|v| v.image.to_tensor()).collect();
+        let coverage = views
+            .iter()
+            .map(|v| {
+                v.coverage
+                    .as_ref()
+                    .filter(|_| config.random_background)
+                    .map(|a| a.data.clone())
+            })
+            .collect();
         // The tensors are the trainer's copy: the data set's cached one would double
         // the images' memory for the whole run.
         data.evict(crate::data::Split::Train);
@@ -250,6 +263,7 @@ impl Trainer {
             view_times,
             held_out,
             gts,
+            coverage,
             cameras,
             observed,
             observed_slot,

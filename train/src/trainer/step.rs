@@ -82,10 +82,20 @@ impl Trainer {
         let t_bind = Instant::now();
         let bound = self.model.bind(&params);
         let bind_seconds = t_bind.elapsed().as_secs_f64();
+        let targets: Vec<_> = views
+            .iter()
+            .enumerate()
+            .map(|(slot, &vi)| self.view_target(it, slot, vi))
+            .collect();
         let fwds: Vec<_> = views
             .iter()
-            .map(|&vi| {
+            .zip(&targets)
+            .map(|(&vi, (background, _))| {
                 let (camera, time) = (&self.cameras[vi], self.view_times[vi]);
+                let settings = RenderSettings {
+                    background: background.map(f64::from),
+                    ..settings.clone()
+                };
                 forward_bound(bound.as_ref(), &self.filter, camera, time, &settings)
             })
             .collect();
@@ -93,7 +103,11 @@ impl Trainer {
         let evals: Vec<_> = fwds
             .iter()
             .zip(&views)
-            .map(|(fwd, &vi)| fwd.objective(&self.objective, &self.gts[vi], it - 1))
+            .zip(&targets)
+            .map(|((fwd, &vi), (_, target))| {
+                let gt = target.as_ref().unwrap_or(&self.gts[vi]);
+                fwd.objective(&self.objective, gt, it - 1)
+            })
             .collect();
         let batch = views.len();
         let totals: Vec<_> = evals.iter().map(|e| e.total).collect();
