@@ -210,7 +210,7 @@ fn evaluate_scale(
         .map(|&i| data.view(split, i, scale.source))
         .collect::<Result<Vec<_>, _>>()
         .map_err(|e| Error::Input(e.to_string()))?;
-    let settings = scene.render_settings();
+    let settings = eval_settings(scene, data);
     // The model is not `Sync`: views are rendered one after the other (the renderer
     // is parallel inside), then metrics and PNG encoding run in parallel over a
     // chunk of views (bounded memory: one chunk of float images at a time).
@@ -384,6 +384,33 @@ pub fn evaluate_run_with(
     evaluate_scene(&scene, run, data, options)
 }
 
+/// Name of an evaluation's outputs in the run folder (`NAME.json` and the image folder
+/// `NAME/`): `eval` on the background the run trained on; on another one
+/// `eval-on-white`, `eval-on-black` or `eval-on-R,G,B`. Evaluating on another
+/// background shows what a model put into empty space (Gaussians clamped to the
+/// training background's colour appear as floaters), and never replaces the run's own
+/// `eval.json`, which the reports read.
+pub fn eval_name(trained: [f32; 3], data: [f32; 3]) -> String {
+    if trained == data {
+        return "eval".into();
+    }
+    let label = match data {
+        [1.0, 1.0, 1.0] => "white".to_string(),
+        [0.0, 0.0, 0.0] => "black".to_string(),
+        [r, g, b] => format!("{r},{g},{b}"),
+    };
+    format!("eval-on-{label}")
+}
+
+/// The scene's render settings on the data set's background (the run's own unless the
+/// evaluation moved the ground truth onto another, [`eval_name`]).
+pub(crate) fn eval_settings(scene: &TrainedScene, data: &Dataset) -> maaf_splat::RenderSettings {
+    maaf_splat::RenderSettings {
+        background: data.background().map(f64::from),
+        ..scene.render_settings()
+    }
+}
+
 /// [`evaluate_run`] for a run already loaded (saves loading it twice when the caller
 /// also renders videos, or evaluates a trainer's `maaf_train::trainer::Trainer::into_scene`).
 pub fn evaluate_scene(
@@ -413,7 +440,8 @@ pub fn evaluate_scene(
     let lpips = Lpips::load_default(options.lpips_net).map_err(|e| e.to_string());
     report.lpips_net = options.lpips_net.name().to_string();
 
-    let final_dir = run.join("eval");
+    let name = eval_name(scene.record.background, data.background());
+    let final_dir = run.join(&name);
     let tmp_dir = maaf_io::temp_sibling(&final_dir);
     if tmp_dir.exists() {
         std::fs::remove_dir_all(&tmp_dir).map_err(|e| Error::io(&tmp_dir, e))?;
@@ -525,10 +553,10 @@ pub fn evaluate_scene(
         let _ = std::fs::remove_dir_all(&tmp_dir);
         return Err(e);
     }
-    // Swap the complete folder into place, then write eval.json.
+    // Swap the complete folder into place, then write NAME.json.
     maaf_io::replace_dir(&tmp_dir, &final_dir).map_err(|e| Error::io(&final_dir, e))?;
-    let json =
-        serde_json::to_vec_pretty(&report).map_err(|e| Error::Input(format!("eval.json: {e}")))?;
-    write_atomic(&run.join("eval.json"), &json)?;
+    let json = serde_json::to_vec_pretty(&report)
+        .map_err(|e| Error::Input(format!("{name}.json: {e}")))?;
+    write_atomic(&run.join(format!("{name}.json")), &json)?;
     Ok(report)
 }

@@ -89,8 +89,25 @@ impl DataFingerprint {
 
     /// Refuses `now` (the data set at hand) when it is not this recorded one: another
     /// frames fingerprint (or, for a record without one, another view count or image
-    /// size), or another background. The message names both folders.
+    /// size), or another background ([`Self::check_frames`] plus the background: what
+    /// a resumed training needs). The message names both folders.
     pub fn check(&self, now: &DataFingerprint, run: &Path) -> Result<(), Error> {
+        self.check_frames(now, run)?;
+        if self.background != now.background {
+            return Err(Error::Input(format!(
+                "{}: background {:?} differs from the {:?} the run {} was trained on",
+                now.root.display(),
+                now.background,
+                self.background,
+                run.display()
+            )));
+        }
+        Ok(())
+    }
+
+    /// [`Self::check`] without the background: the same frames, composited on any
+    /// background (an evaluation may move the ground truth onto another one).
+    pub fn check_frames(&self, now: &DataFingerprint, run: &Path) -> Result<(), Error> {
         let differs = match (&self.frames, &now.frames) {
             (Some(a), Some(b)) if a != b => Some(format!(
                 "its training frames and cameras differ (fingerprint {b}, the run's {a})"
@@ -117,15 +134,6 @@ impl DataFingerprint {
                 now.root.display(),
                 run.display(),
                 self.root.display()
-            )));
-        }
-        if self.background != now.background {
-            return Err(Error::Input(format!(
-                "{}: background {:?} differs from the {:?} the run {} was trained on",
-                now.root.display(),
-                now.background,
-                self.background,
-                run.display()
             )));
         }
         Ok(())
@@ -170,7 +178,8 @@ pub fn recorded_data(run: &Path) -> Result<Option<DataFingerprint>, Error> {
 }
 
 /// Loads the trained scene of `run` for evaluation on `data`: refuses a data set
-/// other than the one `RUN/data.json` records ([`DataFingerprint::check`]), then
+/// other than the one `RUN/data.json` records ([`DataFingerprint::check_frames`]: its
+/// background may differ, [`eval_name`]), then
 /// loads `RUN/model` through `registry`, taking from `data` only what a run saved
 /// before the scene record lacks ([`TrainedScene::load_with`]).
 pub fn load_scene_on(
@@ -180,7 +189,7 @@ pub fn load_scene_on(
 ) -> Result<TrainedScene, Error> {
     let dir = model_dir(run)?;
     if let Some(rec) = recorded_data(run)? {
-        rec.check(&DataFingerprint::of(data)?, run)?;
+        rec.check_frames(&DataFingerprint::of(data)?, run)?;
     }
     TrainedScene::from_checkpoint(&dir, registry, Some(data))
 }

@@ -76,7 +76,7 @@ pub fn evaluate_temporal(
     lpips: Option<&Lpips>,
 ) -> Result<(Vec<TemporalResult>, PoppingResult), Error> {
     let v = video(data, source)?;
-    let settings = scene.render_settings();
+    let settings = crate::eval_settings(scene, data);
     let frames: Vec<Tensor<f32>> = v
         .times
         .iter()

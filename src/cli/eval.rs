@@ -42,8 +42,10 @@ pub struct EvalArgs {
     /// Do not save renders and error maps (metrics only).
     #[arg(long)]
     pub no_images: bool,
-    /// Background the data is composited on: white, black, or r,g,b in [0, 1]
-    /// [default: the one in RUN/data.json, else white].
+    /// Background the data is composited on and the model rendered on: white, black,
+    /// or r,g,b in [0, 1]. Another than the run's own writes RUN/eval-on-NAME.json and
+    /// RUN/eval-on-NAME/ beside the run's eval.json (what the model put into empty
+    /// space shows there) [default: the one in RUN/data.json, else white].
     #[arg(long, value_parser = Background::parse)]
     pub background: Option<Background>,
     /// Also measure temporal stability (W-Temporal Error, W-SSIM, W-LPIPS) of a
@@ -158,6 +160,8 @@ pub fn run(args: &EvalArgs, models: &ModelRegistry) -> anyhow::Result<()> {
         lpips_net: args.lpips_net,
     };
     let report = evaluate_run_with(&args.run, &data, &options, models)?;
+    let trained = recorded_data(&args.run)?.map_or(data.background(), |r| r.background);
+    let name = maaf_eval::eval_name(trained, data.background());
     println!(
         "{} / {} at training scale {}: {} Gaussians, {:.1} MB (+{:.1} MB filter)",
         report.model,
@@ -193,7 +197,7 @@ pub fn run(args: &EvalArgs, models: &ModelRegistry) -> anyhow::Result<()> {
     if let Some(note) = report.scales.iter().find_map(|s| s.lpips_note.as_ref()) {
         println!("LPIPS missing at some scale: {note}");
     }
-    println!("wrote {}", args.run.join("eval.json").display());
+    println!("wrote {}", args.run.join(format!("{name}.json")).display());
     Ok(())
 }
 

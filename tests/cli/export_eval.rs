@@ -1,14 +1,15 @@
 //! `maaf export-ply`, `maaf render-ply`, `maaf render` and `maaf eval --temporal` as a
 //! user runs them on a tiny trained run of the built-in scene: the exported frame
 //! renders to the same PNG as the run at that time, a sequence goes into a zip (and a
-//! non-zip file in its way is refused in one line), and eval without LPIPS weights
-//! writes null plus the reason and still fills the temporal fields.
+//! non-zip file in its way is refused in one line), eval without LPIPS weights
+//! writes null plus the reason and still fills the temporal fields, and eval on
+//! another background writes its own file with the model rendered on that background.
 
 use std::path::Path;
 use std::process::{Command, Output};
 
 use maaf::train::data::image::decode_rgba;
-use maaf::train::data::{Dataset, DatasetOptions, Split};
+use maaf::train::data::{BLACK, Dataset, DatasetOptions, Split};
 
 use super::support::{TempDir, s, tiny_scene};
 
@@ -223,6 +224,76 @@ fn exported_frame_renders_as_the_run_and_eval_survives_missing_weights() {
     assert!(
         v.get("lpips_net").is_none(),
         "AlexNet keeps the old contract: {v}"
+    );
+
+    // Another background than the run's (white) writes eval-on-black.json beside the
+    // run's eval.json, which stays as it was; the model is rendered on black as the
+    // ground truth is composited on it (a white render against a black ground truth
+    // would sit far below the same-background scores).
+    let own = std::fs::read(run.join("eval.json")).expect("eval.json");
+    let mut args = vec!["eval", "--run", s(&run), "--scales", "1"];
+    args.extend(["--max-views", "1", "--no-images", "--background", "black"]);
+    let said = maaf(&args, Some(("MAAF_LPIPS_WEIGHTS", missing)));
+    assert!(
+        String::from_utf8_lossy(&said.stdout).contains("eval-on-black.json"),
+        "the output names the file"
+    );
+    assert_eq!(
+        std::fs::read(run.join("eval.json")).expect("eval.json"),
+        own
+    );
+    let on_black: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(run.join("eval-on-black.json")).expect("written"))
+            .expect("json");
+    assert_eq!(on_black["background"], serde_json::json!([0.0, 0.0, 0.0]));
+    let psnr = |v: &serde_json::Value| v["scales"][0]["psnr"].as_f64().expect("psnr");
+    let on_white: serde_json::Value = serde_json::from_slice(&own).expect("json");
+    // Independently: `maaf render` on black against the ground truth the data set
+    // composites on black gives the same PSNR (to the PNG's 8-bit rounding); the
+    // run's own white render against it does not.
+    let gt = Dataset::open(&data, DatasetOptions { background: BLACK })
+        .expect("data")
+        .view(Split::Test, 0, 0.5)
+        .expect("view");
+    let psnr_of_render = |background: &str| {
+        let out = tmp.0.join(format!("view0_{background}.png"));
+        maaf(
+            &[
+                "render",
+                "--run",
+                s(&run),
+                "--view",
+                "test:0",
+                "--background",
+                background,
+                "--out",
+                s(&out),
+            ],
+            None,
+        );
+        let rgba = png(&out);
+        let mse = rgba
+            .chunks_exact(4)
+            .zip(gt.image.data.chunks_exact(3))
+            .flat_map(|(r, g)| (0..3).map(move |c| (r[c] as f64 - g[c] as f64).powi(2)))
+            .sum::<f64>()
+            / gt.image.data.len() as f64;
+        -10.0 * mse.log10()
+    };
+    let (direct, white) = (psnr_of_render("black"), psnr_of_render("white"));
+    eprintln!(
+        "PSNR on black: eval {:.3}, direct {direct:.3}; white render {white:.3}; eval.json {:.3}",
+        psnr(&on_black),
+        psnr(&on_white)
+    );
+    assert!(
+        (psnr(&on_black) - direct).abs() < 0.02,
+        "{} vs {direct}",
+        psnr(&on_black)
+    );
+    assert!(
+        (psnr(&on_black) - white).abs() > 0.5,
+        "the background made no difference"
     );
 
     // --lpips-net vgg is recorded in eval.json; without its weights, null and the reason.
