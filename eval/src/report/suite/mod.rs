@@ -3,8 +3,9 @@
 //! with the paper's Tab. 2 rows and the released code's row beside it
 //! ([`super::published`], labelled as published), then per-scene PSNR, SSIM and LPIPS at
 //! every evaluated scale and the cost of each run (training wall time, where the
-//! training time went by phase, Gaussians, model bytes). Written as `report.md` and
-//! `report.json`.
+//! training time went by phase, Gaussians, model bytes), and a chart of each method's
+//! PSNR against its training time ([`chart`]). Written as `report.md`, `report.json`
+//! and `speed_quality.png`.
 //!
 //! Averages are plain means over the scenes present: a cell is averaged only when every
 //! evaluated scene of the method has it, and a scene is counted only once it has an
@@ -23,6 +24,7 @@ use super::published::{PublishedRow, paper_tab2, released};
 use crate::EvalReport;
 use crate::{Error, write_atomic};
 
+mod chart;
 mod cost;
 mod gains;
 mod tables;
@@ -178,6 +180,8 @@ pub struct SuiteOutput {
     pub markdown: PathBuf,
     /// `OUT/report.json`.
     pub json: PathBuf,
+    /// `OUT/speed_quality.png` ([`chart`]).
+    pub chart: PathBuf,
     /// The Tab. 2-shaped table, for printing.
     pub table: String,
 }
@@ -346,7 +350,7 @@ pub fn summarise(runs: &[(SuiteRun, Option<EvalReport>)]) -> SuiteSummary {
 }
 
 /// Reads each run's `eval.json` (a run without one is listed as not evaluated yet)
-/// and writes `OUT/report.md` and `OUT/report.json`.
+/// and writes `OUT/report.md`, `OUT/report.json` and `OUT/speed_quality.png`.
 pub fn write_suite_report(runs: &[SuiteRun], out: &Path) -> Result<SuiteOutput, Error> {
     let mut loaded = Vec::with_capacity(runs.len());
     for r in runs {
@@ -370,9 +374,12 @@ pub fn write_suite_report(runs: &[SuiteRun], out: &Path) -> Result<SuiteOutput, 
     let json = serde_json::to_string_pretty(&summary)
         .map_err(|e| Error::Input(format!("cannot serialise the suite report: {e}")))?;
     write_atomic(&json_path, json.as_bytes())?;
+    let chart_path = out.join("speed_quality.png");
+    chart::speed_quality(&summary, &chart_path)?;
     Ok(SuiteOutput {
         markdown: markdown_path,
         json: json_path,
+        chart: chart_path,
         table: tab2_table(&summary),
     })
 }

@@ -259,6 +259,13 @@ pub fn markdown(summary: &SuiteSummary) -> String {
         );
         md.push_str(&gains);
     }
+    md.push_str(
+        "\n## Speed against accuracy\n\n\
+         Each method's mean PSNR at 1x and 4x against its mean training wall time (on this \
+         machine, with the load of the cost table below), and the released code's rows \
+         with their published GPU times (crosses).\n\n\
+         ![mean PSNR against training time](speed_quality.png)\n",
+    );
     md.push_str("\n## At 4x against the released code (SpeeDe3DGS backbone)\n\n");
     md.push_str(&lpips_net_note(summary));
     md.push_str(&released_table(summary));

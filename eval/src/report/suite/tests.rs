@@ -261,3 +261,38 @@ fn paired_gains_use_only_shared_scenes_of_one_preset_and_background() {
     let alone = summarise(&[(run("a", "motion"), Some(eval(30.0, &all)))]);
     assert!(alone.gains.is_empty() && !markdown(&alone).contains("## Paired gains"));
 }
+
+#[test]
+fn the_speed_chart_places_each_method_at_its_mean_time_and_psnr_beside_the_release() {
+    let all = [1.0, 4.0];
+    let runs = vec![
+        (run("a", "motion"), Some(eval(30.0, &all))),
+        (run("b", "motion"), Some(eval(36.0, &all))),
+        (run("a", "none"), Some(eval(24.0, &[1.0]))),
+    ];
+    let s = summarise(&runs);
+    // 1x: both methods (the release publishes 4x only).
+    let at1 = chart::points(&s, 1.0);
+    assert_eq!(at1.len(), 2, "{at1:?}");
+    assert!((at1[0].minutes - 33.0 / 60.0).abs() < 1e-12 && (at1[0].psnr - 34.0).abs() < 1e-12);
+    assert_eq!(at1[0].label, "dnerf / motion / black (2 scenes)");
+    assert!((at1[1].minutes - 24.0 / 60.0).abs() < 1e-12 && (at1[1].psnr - 25.0).abs() < 1e-12);
+    assert_ne!(at1[0].colour, at1[1].colour, "filters keep their colours");
+    // 4x: motion only (none lacks 4x), then the released rows with their GPU minutes.
+    let at4 = chart::points(&s, 4.0);
+    assert!(!at4[0].published && (at4[0].psnr - 37.0).abs() < 1e-12);
+    let maaf = at4
+        .iter()
+        .find(|p| p.published && (p.psnr - 32.28).abs() < 1e-9)
+        .expect("the released MAAF row");
+    assert!((maaf.minutes - 6.48).abs() < 1e-12, "{maaf:?}");
+    assert_eq!(at4.iter().filter(|p| !p.published).count(), 1);
+    // The figure is written as a PNG of the chart's size.
+    let dir = std::env::temp_dir().join(format!("maaf_speed_chart_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("mkdir");
+    let path = dir.join("speed_quality.png");
+    chart::speed_quality(&s, &path).expect("chart");
+    let img = image::open(&path).expect("png");
+    assert_eq!((img.width(), img.height()), (1400, 620));
+    let _ = std::fs::remove_dir_all(&dir);
+}
