@@ -114,6 +114,26 @@ pub(super) fn new_chart<'a, 'b>(
         .map_err(e2s)
 }
 
+/// Draws the axes of a scatter chart: six labels each, 16 px labels, 17 px
+/// descriptions, no minor grid lines.
+pub(super) fn draw_axes(
+    chart: &mut Chart<'_, '_>,
+    x_desc: &str,
+    y_desc: &str,
+) -> Result<(), String> {
+    chart
+        .configure_mesh()
+        .x_desc(x_desc)
+        .y_desc(y_desc)
+        .label_style(text(16))
+        .axis_desc_style(text(17))
+        .light_line_style(WHITE.mix(0.0))
+        .x_labels(6)
+        .y_labels(6)
+        .draw()
+        .map_err(e2s)
+}
+
 /// Draws the series legend of `chart` at `position`: white at 85 % opacity, a black
 /// border, 15 px labels.
 fn draw_legend<'a, 'b: 'a>(
@@ -247,17 +267,7 @@ fn scatter_panel(
         x0
     };
     let mut chart = new_chart(area, title, 22, 70, (x0, x1), (y0, y1))?;
-    chart
-        .configure_mesh()
-        .x_desc(x_desc)
-        .y_desc(y_desc)
-        .label_style(text(16))
-        .axis_desc_style(text(17))
-        .light_line_style(WHITE.mix(0.0))
-        .x_labels(6)
-        .y_labels(6)
-        .draw()
-        .map_err(e2s)?;
+    draw_axes(&mut chart, x_desc, y_desc)?;
     chart
         .draw_series(
             (0..runs.len()).map(|i| marker((x(&runs[i]), y(&runs[i])), series_style(runs, i))),

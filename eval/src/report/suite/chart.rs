@@ -8,7 +8,7 @@ use plotters::prelude::*;
 
 use super::{SuiteSummary, at_scale, cell_at};
 use crate::Error;
-use crate::report::charts::{Area, e2s, new_chart, padded_range, save_chart, text};
+use crate::report::charts::{Area, draw_axes, e2s, new_chart, padded_range, save_chart, text};
 use crate::report::style::method_colour;
 
 /// One point of a panel: training minutes, PSNR, label, colour, published or not.
@@ -69,17 +69,11 @@ fn panel(area: &Area<'_>, points: &[Point], scale: f64) -> Result<(), String> {
     let (y0, y1) = padded_range(points.iter().map(|p| p.psnr), 0.2);
     let title = format!("Mean PSNR at {scale}x against training time");
     let mut chart = new_chart(area, &title, 22, 70, (0.0, 1.8 * longest), (y0, y1))?;
-    chart
-        .configure_mesh()
-        .x_desc("mean training wall time (min)")
-        .y_desc(format!("mean PSNR at {scale}x (dB)"))
-        .label_style(text(16))
-        .axis_desc_style(text(17))
-        .light_line_style(WHITE.mix(0.0))
-        .x_labels(6)
-        .y_labels(6)
-        .draw()
-        .map_err(e2s)?;
+    draw_axes(
+        &mut chart,
+        "mean training wall time (min)",
+        &format!("mean PSNR at {scale}x (dB)"),
+    )?;
     for p in points {
         let at = (p.minutes, p.psnr);
         if p.published {
