@@ -31,7 +31,9 @@ pub mod synthetic;
 pub mod visual_hull;
 
 pub use bounds::Aabb;
-pub use dataset::{BLACK, Dataset, DatasetOptions, Format, InitialCloud, MaskSource, View, WHITE};
+pub use dataset::{
+    BLACK, Dataset, DatasetOptions, Format, InitialCloud, MaskSource, View, WHITE, background_name,
+};
 pub use dnerf::{Frame, Split, SplitMeta};
 pub use error::DataError;
 pub use image::Image;

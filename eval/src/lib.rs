@@ -394,12 +394,7 @@ pub fn eval_name(trained: [f32; 3], data: [f32; 3]) -> String {
     if trained == data {
         return "eval".into();
     }
-    let label = match data {
-        [1.0, 1.0, 1.0] => "white".to_string(),
-        [0.0, 0.0, 0.0] => "black".to_string(),
-        [r, g, b] => format!("{r},{g},{b}"),
-    };
-    format!("eval-on-{label}")
+    format!("eval-on-{}", maaf_data::background_name(data))
 }
 
 /// The scene's render settings on the data set's background (the run's own unless the

@@ -21,7 +21,7 @@ pub(crate) mod train;
 
 pub use app::Maaf;
 
-use maaf_train::data::{BLACK, WHITE};
+use maaf_train::data::{BLACK, WHITE, background_name};
 
 /// `--background` of every command: `white` (D-NeRF's `white_bkgd`), `black` (SaRO-GS's
 /// D-NeRF configs) or `r,g,b` with components in [0, 1].
@@ -60,11 +60,7 @@ impl Background {
 /// The spelling [`Background::parse`] reads back: `white`, `black` or `r,g,b`.
 impl std::fmt::Display for Background {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self.0 {
-            c if c == WHITE => f.write_str("white"),
-            c if c == BLACK => f.write_str("black"),
-            [r, g, b] => write!(f, "{r},{g},{b}"),
-        }
+        f.write_str(&background_name(self.0))
     }
 }
 

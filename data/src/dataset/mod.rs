@@ -42,6 +42,16 @@ pub const WHITE: [f32; 3] = [1.0, 1.0, 1.0];
 /// Black background, `[0, 0, 0]` (Deformable-3DGS's default).
 pub const BLACK: [f32; 3] = [0.0, 0.0, 0.0];
 
+/// The spelling of a background colour that `--background` reads: `white`, `black` or
+/// `r,g,b`.
+pub fn background_name(rgb: [f32; 3]) -> String {
+    match rgb {
+        c if c == WHITE => "white".into(),
+        c if c == BLACK => "black".into(),
+        [r, g, b] => format!("{r},{g},{b}"),
+    }
+}
+
 /// Options for [`Dataset::open`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct DatasetOptions {

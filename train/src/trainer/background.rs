@@ -42,11 +42,13 @@ impl Trainer {
         if !self.config.random_background {
             return (self.background, None);
         }
-        let k = (iteration - 1) * self.config.batch + slot + 1;
-        let b = random_background(self.config.seed, k);
+        let b = random_background(self.config.seed, self.entry(iteration, slot));
         let target = self.coverage[view].as_ref().map(|a| {
             let gt = &self.gts[view];
-            Tensor::from_vec(recomposite(gt.data(), a, self.background, b), gt.shape())
+            Tensor::from_vec(
+                recomposite(gt.data(), &a.data, self.background, b),
+                gt.shape(),
+            )
         });
         (b, target)
     }

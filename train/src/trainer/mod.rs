@@ -24,6 +24,8 @@ mod step;
 mod strategy;
 mod validation;
 
+use std::sync::Arc;
+
 use maaf_autodiff::optim::{Adam, AdamConfig};
 use maaf_autodiff::{OpProfile, PerGaussian, Tensor};
 use maaf_filter::{CameraTime, FilterState, ObservationTable, SamplingFilter};
@@ -50,7 +52,7 @@ pub use strategy::{
     DefaultStrategy, SensitivityPruning, StepInfo, Strategy, StrategyMaker, StrategyRegistry,
 };
 
-use crate::data::Dataset;
+use crate::data::{Dataset, Image};
 use crate::loss::Objective;
 use crate::models::{Canonical, Representation};
 use crate::scene::{SceneRecord, TrainedScene, observed_views, training_views};
@@ -116,7 +118,7 @@ pub struct Trainer {
     gts: Vec<Tensor<f32>>,
     /// Coverage (alpha) of each training view with transparency, kept only for
     /// `random_background` ([`background`]).
-    coverage: Vec<Option<Vec<f32>>>,
+    coverage: Vec<Option<Arc<Image>>>,
     cameras: Vec<Camera>,
     /// The training views the motion filter observes (`camera` is the view's index),
     /// the observation table's frames; none for the other filters.
@@ -220,12 +222,7 @@ impl Trainer {
         let gts = views.iter().map(|v| v.image.to_tensor()).collect();
         let coverage = views
             .iter()
-            .map(|v| {
-                v.coverage
-                    .as_ref()
-                    .filter(|_| config.random_background)
-                    .map(|a| a.data.clone())
-            })
+            .map(|v| v.coverage.clone().filter(|_| config.random_background))
             .collect();
         // The tensors are the trainer's copy: the data set's cached one would double
         // the images' memory for the whole run.

@@ -57,10 +57,15 @@ impl Trainer {
     /// `batch` consecutive entries of the seeded epoch order (SaRO-GS draws its
     /// batches from a shuffled loader the same way).
     pub fn views_at(&self, iteration: usize) -> Vec<usize> {
-        let b = self.config.batch;
-        (0..b)
-            .map(|k| self.view_at((iteration - 1) * b + k + 1))
+        (0..self.config.batch)
+            .map(|slot| self.view_at(self.entry(iteration, slot)))
             .collect()
+    }
+
+    /// Entry (1-based) of the sequence of training views that the `slot`-th view
+    /// (0-based) of `iteration` (1-based) takes.
+    pub(super) fn entry(&self, iteration: usize, slot: usize) -> usize {
+        (iteration - 1) * self.config.batch + slot + 1
     }
 
     /// The gradient step of the next iteration: bind, then per view deform, filter,

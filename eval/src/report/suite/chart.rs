@@ -28,12 +28,11 @@ pub(super) fn points(summary: &SuiteSummary, scale: f64) -> Vec<Point> {
     let measured = summary.methods.iter().filter_map(|m| {
         let avg = m.average.as_ref()?;
         let cell = cell_at(&avg.scales, scale)?;
-        let filter = m.method.split(" / ").nth(1).unwrap_or(&m.method);
         Some(Point {
             minutes: avg.train_seconds / 60.0,
             psnr: cell.psnr,
             label: format!("{} ({} scenes)", m.method, avg.scenes),
-            colour: method_colour(filter),
+            colour: method_colour(&m.filter),
             published: false,
         })
     });

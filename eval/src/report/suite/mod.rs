@@ -147,6 +147,8 @@ pub struct MethodResult {
     pub method: String,
     /// Its preset.
     pub preset: String,
+    /// Its filter (the chart's colour).
+    pub filter: String,
     /// Its background.
     pub background: String,
     /// Evaluated scenes, in the suite's order.
@@ -324,6 +326,7 @@ pub fn summarise(runs: &[(SuiteRun, Option<EvalReport>)]) -> SuiteSummary {
                 methods.push(MethodResult {
                     method: name,
                     preset: run.preset.clone(),
+                    filter: run.filter.clone(),
                     background: run.background.clone(),
                     scenes: Vec::new(),
                     average: None,
