@@ -223,6 +223,11 @@ pub struct EvalReport {
     pub filter_bytes: u64,
     /// Background colour the renders and ground truth are composited on.
     pub background: [f32; 3],
+    /// Background the run was trained on, when the evaluation composited on another
+    /// (`maaf eval --background`; its outputs are then [`EvalReport::name`]
+    /// `eval-on-NAME`); left out of the file otherwise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub trained_background: Option<[f32; 3]>,
     /// Whether renders were quantised to 8 bits before the metrics (always `false`).
     pub quantized_8bit: bool,
     /// Every this many distinct times of the split were evaluated (1 = all views; then
@@ -254,6 +259,19 @@ fn is_alex(v: &String) -> bool {
 }
 
 impl EvalReport {
+    /// Name of the evaluation's outputs in the run folder (`NAME.json` and the image
+    /// folder `NAME/`): `eval` on the background the run trained on; on another one
+    /// `eval-on-white`, `eval-on-black` or `eval-on-R,G,B`. Evaluating on another
+    /// background shows what a model put into empty space (Gaussians clamped to the
+    /// training background's colour appear as floaters), and never replaces the run's
+    /// own `eval.json`, which the reports read.
+    pub fn name(&self) -> String {
+        match self.trained_background {
+            None => "eval".into(),
+            Some(_) => format!("eval-on-{}", maaf_data::background_name(self.background)),
+        }
+    }
+
     /// Mean PSNR over the scales (the "Avg." column of the paper's tables).
     pub fn mean_psnr(&self) -> f64 {
         mean(self.scales.iter().map(|s| s.psnr))
@@ -327,11 +345,13 @@ mod tests {
             model_bytes: 3,
             filter_bytes: 4,
             background: [1.0; 3],
+            trained_background: None,
             quantized_8bit: false,
             frame_stride: 1,
             lpips_net: "alex".into(),
             scales: vec![ScaleResult::new(4.0, (8, 8), 30.0, 0.9)],
         };
+        assert_eq!(r.name(), "eval");
         let v: serde_json::Value =
             serde_json::from_slice(&serde_json::to_vec(&r).expect("json")).expect("value");
         let mut got: Vec<&str> = v
@@ -378,6 +398,21 @@ mod tests {
         let old: EvalReport =
             serde_json::from_str(&serde_json::to_string(&r).expect("json")).expect("reads");
         assert_eq!(old.lpips_net, "alex");
+        // On another background than the run's: the training one is recorded and the
+        // outputs are named after the evaluation's.
+        let moved = EvalReport {
+            background: [0.0; 3],
+            trained_background: Some([1.0; 3]),
+            ..r.clone()
+        };
+        assert_eq!(moved.name(), "eval-on-black");
+        let text = serde_json::to_string(&moved).expect("json");
+        assert!(
+            text.contains(r#""trained_background":[1.0,1.0,1.0]"#),
+            "{text}"
+        );
+        let back: EvalReport = serde_json::from_str(&text).expect("reads back");
+        assert_eq!(back, moved);
     }
 
     #[test]

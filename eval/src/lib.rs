@@ -317,6 +317,8 @@ pub fn run_report(scene: &TrainedScene, data: &Dataset) -> EvalReport {
         model_bytes: scene.num_scalars() as u64 * 4,
         filter_bytes: (scene.filter.bytes_per_gaussian() * n) as u64,
         background: data.background(),
+        trained_background: (scene.record.background != data.background())
+            .then_some(scene.record.background),
         quantized_8bit: false,
         frame_stride: 1,
         lpips_net: Net::Alex.name().to_string(),
@@ -384,21 +386,8 @@ pub fn evaluate_run_with(
     evaluate_scene(&scene, run, data, options)
 }
 
-/// Name of an evaluation's outputs in the run folder (`NAME.json` and the image folder
-/// `NAME/`): `eval` on the background the run trained on; on another one
-/// `eval-on-white`, `eval-on-black` or `eval-on-R,G,B`. Evaluating on another
-/// background shows what a model put into empty space (Gaussians clamped to the
-/// training background's colour appear as floaters), and never replaces the run's own
-/// `eval.json`, which the reports read.
-pub fn eval_name(trained: [f32; 3], data: [f32; 3]) -> String {
-    if trained == data {
-        return "eval".into();
-    }
-    format!("eval-on-{}", maaf_data::background_name(data))
-}
-
 /// The scene's render settings on the data set's background (the run's own unless the
-/// evaluation moved the ground truth onto another, [`eval_name`]).
+/// evaluation moved the ground truth onto another, [`EvalReport::name`]).
 pub(crate) fn eval_settings(scene: &TrainedScene, data: &Dataset) -> maaf_splat::RenderSettings {
     maaf_splat::RenderSettings {
         background: data.background().map(f64::from),
@@ -435,7 +424,7 @@ pub fn evaluate_scene(
     let lpips = Lpips::load_default(options.lpips_net).map_err(|e| e.to_string());
     report.lpips_net = options.lpips_net.name().to_string();
 
-    let name = eval_name(scene.record.background, data.background());
+    let name = report.name();
     let final_dir = run.join(&name);
     let tmp_dir = maaf_io::temp_sibling(&final_dir);
     if tmp_dir.exists() {

@@ -179,7 +179,7 @@ pub fn recorded_data(run: &Path) -> Result<Option<DataFingerprint>, Error> {
 
 /// Loads the trained scene of `run` for evaluation on `data`: refuses a data set
 /// other than the one `RUN/data.json` records ([`DataFingerprint::check_frames`]: its
-/// background may differ, [`eval_name`]), then
+/// background may differ, [`crate::EvalReport::name`]), then
 /// loads `RUN/model` through `registry`, taking from `data` only what a run saved
 /// before the scene record lacks ([`TrainedScene::load_with`]).
 pub fn load_scene_on(

@@ -31,6 +31,7 @@ fn fake_run(dir: &Path, filter: &str, psnr_at: impl Fn(f64) -> f64, seconds: f64
         model_bytes: 20_000 * 59 * 4,
         filter_bytes: if filter == "motion" { 20_000 * 72 } else { 0 },
         background: [1.0; 3],
+        trained_background: None,
         quantized_8bit: false,
         frame_stride: 1,
         lpips_net: "alex".into(),

@@ -160,8 +160,6 @@ pub fn run(args: &EvalArgs, models: &ModelRegistry) -> anyhow::Result<()> {
         lpips_net: args.lpips_net,
     };
     let report = evaluate_run_with(&args.run, &data, &options, models)?;
-    let trained = recorded_data(&args.run)?.map_or(data.background(), |r| r.background);
-    let name = maaf_eval::eval_name(trained, data.background());
     println!(
         "{} / {} at training scale {}: {} Gaussians, {:.1} MB (+{:.1} MB filter)",
         report.model,
@@ -197,7 +195,10 @@ pub fn run(args: &EvalArgs, models: &ModelRegistry) -> anyhow::Result<()> {
     if let Some(note) = report.scales.iter().find_map(|s| s.lpips_note.as_ref()) {
         println!("LPIPS missing at some scale: {note}");
     }
-    println!("wrote {}", args.run.join(format!("{name}.json")).display());
+    println!(
+        "wrote {}",
+        args.run.join(format!("{}.json", report.name())).display()
+    );
     Ok(())
 }
 

@@ -225,6 +225,10 @@ fn exported_frame_renders_as_the_run_and_eval_survives_missing_weights() {
         v.get("lpips_net").is_none(),
         "AlexNet keeps the old contract: {v}"
     );
+    assert!(
+        v.get("trained_background").is_none(),
+        "on the run's own background the field is left out: {v}"
+    );
 
     // Another background than the run's (white) writes eval-on-black.json beside the
     // run's eval.json, which stays as it was; the model is rendered on black as the
@@ -246,6 +250,11 @@ fn exported_frame_renders_as_the_run_and_eval_survives_missing_weights() {
         serde_json::from_slice(&std::fs::read(run.join("eval-on-black.json")).expect("written"))
             .expect("json");
     assert_eq!(on_black["background"], serde_json::json!([0.0, 0.0, 0.0]));
+    assert_eq!(
+        on_black["trained_background"],
+        serde_json::json!([1.0, 1.0, 1.0]),
+        "the file records what the run trained on"
+    );
     let psnr = |v: &serde_json::Value| v["scales"][0]["psnr"].as_f64().expect("psnr");
     let on_white: serde_json::Value = serde_json::from_slice(&own).expect("json");
     // Independently: `maaf render` on black against the ground truth the data set

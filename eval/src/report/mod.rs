@@ -77,6 +77,7 @@ impl ReportRun {
                 model_bytes: 1,
                 filter_bytes: 1,
                 background: [1.0; 3],
+                trained_background: None,
                 quantized_8bit: false,
                 frame_stride: 1,
                 lpips_net: "alex".into(),
