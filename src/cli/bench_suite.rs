@@ -54,7 +54,8 @@ pub struct BenchSuiteArgs {
     pub filters: Vec<FilterArg>,
     /// Backgrounds the RGBA images are composited on, for training and evaluation
     /// alike, one run each (black: the authors' D-NeRF runs; docs/cli.md says why it
-    /// is the default).
+    /// is the default); `random` trains each view on its own random colour
+    /// (`random_background`) and evaluates on black.
     #[arg(long, value_enum, value_delimiter = ',', default_value = "black")]
     pub backgrounds: Vec<SuiteBackground>,
     /// Evaluation split per scene, SCENE=SPLIT (comma-separated); every other scene is
@@ -114,14 +115,42 @@ pub enum SuiteBackground {
     White,
     /// Black (SaRO-GS's and the MAAF authors' D-NeRF runs).
     Black,
+    /// A random colour per training view, the ground truth composited on the same
+    /// (config key `random_background`); the data set is opened on black, so the run
+    /// is evaluated on black like the others and compares with Tab. 2.
+    Random,
 }
 
 impl SuiteBackground {
-    /// The spelling of `--background`.
+    /// The run's label in folder names and the report.
     fn name(self) -> &'static str {
         match self {
             SuiteBackground::White => "white",
             SuiteBackground::Black => "black",
+            SuiteBackground::Random => "random",
+        }
+    }
+
+    /// The `--background` of `maaf train` (the data set's background).
+    fn data(self) -> &'static str {
+        match self {
+            SuiteBackground::White => "white",
+            SuiteBackground::Black | SuiteBackground::Random => "black",
+        }
+    }
+
+    /// The background a run's label names.
+    fn of_run(run: &SuiteRun) -> anyhow::Result<Self> {
+        <Self as clap::ValueEnum>::from_str(&run.background, false)
+            .map_err(|_| anyhow::anyhow!("suite.json: unknown background {:?}", run.background))
+    }
+
+    /// Suffix of the config file of its runs: the random background's runs train with
+    /// their own config (the preset's plus `random_background`).
+    fn config_suffix(self) -> &'static str {
+        match self {
+            SuiteBackground::Random => "-random",
+            SuiteBackground::White | SuiteBackground::Black => "",
         }
     }
 }
@@ -242,11 +271,23 @@ fn plan(args: &BenchSuiteArgs, out: &Path) -> anyhow::Result<SuiteSpec> {
                 config: Some(file.to_path_buf()),
                 background: None,
             };
+            // The preset's config, and a second one with `random_background` for the
+            // random background's runs (config_path names them).
             let config = config_from(&settings)?;
-            configs.push((
-                format!("{name}-{}.json", FilterKind::from(f).name()),
-                config,
-            ));
+            let kind = FilterKind::from(f);
+            let filter = kind.name();
+            let random = SuiteBackground::Random;
+            if args.backgrounds.iter().any(|&b| b != random) {
+                configs.push((format!("{name}-{filter}.json"), config.clone()));
+            }
+            if args.backgrounds.contains(&random) {
+                let config = TrainConfig {
+                    random_background: true,
+                    ..config
+                };
+                let file = format!("{name}-{filter}{}.json", random.config_suffix());
+                configs.push((file, config));
+            }
         }
     }
     for (i, seed) in args.seeds.iter().enumerate() {
@@ -294,14 +335,19 @@ fn plan(args: &BenchSuiteArgs, out: &Path) -> anyhow::Result<SuiteSpec> {
 }
 
 /// The config file of a run.
-fn config_path(out: &Path, run: &SuiteRun) -> PathBuf {
-    out.join("configs")
-        .join(format!("{}-{}.json", run.preset, run.filter))
+fn config_path(out: &Path, run: &SuiteRun, bg: SuiteBackground) -> PathBuf {
+    out.join("configs").join(format!(
+        "{}-{}{}.json",
+        run.preset,
+        run.filter,
+        bg.config_suffix()
+    ))
 }
 
 /// `maaf train` arguments of a new run (`--seed` when the suite gives seeds).
-fn train_args(spec: &SuiteSpec, out: &Path, run: &SuiteRun) -> Vec<String> {
+fn train_args(spec: &SuiteSpec, out: &Path, run: &SuiteRun) -> anyhow::Result<Vec<String>> {
     let scene = spec.data.join(&run.scene);
+    let bg = SuiteBackground::of_run(run)?;
     let mut args = [
         "train",
         "--data",
@@ -309,16 +355,16 @@ fn train_args(spec: &SuiteSpec, out: &Path, run: &SuiteRun) -> Vec<String> {
         "--out",
         &run.dir.display().to_string(),
         "--config",
-        &config_path(out, run).display().to_string(),
+        &config_path(out, run, bg).display().to_string(),
         "--background",
-        &run.background,
+        bg.data(),
     ]
     .map(String::from)
     .to_vec();
     if let Some(seed) = run.seed {
         args.extend(["--seed".to_string(), seed.to_string()]);
     }
-    args
+    Ok(args)
 }
 
 /// `maaf eval` arguments of a run.
@@ -407,7 +453,7 @@ fn run_one(
         spawn(exe, &["train".into(), "--resume".into(), dir])?;
         "resumed and evaluated"
     } else {
-        spawn(exe, &train_args(spec, out, run))?;
+        spawn(exe, &train_args(spec, out, run)?)?;
         "trained and evaluated"
     };
     spawn(exe, &eval_args(spec, run))?;

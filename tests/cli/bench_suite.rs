@@ -300,3 +300,61 @@ fn seeds_give_one_run_each_and_the_report_averages_a_scene_over_them() {
         &["suite.json", "seeds"],
     );
 }
+
+#[test]
+fn the_random_background_trains_with_its_own_config_on_black_data_and_evaluates_on_black() {
+    let tmp = TempDir::fresh("cli_bench_suite_random");
+    let data = tmp.0.join("scenes");
+    std::fs::create_dir_all(&data).expect("mkdir");
+    scene(&data.join("a"));
+    let preset = tmp.0.join("small.json");
+    std::fs::write(
+        &preset,
+        r#"{"init_points": 200, "train_scale": 0.25, "val_every": 0}"#,
+    )
+    .expect("preset");
+    let out = tmp.0.join("suite");
+    let printed = ok(suite(
+        &data,
+        &preset,
+        &out,
+        &["--filters", "motion", "--backgrounds", "black,random"],
+    ));
+    assert!(
+        printed.contains("[2/2] a small / motion / random: trained and evaluated"),
+        "{printed}"
+    );
+    let read = |p: &Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(p).expect("read")).expect("json")
+    };
+    // The black runs keep the preset's config; the random ones have their own.
+    let configs = out.join("configs");
+    assert_eq!(
+        read(&configs.join("small-motion.json"))["random_background"],
+        false
+    );
+    assert_eq!(
+        read(&configs.join("small-motion-random.json"))["random_background"],
+        true
+    );
+    for (bg, random) in [("black", false), ("random", true)] {
+        let run = out.join(format!("runs/a/small-motion-{bg}"));
+        assert_eq!(
+            read(&run.join("config.json"))["random_background"],
+            random,
+            "{bg}"
+        );
+        let eval = read(&run.join("eval.json"));
+        assert_eq!(
+            eval["background"],
+            serde_json::json!([0.0, 0.0, 0.0]),
+            "{bg}"
+        );
+    }
+    let md = std::fs::read_to_string(out.join("report.md")).expect("report.md");
+    assert!(
+        md.contains("| small / motion / random (maaf) | 1 |"),
+        "{md}"
+    );
+    assert!(md.contains("| small / motion / black (maaf) | 1 |"), "{md}");
+}
