@@ -6,7 +6,7 @@
 //! evaluated, other options on the same folder are refused, and the report has a row
 //! per scene and method, each method's average and the published rows.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 use super::support::{TempDir, maaf, refused, s};
@@ -61,6 +61,21 @@ fn scene(dir: &Path) {
 
 fn count(text: &str, needle: &str) -> usize {
     text.matches(needle).count()
+}
+
+/// In `tmp`: a scenes folder with one scene `a`, a small preset `small.json`, and the
+/// suite folder to write (`tmp/suite`, not created).
+fn one_scene(tmp: &TempDir) -> (PathBuf, PathBuf, PathBuf) {
+    let data = tmp.0.join("scenes");
+    std::fs::create_dir_all(&data).expect("mkdir");
+    scene(&data.join("a"));
+    let preset = tmp.0.join("small.json");
+    std::fs::write(
+        &preset,
+        r#"{"init_points": 200, "train_scale": 0.25, "val_every": 0}"#,
+    )
+    .expect("preset");
+    (data, preset, tmp.0.join("suite"))
 }
 
 #[test]
@@ -222,16 +237,7 @@ fn suite_writes_jobs_runs_them_once_and_reports_every_scene_beside_the_published
 #[test]
 fn seeds_give_one_run_each_and_the_report_averages_a_scene_over_them() {
     let tmp = TempDir::fresh("cli_bench_suite_seeds");
-    let data = tmp.0.join("scenes");
-    std::fs::create_dir_all(&data).expect("mkdir");
-    scene(&data.join("a"));
-    let preset = tmp.0.join("small.json");
-    std::fs::write(
-        &preset,
-        r#"{"init_points": 200, "train_scale": 0.25, "val_every": 0}"#,
-    )
-    .expect("preset");
-    let out = tmp.0.join("suite");
+    let (data, preset, out) = one_scene(&tmp);
     refused(
         suite(
             &data,
@@ -304,16 +310,7 @@ fn seeds_give_one_run_each_and_the_report_averages_a_scene_over_them() {
 #[test]
 fn the_random_background_trains_with_its_own_config_on_black_data_and_evaluates_on_black() {
     let tmp = TempDir::fresh("cli_bench_suite_random");
-    let data = tmp.0.join("scenes");
-    std::fs::create_dir_all(&data).expect("mkdir");
-    scene(&data.join("a"));
-    let preset = tmp.0.join("small.json");
-    std::fs::write(
-        &preset,
-        r#"{"init_points": 200, "train_scale": 0.25, "val_every": 0}"#,
-    )
-    .expect("preset");
-    let out = tmp.0.join("suite");
+    let (data, preset, out) = one_scene(&tmp);
     let printed = ok(suite(
         &data,
         &preset,
