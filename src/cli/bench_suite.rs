@@ -272,21 +272,18 @@ fn plan(args: &BenchSuiteArgs, out: &Path) -> anyhow::Result<SuiteSpec> {
                 background: None,
             };
             // The preset's config, and a second one with `random_background` for the
-            // random background's runs (config_path names them).
+            // random background's runs (one file per config_suffix).
             let config = config_from(&settings)?;
-            let kind = FilterKind::from(f);
-            let filter = kind.name();
-            let random = SuiteBackground::Random;
-            if args.backgrounds.iter().any(|&b| b != random) {
-                configs.push((format!("{name}-{filter}.json"), config.clone()));
-            }
-            if args.backgrounds.contains(&random) {
+            let filter = FilterKind::from(f).name().to_string();
+            let mut kinds = args.backgrounds.clone();
+            kinds.sort_by_key(|b| b.config_suffix());
+            kinds.dedup_by_key(|b| b.config_suffix());
+            for bg in kinds {
                 let config = TrainConfig {
-                    random_background: true,
-                    ..config
+                    random_background: config.random_background || bg == SuiteBackground::Random,
+                    ..config.clone()
                 };
-                let file = format!("{name}-{filter}{}.json", random.config_suffix());
-                configs.push((file, config));
+                configs.push((config_file(name, &filter, bg), config));
             }
         }
     }
@@ -334,14 +331,15 @@ fn plan(args: &BenchSuiteArgs, out: &Path) -> anyhow::Result<SuiteSpec> {
     })
 }
 
+/// Name of the config file of a preset, filter and background in `OUT/configs/`.
+fn config_file(preset: &str, filter: &str, bg: SuiteBackground) -> String {
+    format!("{preset}-{filter}{}.json", bg.config_suffix())
+}
+
 /// The config file of a run.
 fn config_path(out: &Path, run: &SuiteRun, bg: SuiteBackground) -> PathBuf {
-    out.join("configs").join(format!(
-        "{}-{}{}.json",
-        run.preset,
-        run.filter,
-        bg.config_suffix()
-    ))
+    out.join("configs")
+        .join(config_file(&run.preset, &run.filter, bg))
 }
 
 /// `maaf train` arguments of a new run (`--seed` when the suite gives seeds).
