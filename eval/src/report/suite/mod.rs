@@ -47,7 +47,8 @@ pub struct SuiteRun {
     pub preset: String,
     /// Filter: `none`, `mip3d` or `motion`.
     pub filter: String,
-    /// Background: `white` or `black`.
+    /// Background: `white`, `black` or `random` (a random colour per training view,
+    /// data and evaluation on black).
     pub background: String,
     /// Seed it was trained with when the suite gives seeds (`--seeds`); `None`: the
     /// preset's own, and left out of `suite.json` so suites without seeds read as
