@@ -4,7 +4,7 @@
 //! ([`super::published`], labelled as published), then per-scene PSNR, SSIM and LPIPS at
 //! every evaluated scale and the cost of each run (training wall time, where the
 //! training time went by phase, Gaussians, model bytes), and a chart of each method's
-//! PSNR against its training time ([`chart`]). Written as `report.md`, `report.json`
+//! PSNR against its training time (`chart.rs`). Written as `report.md`, `report.json`
 //! and `speed_quality.png`.
 //!
 //! Averages are plain means over the scenes present: a cell is averaged only when every
@@ -183,7 +183,7 @@ pub struct SuiteOutput {
     pub markdown: PathBuf,
     /// `OUT/report.json`.
     pub json: PathBuf,
-    /// `OUT/speed_quality.png` ([`chart`]).
+    /// `OUT/speed_quality.png` (`chart.rs`).
     pub chart: PathBuf,
     /// The Tab. 2-shaped table, for printing.
     pub table: String,
