@@ -289,8 +289,12 @@ impl EvalReport {
 
     /// Reads `RUN/eval.json`.
     pub fn read(run: &Path) -> Result<Self, Error> {
-        let path = run.join("eval.json");
-        let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+        Self::read_file(&run.join("eval.json"))
+    }
+
+    /// Reads an evaluation file (`eval.json`, `eval-on-white.json`, ...).
+    pub fn read_file(path: &Path) -> Result<Self, Error> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
         serde_json::from_str(&text).map_err(|e| {
             // Older versions wrote a NaN metric as null; say so instead of a type error.
             let hint = if e.to_string().contains("null") {

@@ -108,6 +108,20 @@ pub struct SceneResult {
     pub lpips_net: String,
     /// The run's seed when the suite gives seeds.
     pub seed: Option<u64>,
+    /// Its evaluations on other backgrounds than its own (`RUN/eval-on-NAME.json`),
+    /// by name.
+    pub other_backgrounds: Vec<OtherBackground>,
+}
+
+/// A run evaluated on another background than the one it trained on (`maaf eval
+/// --background`, `RUN/eval-on-NAME.json`): on white, what a model trained on black
+/// left in empty space shows.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct OtherBackground {
+    /// The evaluation's background (`white`, `black`, `R,G,B`).
+    pub background: String,
+    /// Its metrics per scale, ascending.
+    pub scales: Vec<Cell>,
 }
 
 impl SceneResult {
@@ -195,7 +209,8 @@ pub(super) fn mean(v: impl Iterator<Item = f64>) -> Option<f64> {
     (n > 0).then(|| sum / n as f64)
 }
 
-fn scene_result(run: &SuiteRun, eval: &EvalReport) -> SceneResult {
+/// The metrics of `eval` per scale, ascending.
+fn cells(eval: &EvalReport) -> Vec<Cell> {
     let mut scales: Vec<Cell> = eval
         .scales
         .iter()
@@ -207,11 +222,15 @@ fn scene_result(run: &SuiteRun, eval: &EvalReport) -> SceneResult {
         })
         .collect();
     scales.sort_by(|a, b| a.scale.total_cmp(&b.scale));
+    scales
+}
+
+fn scene_result(run: &SuiteRun, eval: &EvalReport) -> SceneResult {
     SceneResult {
         scene: run.scene.clone(),
         split: run.split.clone(),
         run: run.dir.clone(),
-        scales,
+        scales: cells(eval),
         iterations: eval.iterations,
         train_seconds: eval.train_seconds,
         gaussians: eval.num_gaussians,
@@ -220,6 +239,7 @@ fn scene_result(run: &SuiteRun, eval: &EvalReport) -> SceneResult {
         phases: None,
         lpips_net: eval.lpips_net.clone(),
         seed: run.seed,
+        other_backgrounds: Vec::new(),
     }
 }
 
@@ -369,6 +389,7 @@ pub fn write_suite_report(runs: &[SuiteRun], out: &Path) -> Result<SuiteOutput, 
     for m in &mut summary.methods {
         for r in &mut m.scenes {
             r.phases = read_phases(&r.run)?;
+            r.other_backgrounds = read_other_backgrounds(&r.run)?;
         }
     }
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
@@ -386,6 +407,28 @@ pub fn write_suite_report(runs: &[SuiteRun], out: &Path) -> Result<SuiteOutput, 
         chart: chart_path,
         table: tab2_table(&summary),
     })
+}
+
+/// The run's `eval-on-NAME.json` files, by name; an unreadable one is an error naming
+/// it.
+fn read_other_backgrounds(run: &Path) -> Result<Vec<OtherBackground>, Error> {
+    let mut found = Vec::new();
+    for entry in std::fs::read_dir(run).map_err(|e| Error::io(run, e))? {
+        let path = entry.map_err(|e| Error::io(run, e))?.path();
+        let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
+        if let Some(bg) = name
+            .strip_prefix("eval-on-")
+            .and_then(|n| n.strip_suffix(".json"))
+        {
+            let eval = EvalReport::read_file(&path)?;
+            found.push(OtherBackground {
+                background: bg.to_string(),
+                scales: cells(&eval),
+            });
+        }
+    }
+    found.sort_by(|a, b| a.background.cmp(&b.background));
+    Ok(found)
 }
 
 /// The `timings` of `RUN/summary.json`, `None` when the run has no summary; a

@@ -194,6 +194,36 @@ fn per_scene_table(summary: &SuiteSummary, metric: &Metric) -> String {
     t
 }
 
+/// PSNR of each run evaluated on other backgrounds than its own (`eval-on-NAME.json`)
+/// beside its own, at every scale; `None` when no run has such an evaluation.
+fn other_backgrounds_table(summary: &SuiteSummary) -> Option<String> {
+    let mut t = table_header(
+        &["Method", "Scene", "Evaluated on"],
+        0,
+        &summary.scales,
+        &[],
+    );
+    let mut any = false;
+    for m in &summary.methods {
+        for r in m.scenes.iter().filter(|r| !r.other_backgrounds.is_empty()) {
+            any = true;
+            let own = std::iter::once((format!("{} (own)", m.background), &r.scales));
+            let others = r
+                .other_backgrounds
+                .iter()
+                .map(|o| (o.background.clone(), &o.scales));
+            for (bg, cells) in own.chain(others) {
+                let _ = write!(t, "| {} | {} | {bg} |", m.method, r.label());
+                for &s in &summary.scales {
+                    let _ = write!(t, " {} |", num(cell_at(cells, s).map(|c| c.psnr), 2));
+                }
+                t.push('\n');
+            }
+        }
+    }
+    any.then_some(t)
+}
+
 /// `**average (N scenes)**`, or `**average (N scenes, M runs)**` when scenes have
 /// several seeds.
 pub(super) fn average_label(avg: &Average) -> String {
@@ -278,6 +308,15 @@ pub fn markdown(summary: &SuiteSummary) -> String {
             "\n## Seeds: PSNR mean ± sample standard deviation over each scene's seeds\n\n",
         );
         md.push_str(&spread);
+    }
+    if let Some(other) = other_backgrounds_table(summary) {
+        md.push_str(
+            "\n## PSNR on other backgrounds (`maaf eval --run RUN --background white`)\n\n\
+             A model trained on one background is scored on another: Gaussians it left in \
+             empty space in the training background's colour (free there) now show. \
+             \"(own)\" is the run's own evaluation (a `random` run's is on black).\n\n",
+        );
+        md.push_str(&other);
     }
     md.push_str("\n## Per scene: cost (training wall time as each run recorded it; \"Others busy\" is the load it was measured under, the cores other processes kept busy on average beside the training, blank for runs that predate it; the phase split in percent of the timed phases, from each run's `summary.json`)\n\n");
     md.push_str(&cost_table(summary));

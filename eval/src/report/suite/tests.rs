@@ -296,3 +296,58 @@ fn the_speed_chart_places_each_method_at_its_mean_time_and_psnr_beside_the_relea
     assert_eq!((img.width(), img.height()), (1400, 620));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn evaluations_on_other_backgrounds_are_read_and_tabulated_beside_the_run_s_own() {
+    let dir = std::env::temp_dir().join(format!("maaf_suite_other_bg_{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let scales = [0.25, 1.0];
+    let mut runs = Vec::new();
+    for (scene, others) in [("a", vec![([1.0f32; 3], 20.0)]), ("b", vec![])] {
+        let mut r = run(scene, "motion");
+        r.dir = dir.join(scene);
+        std::fs::create_dir_all(&r.dir).expect("mkdir");
+        let write = |name: &str, e: &EvalReport| {
+            let text = serde_json::to_string(e).expect("json");
+            std::fs::write(r.dir.join(name), text).expect("write");
+        };
+        write("eval.json", &eval(30.0, &scales));
+        for (colour, psnr) in others {
+            let mut e = eval(psnr, &scales);
+            e.background = colour;
+            e.trained_background = Some([0.0; 3]);
+            write(&format!("{}.json", e.name()), &e);
+        }
+        runs.push(r);
+    }
+    let out = write_suite_report(&runs, &dir.join("report")).expect("report");
+    let md = std::fs::read_to_string(&out.markdown).expect("report.md");
+    assert!(md.contains("## PSNR on other backgrounds"), "{md}");
+    // eval(p) puts p + scale at each scale: own 30.25 / 31.00, white 20.25 / 21.00.
+    assert!(
+        md.contains("| dnerf / motion / black | a | black (own) | 30.25 | 31.00 |"),
+        "{md}"
+    );
+    assert!(
+        md.contains("| dnerf / motion / black | a | white | 20.25 | 21.00 |"),
+        "{md}"
+    );
+    assert!(
+        !md.contains("| b | black (own)"),
+        "a run without one has no row: {md}"
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out.json).expect("json")).expect("parse");
+    let a = &json["methods"][0]["scenes"][0]["other_backgrounds"][0];
+    assert_eq!(a["background"], "white");
+    // Without any such file the section is left out.
+    std::fs::remove_file(dir.join("a/eval-on-white.json")).expect("rm");
+    let md = std::fs::read_to_string(
+        write_suite_report(&runs, &dir.join("report"))
+            .expect("report")
+            .markdown,
+    )
+    .expect("report.md");
+    assert!(!md.contains("other backgrounds"), "{md}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
