@@ -258,6 +258,10 @@ fn is_alex(v: &String) -> bool {
     *v == alex()
 }
 
+/// Start of the name of an evaluation on another background than the run's
+/// ([`EvalReport::name`]).
+pub const OTHER_BACKGROUND_PREFIX: &str = "eval-on-";
+
 impl EvalReport {
     /// Name of the evaluation's outputs in the run folder (`NAME.json` and the image
     /// folder `NAME/`): `eval` on the background the run trained on; on another one
@@ -268,7 +272,10 @@ impl EvalReport {
     pub fn name(&self) -> String {
         match self.trained_background {
             None => "eval".into(),
-            Some(_) => format!("eval-on-{}", maaf_data::background_name(self.background)),
+            Some(_) => format!(
+                "{OTHER_BACKGROUND_PREFIX}{}",
+                maaf_data::background_name(self.background)
+            ),
         }
     }
 

@@ -22,6 +22,7 @@ use serde::{Deserialize, Serialize};
 
 use super::published::{PublishedRow, paper_tab2, released};
 use crate::EvalReport;
+use crate::eval_json::OTHER_BACKGROUND_PREFIX;
 use crate::{Error, write_atomic};
 
 mod chart;
@@ -409,20 +410,17 @@ pub fn write_suite_report(runs: &[SuiteRun], out: &Path) -> Result<SuiteOutput, 
     })
 }
 
-/// The run's `eval-on-NAME.json` files, by name; an unreadable one is an error naming
-/// it.
+/// The run's `eval-on-NAME.json` files, each named by the background it records, in
+/// name order; an unreadable one is an error naming it.
 fn read_other_backgrounds(run: &Path) -> Result<Vec<OtherBackground>, Error> {
     let mut found = Vec::new();
     for entry in std::fs::read_dir(run).map_err(|e| Error::io(run, e))? {
         let path = entry.map_err(|e| Error::io(run, e))?.path();
         let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
-        if let Some(bg) = name
-            .strip_prefix("eval-on-")
-            .and_then(|n| n.strip_suffix(".json"))
-        {
+        if name.starts_with(OTHER_BACKGROUND_PREFIX) && name.ends_with(".json") {
             let eval = EvalReport::read_file(&path)?;
             found.push(OtherBackground {
-                background: bg.to_string(),
+                background: maaf_data::background_name(eval.background),
                 scales: cells(&eval),
             });
         }
