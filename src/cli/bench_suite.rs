@@ -12,6 +12,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use anyhow::{Context, bail};
+use maaf_eval::eval_json::OTHER_BACKGROUND_PREFIX;
 use maaf_eval::report::suite::{SuiteRun, write_suite_report};
 use maaf_filter::FilterKind;
 use maaf_scene::TrainConfig;
@@ -76,6 +77,12 @@ pub struct BenchSuiteArgs {
     /// Extra arguments of `maaf eval` for every run, split at spaces.
     #[arg(long, default_value = "--no-images", allow_hyphen_values = true)]
     pub eval_args: String,
+    /// Also evaluate every run on these backgrounds (`white` and/or `black`), after its
+    /// own evaluation: `RUN/eval-on-NAME.json`, which the report tabulates beside the
+    /// run's own PSNR (a model trained on black shows its black floaters on white); a
+    /// run's own background is left out [default: none].
+    #[arg(long, value_enum, value_delimiter = ',')]
+    pub also_eval_on: Vec<SuiteBackground>,
     /// Write the run folders' configs and jobs.txt and stop (run the lines anywhere,
     /// then `maaf bench-suite --out OUT --report-only`).
     #[arg(long)]
@@ -95,7 +102,7 @@ pub struct BenchSuiteArgs {
 
 /// The options that plan a suite: `--job` and `--report-only` read the plan from
 /// OUT/suite.json, so these given with them would be ignored; clap refuses them.
-const PLANNING: [&str; 10] = [
+const PLANNING: [&str; 11] = [
     "jobs_only",
     "data",
     "scenes",
@@ -106,6 +113,7 @@ const PLANNING: [&str; 10] = [
     "seeds",
     "iters",
     "eval_args",
+    "also_eval_on",
 ];
 
 /// `--backgrounds` values.
@@ -165,6 +173,10 @@ struct SuiteSpec {
     configs: Vec<(String, TrainConfig)>,
     /// Extra `maaf eval` arguments.
     eval_args: String,
+    /// Backgrounds every run is also evaluated on (`white`, `black`); absent from a
+    /// suite written without them.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    also_eval_on: Vec<String>,
     /// Every run, in job order.
     runs: Vec<SuiteRun>,
 }
@@ -287,6 +299,17 @@ fn plan(args: &BenchSuiteArgs, out: &Path) -> anyhow::Result<SuiteSpec> {
             }
         }
     }
+    let mut also_eval_on = Vec::new();
+    for &bg in &args.also_eval_on {
+        if bg == SuiteBackground::Random {
+            bail!(
+                "--also-eval-on random: evaluations are on white or black (a random colour per view is a training background)"
+            );
+        }
+        if !also_eval_on.contains(&bg.name().to_string()) {
+            also_eval_on.push(bg.name().to_string());
+        }
+    }
     for (i, seed) in args.seeds.iter().enumerate() {
         if args.seeds[..i].contains(seed) {
             bail!("--seeds: seed {seed} is given twice");
@@ -327,6 +350,7 @@ fn plan(args: &BenchSuiteArgs, out: &Path) -> anyhow::Result<SuiteSpec> {
         data,
         configs,
         eval_args: args.eval_args.clone(),
+        also_eval_on,
         runs,
     })
 }
@@ -365,25 +389,50 @@ fn train_args(spec: &SuiteSpec, out: &Path, run: &SuiteRun) -> anyhow::Result<Ve
     Ok(args)
 }
 
-/// `maaf eval` arguments of a run.
-fn eval_args(spec: &SuiteSpec, run: &SuiteRun) -> Vec<String> {
+/// `maaf eval` arguments of a run, on `background` when it is another than the run's.
+fn eval_args(spec: &SuiteSpec, run: &SuiteRun, background: Option<&str>) -> Vec<String> {
     let mut v: Vec<String> = ["eval", "--run", &run.dir.display().to_string()]
         .map(String::from)
         .to_vec();
     v.extend(["--split".to_string(), run.split.clone()]);
+    if let Some(bg) = background {
+        v.extend(["--background".to_string(), bg.to_string()]);
+    }
     v.extend(spec.eval_args.split_whitespace().map(String::from));
     v
 }
 
+/// The `--also-eval-on` backgrounds of a run still to be evaluated on: not the run's
+/// own data background, and without `RUN/eval-on-NAME.json` yet.
+fn other_evaluations<'a>(spec: &'a SuiteSpec, run: &SuiteRun) -> anyhow::Result<Vec<&'a str>> {
+    let own = SuiteBackground::of_run(run)?.data();
+    Ok(spec
+        .also_eval_on
+        .iter()
+        .map(String::as_str)
+        .filter(|&bg| bg != own)
+        .filter(|bg| {
+            !run.dir
+                .join(format!("{OTHER_BACKGROUND_PREFIX}{bg}.json"))
+                .is_file()
+        })
+        .collect())
+}
+
 /// Writes `suite.json` (or checks that the one there is this suite), the configs and
-/// `jobs.txt`.
+/// `jobs.txt`. A suite there that differs only in `--also-eval-on` is this suite with
+/// other evaluations added: its runs are kept and the new list replaces the old.
 fn write_suite(spec: &SuiteSpec, out: &Path, exe: &Path) -> anyhow::Result<()> {
     let spec_path = out.join(SPEC_FILE);
     if spec_path.is_file() {
         let old = read_spec(out)?;
-        if old != *spec {
+        let same_runs = SuiteSpec {
+            also_eval_on: spec.also_eval_on.clone(),
+            ..old
+        };
+        if same_runs != *spec {
             bail!(
-                "{}: holds a suite written with other options (scenes, presets, filters, backgrounds, splits, seeds, --iters or --eval-args); give the same options or another --out",
+                "{}: holds a suite written with other options (scenes, presets, filters, backgrounds, splits, seeds, --iters or --eval-args; only --also-eval-on may change); give the same options or another --out",
                 spec_path.display()
             );
         }
@@ -435,16 +484,14 @@ fn spawn(exe: &Path, args: &[String]) -> anyhow::Result<()> {
 }
 
 /// Trains (or resumes) and evaluates one run, as far as it is not done yet.
-fn run_one(
-    spec: &SuiteSpec,
-    out: &Path,
-    exe: &Path,
-    run: &SuiteRun,
-) -> anyhow::Result<&'static str> {
-    if run.dir.join("eval.json").is_file() {
-        return Ok("skipped (evaluated)");
-    }
-    let what = if run.dir.join("summary.json").is_file() {
+fn run_one(spec: &SuiteSpec, out: &Path, exe: &Path, run: &SuiteRun) -> anyhow::Result<String> {
+    let others = other_evaluations(spec, run)?;
+    let mut what = if run.dir.join("eval.json").is_file() {
+        if others.is_empty() {
+            return Ok("skipped (evaluated)".into());
+        }
+        "was evaluated"
+    } else if run.dir.join("summary.json").is_file() {
         "evaluated"
     } else if run.dir.join("config.json").is_file() {
         let dir = run.dir.display().to_string();
@@ -453,8 +500,17 @@ fn run_one(
     } else {
         spawn(exe, &train_args(spec, out, run)?)?;
         "trained and evaluated"
-    };
-    spawn(exe, &eval_args(spec, run))?;
+    }
+    .to_string();
+    if !run.dir.join("eval.json").is_file() {
+        spawn(exe, &eval_args(spec, run, None))?;
+    }
+    for bg in &others {
+        spawn(exe, &eval_args(spec, run, Some(bg)))?;
+    }
+    if !others.is_empty() {
+        let _ = write!(what, ", also on {}", others.join(", "));
+    }
     Ok(what)
 }
 

@@ -355,3 +355,39 @@ fn the_random_background_trains_with_its_own_config_on_black_data_and_evaluates_
     );
     assert!(md.contains("| small / motion / black (maaf) | 1 |"), "{md}");
 }
+
+#[test]
+fn also_eval_on_adds_evaluations_on_other_backgrounds_to_a_finished_suite_once() {
+    let tmp = TempDir::fresh("cli_bench_suite_also_eval_on");
+    let (data, preset, out) = one_scene(&tmp);
+    let motion = ["--filters", "motion"];
+    ok(suite(&data, &preset, &out, &motion));
+    let run = out.join("runs/a/small-motion-black");
+    let own = std::fs::read(run.join("eval.json")).expect("eval.json");
+    // The same suite with evaluations added: the run is not trained again, is
+    // evaluated on white and not on black (its own background).
+    let also = ["--filters", "motion", "--also-eval-on", "white,black"];
+    let printed = ok(suite(&data, &preset, &out, &also));
+    assert!(
+        printed.contains("[1/1] a small / motion / black: was evaluated, also on white\n"),
+        "{printed}"
+    );
+    assert!(run.join("eval-on-white.json").is_file());
+    assert!(!run.join("eval-on-black.json").exists());
+    assert_eq!(
+        std::fs::read(run.join("eval.json")).expect("eval.json"),
+        own
+    );
+    let md = std::fs::read_to_string(out.join("report.md")).expect("report.md");
+    assert!(md.contains("## PSNR on other backgrounds"), "{md}");
+    // Done once: the next invocation skips the run.
+    let printed = ok(suite(&data, &preset, &out, &also));
+    assert!(
+        printed.contains("[1/1] a small / motion / black: skipped (evaluated)"),
+        "{printed}"
+    );
+    refused(
+        suite(&data, &preset, &out, &["--also-eval-on", "random"]),
+        &["--also-eval-on random"],
+    );
+}

@@ -311,7 +311,7 @@ pub fn markdown(summary: &SuiteSummary) -> String {
     }
     if let Some(other) = other_backgrounds_table(summary) {
         md.push_str(
-            "\n## PSNR on other backgrounds (`maaf eval --run RUN --background white`)\n\n\
+            "\n## PSNR on other backgrounds (`maaf bench-suite --also-eval-on white`, or `maaf eval --run RUN --background white`)\n\n\
              A model trained on one background is scored on another: Gaussians it left in \
              empty space in the training background's colour (free there) now show. \
              \"(own)\" is the run's own evaluation (a `random` run's is on black).\n\n",
