@@ -8,6 +8,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::Error;
 use crate::metrics::regions::RegionPsnr;
+use crate::metrics::rings::RingErrors;
 
 /// Metrics at one evaluation scale (an entry of `eval.json`'s `scales`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -56,6 +57,11 @@ pub struct ScaleResult {
     /// moving-object masks for the evaluated views; `null` otherwise.
     #[serde(default)]
     pub regions: Option<RegionSummary>,
+    /// Squared error by distance from the object silhouette, summed over the views
+    /// ([`crate::metrics::rings`]), when the data set has alpha (D-NeRF); `null`
+    /// otherwise. Two runs' sums give the share of an error reduction per ring.
+    #[serde(default)]
+    pub rings: Option<RingErrors>,
     /// Popping of single Gaussians in the fixed-camera video of the temporal metrics;
     /// `null` without `--temporal`.
     #[serde(default)]
@@ -134,6 +140,7 @@ impl ScaleResult {
             flow: None,
             temporal: Vec::new(),
             regions: None,
+            rings: None,
             popping: None,
         }
     }

@@ -42,6 +42,7 @@ use maaf_scene::{ModelRegistry, TrainedScene};
 use rayon::prelude::*;
 
 use crate::metrics::regions::{RegionPsnr, region_psnr};
+use crate::metrics::rings::RingErrors;
 use crate::metrics::{ImageMetrics, error_map, image_metrics, mean_metrics};
 
 pub use eval_json::{
@@ -191,6 +192,9 @@ struct ViewResult {
     lpips_seconds: f64,
     /// PSNR by region, when the data set has the view's moving-object mask.
     regions: Option<RegionPsnr>,
+    /// Squared error by distance from the silhouette, when the view has an alpha
+    /// coverage.
+    rings: Option<RingErrors>,
 }
 
 /// Renders, measures and (optionally) saves the views `indices` at one scale into `dir`.
@@ -269,6 +273,18 @@ fn measure_view(
                 scale_label(scale.relative)
             ))
         })?;
+    let rings = v
+        .coverage
+        .as_ref()
+        .map(|c| RingErrors::of_view(image, &gt, &c.data))
+        .transpose()
+        .map_err(|e| {
+            Error::Input(format!(
+                "view {} at scale {}: alpha coverage: {e}",
+                v.index,
+                scale_label(scale.relative)
+            ))
+        })?;
     let start = Instant::now();
     let lpips = match lpips {
         Ok(model) => model.distance(image, &gt).map_err(|e| e.to_string()),
@@ -297,6 +313,7 @@ fn measure_view(
         lpips,
         lpips_seconds,
         regions,
+        rings,
     })
 }
 
@@ -473,6 +490,7 @@ pub fn evaluate_scene(
                 Err(reason) => result.lpips_note = Some(reason),
             }
             result.regions = RegionSummary::of(views.iter().filter_map(|v| v.regions));
+            result.rings = RingErrors::total(views.iter().filter_map(|v| v.rings));
             if let Some(r) = &result.regions {
                 eprintln!("maaf: eval {:>5} by region: {}", scale_label(s.relative), r);
             }

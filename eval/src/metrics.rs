@@ -11,6 +11,7 @@
 
 pub mod popping;
 pub mod regions;
+pub mod rings;
 pub mod ssim_window;
 pub mod temporal;
 

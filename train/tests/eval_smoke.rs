@@ -6,8 +6,9 @@ use std::path::{Path, PathBuf};
 
 use maaf_filter::FilterKind;
 use maaf_train::data::{Dataset, DatasetOptions};
+use maaf_train::eval::metrics::rings::RingErrors;
 use maaf_train::eval::render::record_data;
-use maaf_train::eval::{EvalOptions, evaluate_run};
+use maaf_train::eval::{EvalOptions, evaluate_run, scale_label};
 use maaf_train::trainer::{TrainConfig, train_run};
 
 fn mutant_root() -> Option<PathBuf> {
@@ -159,6 +160,7 @@ fn eval_writes_the_contract_and_refuses_bad_input() {
                 "popping",
                 "psnr",
                 "regions",
+                "rings",
                 "scale",
                 "ssim",
                 "temporal",
@@ -179,6 +181,32 @@ fn eval_writes_the_contract_and_refuses_bad_input() {
         assert_eq!(s["temporal"], serde_json::json!([]));
         // A D-NeRF scene has no moving masks: no PSNR by region.
         assert!(s["regions"].is_null(), "{s}");
+        // It has alpha: squared error by ring over every pixel of the two views, whose
+        // pooled MSE is the mean of the per-view MSEs that metrics.csv's PSNRs give.
+        let rings: RingErrors = serde_json::from_value(s["rings"].clone()).expect("rings");
+        let (w, h) = (
+            s["width"].as_u64().expect("w"),
+            s["height"].as_u64().expect("h"),
+        );
+        assert_eq!(rings.pixels.iter().sum::<u64>(), 2 * w * h, "{s}");
+        assert!(rings.pixels[0] > 0 && rings.pixels[4] > 0, "{s}");
+        let label = scale_label(s["scale"].as_f64().expect("scale"));
+        let csv = std::fs::read_to_string(run.join("eval").join(&label).join("metrics.csv"))
+            .expect("metrics.csv");
+        let mses: Vec<f64> = csv
+            .lines()
+            .skip(1)
+            .map(|l| {
+                let psnr: f64 = l.split(',').nth(2).expect("psnr").parse().expect("number");
+                10f64.powf(-psnr / 10.0)
+            })
+            .collect();
+        let pooled = rings.sse.iter().sum::<f64>() / (3 * 2 * w * h) as f64;
+        let per_view = mses.iter().sum::<f64>() / mses.len() as f64;
+        assert!(
+            (pooled / per_view - 1.0).abs() < 1e-5,
+            "{label}: rings {pooled}, metrics.csv {per_view}"
+        );
         let psnr = s["psnr"].as_f64().expect("psnr");
         let ssim = s["ssim"].as_f64().expect("ssim");
         assert!(psnr > 5.0 && psnr < 60.0, "psnr {psnr}");

@@ -6,6 +6,12 @@
 //! method. Here `gain(s) = mean over shared scenes k of (PSNR_method(k, s) -
 //! PSNR_base(k, s))`, each scene first averaged over its seeds, with the number of
 //! shared scenes on which the method is ahead.
+//!
+//! Where the gain lies: for runs evaluated with alpha (D-NeRF), each pair also splits
+//! the base's squared error that the method removes by distance from the silhouette
+//! ([`crate::metrics::rings`]), as the paper's supplementary table `tab:supp_region`
+//! does: per ring `(SSE_base(r) - SSE_method(r)) / (SSE_base - SSE_method)`, the sums
+//! pooled over the shared scenes and their views (a scene's seeds averaged first).
 
 use std::fmt::Write as _;
 
@@ -13,7 +19,8 @@ use serde::Serialize;
 
 use super::tables::table_header;
 use super::{Cell, MethodResult, SuiteSummary, at_scale, by_scene, cell_at, mean, seed_means};
-use crate::report::published::PublishedRow;
+use crate::metrics::rings::{Ring, RingErrors};
+use crate::report::published::{PublishedRow, ring_shares as published_ring_shares};
 
 /// One method against one listed before it with the same preset and background.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -26,6 +33,27 @@ pub struct Gain {
     pub scenes: Vec<String>,
     /// Per scale that every shared scene has in both methods, ascending.
     pub scales: Vec<GainAt>,
+    /// Per scale at which every shared run of both methods has its squared error by
+    /// ring, ascending; empty for data without alpha.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub rings: Vec<RingSharesAt>,
+}
+
+/// Where a paired gain lies at one scale: the share of the error reduction in each
+/// ring ([`crate::metrics::rings::Ring::ALL`] order).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct RingSharesAt {
+    /// Render scale relative to the training scale.
+    pub scale: f64,
+    /// `(SSE_base(r) - SSE_method(r)) / (SSE_base - SSE_method)` per ring, pooled over
+    /// the shared scenes; negative where the method's error grew (or, when the total
+    /// grew, where it shrank). All zero when the totals are equal.
+    pub shares: [f64; 5],
+    /// Fraction of the pixels in each ring.
+    pub pixels: [f64; 5],
+    /// `(SSE_base - SSE_method) / SSE_base`: the fraction of the base's squared error
+    /// that the method removes (negative when it adds error).
+    pub removed: f64,
 }
 
 /// A paired gain at one scale.
@@ -99,11 +127,66 @@ fn gain(
             })
         })
         .collect();
+    let scenes: Vec<String> = pairs.iter().map(|(s, _, _)| s.to_string()).collect();
     Some(Gain {
         method: m.method.clone(),
         base: base.method.clone(),
-        scenes: pairs.iter().map(|(s, _, _)| s.to_string()).collect(),
+        rings: scales
+            .iter()
+            .filter_map(|&s| ring_shares(m, base, &scenes, s))
+            .collect(),
+        scenes,
         scales: at,
+    })
+}
+
+/// Per ring, the mean over a scene's seeds of their squared error (and pixels) at
+/// scale `s`; `None` when a seed lacks it or the scene has no run.
+fn scene_rings(m: &MethodResult, scene: &str, s: f64) -> Option<([f64; 5], [f64; 5])> {
+    let runs: Vec<RingErrors> = m
+        .scenes
+        .iter()
+        .filter(|r| r.scene == scene)
+        .map(|r| cell_at(&r.scales, s)?.rings)
+        .collect::<Option<_>>()?;
+    let n = runs.len() as f64;
+    let total = RingErrors::total(runs.into_iter())?;
+    Some((total.sse.map(|v| v / n), total.pixels.map(|p| p as f64 / n)))
+}
+
+/// [`RingSharesAt`] of `m` against `base` at scale `s`, pooled over `scenes`; `None`
+/// when a run lacks its rings there or the two methods' pixels differ.
+fn ring_shares(
+    m: &MethodResult,
+    base: &MethodResult,
+    scenes: &[String],
+    s: f64,
+) -> Option<RingSharesAt> {
+    let (mut ours, mut theirs, mut pixels) = ([0.0; 5], [0.0; 5], [0.0; 5]);
+    for scene in scenes {
+        let (a, pa) = scene_rings(m, scene, s)?;
+        let (b, pb) = scene_rings(base, scene, s)?;
+        if pa != pb {
+            return None;
+        }
+        for k in 0..5 {
+            ours[k] += a[k];
+            theirs[k] += b[k];
+            pixels[k] += pa[k];
+        }
+    }
+    let cut: [f64; 5] = std::array::from_fn(|k| theirs[k] - ours[k]);
+    let (total_cut, total_base): (f64, f64) = (cut.iter().sum(), theirs.iter().sum());
+    let n: f64 = pixels.iter().sum();
+    Some(RingSharesAt {
+        scale: s,
+        shares: cut.map(|c| if total_cut != 0.0 { c / total_cut } else { 0.0 }),
+        pixels: pixels.map(|p| p / n.max(1.0)),
+        removed: if total_base > 0.0 {
+            total_cut / total_base
+        } else {
+            0.0
+        },
     })
 }
 
@@ -165,6 +248,67 @@ pub fn gains_table(summary: &SuiteSummary) -> Option<String> {
         for &s in &summary.scales {
             let v = at_scale(&at, s, |&(p, _)| p).map(|&(_, d)| d);
             let _ = write!(t, " {} |", v.map_or("-".into(), |d| format!("{d:+.2}")));
+        }
+        t.push('\n');
+    }
+    Some(t)
+}
+
+/// The markdown tables of where each paired gain lies (one per pair with ring errors:
+/// a row per ring, a column per scale, `share % (pixels %)`, and the fraction of the
+/// base's squared error removed), then the paper's supplementary shares; `None` when
+/// no pair has them.
+pub fn ring_shares_table(summary: &SuiteSummary) -> Option<String> {
+    let with: Vec<&Gain> = summary
+        .gains
+        .iter()
+        .filter(|g| !g.rings.is_empty())
+        .collect();
+    if with.is_empty() {
+        return None;
+    }
+    let mut t = String::new();
+    for g in with {
+        let scales: Vec<f64> = g.rings.iter().map(|r| r.scale).collect();
+        let _ = writeln!(
+            t,
+            "{} against {} ({} scenes): share of the error reduction, % (pixels, %)\n",
+            g.method,
+            g.base,
+            g.scenes.len()
+        );
+        t.push_str(&table_header(&["Region"], 0, &scales, &[]));
+        for (k, ring) in Ring::ALL.iter().enumerate() {
+            let _ = write!(t, "| {} |", ring.label());
+            for r in &g.rings {
+                let _ = write!(
+                    t,
+                    " {:.1} ({:.1}) |",
+                    100.0 * r.shares[k],
+                    100.0 * r.pixels[k]
+                );
+            }
+            t.push('\n');
+        }
+        t.push_str("| squared error removed, % of the base's |");
+        for r in &g.rings {
+            let _ = write!(t, " {:.1} |", 100.0 * r.removed);
+        }
+        t.push_str("\n\n");
+    }
+    let published = published_ring_shares();
+    let scales: Vec<f64> = published.at.iter().map(|&(s, _)| s).collect();
+    let _ = writeln!(
+        t,
+        "SpeeDe3DGS + MAAF against SpeeDe3DGS [published: {}; trained at 800x800, so its \
+         1/4x is 200x200 pixels]: share of the error reduction, %\n",
+        published.source
+    );
+    t.push_str(&table_header(&["Region"], 0, &scales, &[]));
+    for (k, ring) in Ring::ALL.iter().enumerate() {
+        let _ = write!(t, "| {} |", ring.label());
+        for (_, shares) in &published.at {
+            let _ = write!(t, " {:.1} |", shares[k]);
         }
         t.push('\n');
     }

@@ -23,6 +23,7 @@ use serde::{Deserialize, Serialize};
 use super::published::{PublishedRow, paper_tab2, released};
 use crate::EvalReport;
 use crate::eval_json::OTHER_BACKGROUND_PREFIX;
+use crate::metrics::rings::RingErrors;
 use crate::{Error, write_atomic};
 
 mod chart;
@@ -31,7 +32,7 @@ mod gains;
 mod tables;
 
 pub use cost::phase_shares;
-pub use gains::{Gain, GainAt, gains, gains_table};
+pub use gains::{Gain, GainAt, RingSharesAt, gains, gains_table, ring_shares_table};
 pub use tables::{markdown, released_table, tab2_table};
 
 /// The scales of Tab. 2 (relative to the training scale), whose mean is its "Avg.".
@@ -79,6 +80,11 @@ pub struct Cell {
     pub ssim: f64,
     /// LPIPS (absent when the evaluation could not compute it).
     pub lpips: Option<f64>,
+    /// Squared error by distance from the silhouette (`eval.json`'s `rings`), for the
+    /// paired gains' error-reduction shares; not written to `report.json` per cell,
+    /// and absent from averages.
+    #[serde(skip)]
+    pub rings: Option<RingErrors>,
 }
 
 /// One evaluated scene of a method.
@@ -220,6 +226,7 @@ fn cells(eval: &EvalReport) -> Vec<Cell> {
             psnr: s.psnr,
             ssim: s.ssim,
             lpips: s.lpips,
+            rings: s.rings,
         })
         .collect();
     scales.sort_by(|a, b| a.scale.total_cmp(&b.scale));
@@ -272,6 +279,7 @@ fn mean_cells(runs: &[&[Cell]], scales: &[f64], with_lpips: bool) -> Vec<Cell> {
                     .sum::<Option<f64>>()
                     .filter(|_| with_lpips)
                     .map(|v| v / n),
+                rings: None,
             })
         })
         .collect()

@@ -2,6 +2,7 @@ use super::cost::cost_table;
 use super::tables::lpips_net_note;
 use super::*;
 use crate::ScaleResult;
+use crate::metrics::rings::RingErrors;
 
 fn run(scene: &str, filter: &str) -> SuiteRun {
     SuiteRun {
@@ -350,4 +351,66 @@ fn evaluations_on_other_backgrounds_are_read_and_tabulated_beside_the_run_s_own(
     .expect("report.md");
     assert!(!md.contains("other backgrounds"), "{md}");
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn ring_shares_pool_the_shared_scenes_after_averaging_seeds_and_follow_the_paper_s_split() {
+    let pixels = [10, 20, 30, 40, 100];
+    let with_rings = |psnr: f64, sse: [f64; 5]| {
+        let mut e = eval(psnr, &[0.25, 1.0]);
+        e.scales[0].rings = Some(RingErrors { pixels, sse });
+        e
+    };
+    let seeded = |seed| SuiteRun {
+        seed: Some(seed),
+        dir: format!("a/motion-seed{seed}").into(),
+        ..run("a", "motion")
+    };
+    let mut runs = vec![
+        (
+            run("a", "none"),
+            Some(with_rings(20.0, [4.0, 2.0, 1.0, 2.0, 0.5])),
+        ),
+        (
+            run("b", "none"),
+            Some(with_rings(20.0, [2.0, 1.0, 1.0, 1.0, 0.1])),
+        ),
+        (seeded(0), Some(with_rings(21.0, [1.0, 1.0, 1.0, 1.0, 0.5]))),
+        (seeded(1), Some(with_rings(21.0, [3.0, 1.0, 1.0, 1.0, 0.5]))),
+        (
+            run("b", "motion"),
+            Some(with_rings(21.0, [1.0, 1.0, 1.0, 3.0, 0.1])),
+        ),
+    ];
+    let s = summarise(&runs);
+    let g = &s.gains[0];
+    assert_eq!(
+        (g.method.as_str(), g.base.as_str()),
+        ("dnerf / motion / black", "dnerf / none / black")
+    );
+    // Only 1/4x has rings. Pooled: none [6, 3, 2, 3, 0.6], motion (a's seeds
+    // averaged to [2, 1, 1, 1, 0.5]) [3, 2, 2, 4, 0.6]: cut [3, 1, 0, -1, 0] of 3.
+    assert_eq!(g.rings.len(), 1);
+    let r = g.rings[0];
+    assert_eq!(r.scale, 0.25);
+    let want = [1.0, 1.0 / 3.0, 0.0, -1.0 / 3.0, 0.0];
+    for (got, want) in r.shares.iter().zip(want) {
+        assert!((got - want).abs() < 1e-12, "{:?}", r.shares);
+    }
+    assert_eq!(r.pixels, [0.05, 0.1, 0.15, 0.2, 0.5]);
+    assert!((r.removed - 3.0 / 14.6).abs() < 1e-12);
+    let md = markdown(&s);
+    for row in [
+        "| silhouette ring (object, d = 1 px) | 100.0 (5.0) |",
+        "| background halo (d <= 2 px) | -33.3 (20.0) |",
+        "| squared error removed, % of the base's | 20.5 |",
+        "| silhouette ring (object, d = 1 px) | 50.7 | 57.8 |",
+    ] {
+        assert!(md.contains(row), "`{row}` not in:\n{md}");
+    }
+    // A run without rings (data without alpha) takes the pair's rings away.
+    runs[4].1.as_mut().expect("eval").scales[0].rings = None;
+    let s = summarise(&runs);
+    assert!(s.gains[0].rings.is_empty());
+    assert!(!markdown(&s).contains("Where the gains lie"));
 }
