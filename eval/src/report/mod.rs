@@ -15,6 +15,7 @@ pub mod charts;
 pub mod curves;
 pub mod published;
 pub mod regions;
+pub mod rings;
 pub mod style;
 pub mod suite;
 pub mod temporal;
@@ -366,6 +367,17 @@ pub fn write_report(runs: &[PathBuf], out: &Path) -> Result<ReportOutput, Error>
             "\n## PSNR by region (moving / static / silhouette band, dB; data with moving masks)\n\n",
         );
         md.push_str(&by_region);
+    }
+    let by_ring = rings::ring_section(&runs, &scales);
+    if !by_ring.is_empty() {
+        md.push_str(
+            "\n## Where the gains lie: the error reduction by distance from the silhouette (data with alpha)\n\n\
+             Each run against the first: the first run's squared error that the run removes, \
+             split by the chessboard distance d of each pixel to the ground truth's \
+             silhouette, as the paper's supplementary (`tab:supp_region`) splits its \
+             zoom-out gain.\n\n",
+        );
+        md.push_str(&by_ring);
     }
     let _ = writeln!(
         md,

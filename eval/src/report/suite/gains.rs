@@ -21,6 +21,7 @@ use super::tables::table_header;
 use super::{Cell, MethodResult, SuiteSummary, at_scale, by_scene, cell_at, mean, seed_means};
 use crate::metrics::rings::{Ring, RingErrors};
 use crate::report::published::{PublishedRow, ring_shares as published_ring_shares};
+use crate::report::rings::{RingSharesAt, ring_shares_rows};
 
 /// One method against one listed before it with the same preset and background.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -37,23 +38,6 @@ pub struct Gain {
     /// ring, ascending; empty for data without alpha.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub rings: Vec<RingSharesAt>,
-}
-
-/// Where a paired gain lies at one scale: the share of the error reduction in each
-/// ring ([`crate::metrics::rings::Ring::ALL`] order).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
-pub struct RingSharesAt {
-    /// Render scale relative to the training scale.
-    pub scale: f64,
-    /// `(SSE_base(r) - SSE_method(r)) / (SSE_base - SSE_method)` per ring, pooled over
-    /// the shared scenes; negative where the method's error grew (or, when the total
-    /// grew, where it shrank). All zero when the totals are equal.
-    pub shares: [f64; 5],
-    /// Fraction of the pixels in each ring.
-    pub pixels: [f64; 5],
-    /// `(SSE_base - SSE_method) / SSE_base`: the fraction of the base's squared error
-    /// that the method removes (negative when it adds error).
-    pub removed: f64,
 }
 
 /// A paired gain at one scale.
@@ -175,19 +159,7 @@ fn ring_shares(
             pixels[k] += pa[k];
         }
     }
-    let cut: [f64; 5] = std::array::from_fn(|k| theirs[k] - ours[k]);
-    let (total_cut, total_base): (f64, f64) = (cut.iter().sum(), theirs.iter().sum());
-    let n: f64 = pixels.iter().sum();
-    Some(RingSharesAt {
-        scale: s,
-        shares: cut.map(|c| if total_cut != 0.0 { c / total_cut } else { 0.0 }),
-        pixels: pixels.map(|p| p / n.max(1.0)),
-        removed: if total_base > 0.0 {
-            total_cut / total_base
-        } else {
-            0.0
-        },
-    })
+    Some(RingSharesAt::of_sums(s, theirs, ours, pixels))
 }
 
 /// A published row against the row before it in its source, PSNR per scale.
@@ -269,7 +241,6 @@ pub fn ring_shares_table(summary: &SuiteSummary) -> Option<String> {
     }
     let mut t = String::new();
     for g in with {
-        let scales: Vec<f64> = g.rings.iter().map(|r| r.scale).collect();
         let _ = writeln!(
             t,
             "{} against {} ({} scenes): share of the error reduction, % (pixels, %)\n",
@@ -277,24 +248,8 @@ pub fn ring_shares_table(summary: &SuiteSummary) -> Option<String> {
             g.base,
             g.scenes.len()
         );
-        t.push_str(&table_header(&["Region"], 0, &scales, &[]));
-        for (k, ring) in Ring::ALL.iter().enumerate() {
-            let _ = write!(t, "| {} |", ring.label());
-            for r in &g.rings {
-                let _ = write!(
-                    t,
-                    " {:.1} ({:.1}) |",
-                    100.0 * r.shares[k],
-                    100.0 * r.pixels[k]
-                );
-            }
-            t.push('\n');
-        }
-        t.push_str("| squared error removed, % of the base's |");
-        for r in &g.rings {
-            let _ = write!(t, " {:.1} |", 100.0 * r.removed);
-        }
-        t.push_str("\n\n");
+        t.push_str(&ring_shares_rows(&g.rings));
+        t.push('\n');
     }
     let published = published_ring_shares();
     let scales: Vec<f64> = published.at.iter().map(|&(s, _)| s).collect();

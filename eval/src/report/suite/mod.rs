@@ -32,7 +32,7 @@ mod gains;
 mod tables;
 
 pub use cost::phase_shares;
-pub use gains::{Gain, GainAt, RingSharesAt, gains, gains_table, ring_shares_table};
+pub use gains::{Gain, GainAt, gains, gains_table, ring_shares_table};
 pub use tables::{markdown, released_table, tab2_table};
 
 /// The scales of Tab. 2 (relative to the training scale), whose mean is its "Avg.".

@@ -1,0 +1,164 @@
+//! Where a gain lies: the share of one method's squared-error reduction over another in
+//! each ring around the silhouette ([`crate::metrics::rings`]), the split of the
+//! paper's supplementary `tab:supp_region`, as `maaf report` (each run against the
+//! first) and the suite report's paired gains ([`super::suite`]) print it.
+
+use std::fmt::Write as _;
+
+use serde::Serialize;
+
+use super::{ReportRun, scale_header};
+use crate::metrics::rings::Ring;
+
+/// Where a gain lies at one scale, in [`Ring::ALL`] order.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct RingSharesAt {
+    /// Render scale relative to the training scale.
+    pub scale: f64,
+    /// `(SSE_base(r) - SSE_method(r)) / (SSE_base - SSE_method)` per ring: negative
+    /// where the method's error grew (or, when the total grew, where it shrank); all
+    /// zero when the totals are equal.
+    pub shares: [f64; 5],
+    /// Fraction of the pixels in each ring.
+    pub pixels: [f64; 5],
+    /// `(SSE_base - SSE_method) / SSE_base`: the fraction of the base's squared error
+    /// that the method removes (negative when it adds error).
+    pub removed: f64,
+}
+
+impl RingSharesAt {
+    /// The shares from per-ring squared-error sums of the base and the method over
+    /// the same pixels (`pixels` per ring, counts or means).
+    pub fn of_sums(scale: f64, base: [f64; 5], method: [f64; 5], pixels: [f64; 5]) -> Self {
+        let cut: [f64; 5] = std::array::from_fn(|k| base[k] - method[k]);
+        let (total_cut, total_base): (f64, f64) = (cut.iter().sum(), base.iter().sum());
+        let n: f64 = pixels.iter().sum();
+        RingSharesAt {
+            scale,
+            shares: cut.map(|c| if total_cut != 0.0 { c / total_cut } else { 0.0 }),
+            pixels: pixels.map(|p| p / n.max(1.0)),
+            removed: if total_base > 0.0 {
+                total_cut / total_base
+            } else {
+                0.0
+            },
+        }
+    }
+}
+
+/// A markdown table of `at` (ascending scales): a row per ring, `share % (pixels %)`
+/// per scale, and the fraction of the base's squared error removed.
+pub fn ring_shares_rows(at: &[RingSharesAt]) -> String {
+    let mut t = String::from("| Region |");
+    for r in at {
+        let _ = write!(t, " {} |", scale_header(r.scale));
+    }
+    t.push_str("\n|---|");
+    t.push_str(&"---:|".repeat(at.len()));
+    t.push('\n');
+    for (k, ring) in Ring::ALL.iter().enumerate() {
+        let _ = write!(t, "| {} |", ring.label());
+        for r in at {
+            let _ = write!(
+                t,
+                " {:.1} ({:.1}) |",
+                100.0 * r.shares[k],
+                100.0 * r.pixels[k]
+            );
+        }
+        t.push('\n');
+    }
+    t.push_str("| squared error removed, % of the base's |");
+    for r in at {
+        let _ = write!(t, " {:.1} |", 100.0 * r.removed);
+    }
+    t.push('\n');
+    t
+}
+
+/// `maaf report`'s section: every run against the first at each scale of `scales`
+/// where both have ring errors over the same pixels, one table per run; empty when no
+/// pair has them.
+pub fn ring_section(runs: &[ReportRun], scales: &[f64]) -> String {
+    let Some((base, rest)) = runs.split_first() else {
+        return String::new();
+    };
+    let mut md = String::new();
+    for run in rest {
+        let at: Vec<RingSharesAt> = scales
+            .iter()
+            .filter_map(|&s| {
+                let b = base.at_scale(s)?.rings?;
+                let m = run.at_scale(s)?.rings?;
+                (b.pixels == m.pixels)
+                    .then(|| RingSharesAt::of_sums(s, b.sse, m.sse, b.pixels.map(|p| p as f64)))
+            })
+            .collect();
+        if !at.is_empty() {
+            let _ = writeln!(
+                md,
+                "{} against {}: share of the error reduction, % (pixels, %)\n",
+                run.label, base.label
+            );
+            md.push_str(&ring_shares_rows(&at));
+            md.push('\n');
+        }
+    }
+    md
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ScaleResult;
+    use crate::metrics::rings::RingErrors;
+
+    fn run(label: &str, at: &[(f64, Option<[f64; 5]>)]) -> ReportRun {
+        let scales = at
+            .iter()
+            .map(|&(s, sse)| {
+                let mut r = ScaleResult::new(s, (8, 8), 30.0, 0.9);
+                r.rings = sse.map(|sse| RingErrors {
+                    pixels: [1, 1, 2, 0, 4],
+                    sse,
+                });
+                r
+            })
+            .collect();
+        ReportRun::for_test(label, "saro", "none", scales)
+    }
+
+    #[test]
+    fn each_run_is_split_against_the_first_where_both_have_rings() {
+        let base = run(
+            "none",
+            &[
+                (0.25, Some([2.0, 1.0, 1.0, 0.0, 1.0])),
+                (1.0, Some([1.0; 5])),
+            ],
+        );
+        // At 1/4x: 1.5 of 5 removed, 1 of it on the ring, 0.5 inside. 1x has no rings
+        // for the method, so no column.
+        let ours = run(
+            "motion",
+            &[(0.25, Some([1.0, 0.5, 1.0, 0.0, 1.0])), (1.0, None)],
+        );
+        let no_rings = run("other", &[(0.25, None)]);
+        let md = ring_section(&[base, ours, no_rings], &[0.25, 1.0]);
+        assert!(md.contains("motion against none: share"), "{md}");
+        assert!(!md.contains("other against"), "{md}");
+        assert!(!md.contains("| 1x |"), "{md}");
+        for row in [
+            "| silhouette ring (object, d = 1 px) | 66.7 (12.5) |",
+            "| inside band (object, d = 2-5 px) | 33.3 (12.5) |",
+            "| far background (d > 2 px) | 0.0 (50.0) |",
+            "| squared error removed, % of the base's | 30.0 |",
+        ] {
+            assert!(md.contains(row), "`{row}` not in:\n{md}");
+        }
+        assert_eq!(
+            ring_section(&[run("only", &[(1.0, Some([1.0; 5]))])], &[1.0]),
+            ""
+        );
+    }
+}
