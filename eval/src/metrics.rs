@@ -88,6 +88,22 @@ fn dims<T: Float>(
     Ok((s[0], s[1], s[2]))
 }
 
+/// `(H, W, C)` of two images of equal shape with a `[H, W]` mask (a coverage map), or
+/// why not.
+pub(crate) fn masked_dims<T: Float>(
+    render: &Tensor<T>,
+    gt: &Tensor<T>,
+    mask: &[f32],
+) -> Result<(usize, usize, usize), MetricError> {
+    let (h, w, c) = dims(render, gt)?;
+    if mask.len() != h * w {
+        return Err(MetricError::NotAnImage {
+            shape: vec![h, w, c, mask.len()],
+        });
+    }
+    Ok((h, w, c))
+}
+
 /// Mean squared error `MSE = (1 / HWC) sum (render - gt)^2`, accumulated in f64.
 pub fn mse<T: Float>(render: &Tensor<T>, gt: &Tensor<T>) -> Result<f64, MetricError> {
     dims(render, gt)?;

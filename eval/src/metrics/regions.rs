@@ -15,7 +15,7 @@
 use maaf_autodiff::{Float, Tensor};
 use serde::{Deserialize, Serialize};
 
-use super::MetricError;
+use super::{MetricError, masked_dims};
 
 /// The three regions, in [`RegionPsnr`] order.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -75,22 +75,7 @@ pub fn region_psnr<T: Float>(
     gt: &Tensor<T>,
     coverage: &[f32],
 ) -> Result<RegionPsnr, MetricError> {
-    if render.shape() != gt.shape() {
-        return Err(MetricError::ShapeMismatch {
-            render: render.shape().to_vec(),
-            gt: gt.shape().to_vec(),
-        });
-    }
-    let &[h, w, c] = render.shape() else {
-        return Err(MetricError::NotAnImage {
-            shape: render.shape().to_vec(),
-        });
-    };
-    if coverage.len() != h * w || h == 0 || w == 0 || c == 0 {
-        return Err(MetricError::NotAnImage {
-            shape: vec![h, w, c, coverage.len()],
-        });
-    }
+    let (h, w, c) = masked_dims(render, gt, coverage)?;
     let regions = classify(coverage, w, h);
     let mut sum = [0.0f64; 3];
     let mut count = [0usize; 3];

@@ -25,7 +25,7 @@
 use maaf_autodiff::{Float, Tensor};
 use serde::{Deserialize, Serialize};
 
-use super::MetricError;
+use super::{MetricError, masked_dims};
 
 /// The five rings, in [`RingErrors`] order.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -164,22 +164,7 @@ impl RingErrors {
         gt: &Tensor<T>,
         coverage: &[f32],
     ) -> Result<Self, MetricError> {
-        if render.shape() != gt.shape() {
-            return Err(MetricError::ShapeMismatch {
-                render: render.shape().to_vec(),
-                gt: gt.shape().to_vec(),
-            });
-        }
-        let &[h, w, c] = render.shape() else {
-            return Err(MetricError::NotAnImage {
-                shape: render.shape().to_vec(),
-            });
-        };
-        if coverage.len() != h * w || h == 0 || w == 0 || c == 0 {
-            return Err(MetricError::NotAnImage {
-                shape: vec![h, w, c, coverage.len()],
-            });
-        }
+        let (h, w, c) = masked_dims(render, gt, coverage)?;
         let mut out = RingErrors::default();
         let pixels = render.data().chunks_exact(c).zip(gt.data().chunks_exact(c));
         for (ring, (r, g)) in silhouette_rings(coverage, w, h).into_iter().zip(pixels) {
@@ -323,6 +308,16 @@ mod tests {
         render.data_mut()[4 * c] = 0.1;
         render.data_mut()[4 * c + 1] = 0.1;
         let e = RingErrors::of_view(&render, &gt, &cov).expect("rings");
+        // A coverage of another size, or images of two shapes, are refused.
+        assert!(matches!(
+            RingErrors::of_view(&render, &gt, &cov[..60]),
+            Err(MetricError::NotAnImage { .. })
+        ));
+        let other = Tensor::<f64>::zeros(&[h, w - 1, c]);
+        assert!(matches!(
+            RingErrors::of_view(&render, &other, &cov),
+            Err(MetricError::ShapeMismatch { .. })
+        ));
         // Object columns 0..4: x = 3 edge, x = 0..3 inside (d = 4, 3, 2); the
         // background columns 4, 5 halo, 6, 7 far.
         assert_eq!(e.pixels, [8, 24, 0, 16, 16]);
