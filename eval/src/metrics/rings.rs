@@ -20,7 +20,8 @@
 //! the `d = 2` part of Inside. Per ring the evaluation keeps the sum of squared errors
 //! over its pixels and channels ([`RingErrors`]), so the share of an error reduction
 //! is a difference of two runs' sums: `(SSE_base(r) - SSE_ours(r)) / (SSE_base -
-//! SSE_ours)`, the sums taken over every evaluated view.
+//! SSE_ours)`, the sums taken over every evaluated view
+//! ([`crate::report::rings::RingSharesAt::of_sums`]).
 
 use maaf_autodiff::{Float, Tensor};
 use serde::{Deserialize, Serialize};
@@ -194,25 +195,6 @@ impl RingErrors {
             acc
         })
     }
-
-    /// Fraction of the pixels in each ring.
-    pub fn pixel_shares(&self) -> [f64; 5] {
-        let n: u64 = self.pixels.iter().sum();
-        self.pixels.map(|p| p as f64 / n.max(1) as f64)
-    }
-
-    /// Share of the error reduction from `base` to `ours` (the same views) in each
-    /// ring: `(base.sse[r] - ours.sse[r]) / sum over rings of the same`; a ring whose
-    /// error grew has a negative share. `None` when the totals are equal (nothing was
-    /// reduced, so there are no shares) or the two cover other pixels.
-    pub fn reduction_shares(base: &RingErrors, ours: &RingErrors) -> Option<[f64; 5]> {
-        if base.pixels != ours.pixels {
-            return None;
-        }
-        let cut: Vec<f64> = (0..5).map(|k| base.sse[k] - ours.sse[k]).collect();
-        let total: f64 = cut.iter().sum();
-        (total != 0.0 && total.is_finite()).then(|| std::array::from_fn(|k| cut[k] / total))
-    }
 }
 
 #[cfg(test)]
@@ -294,7 +276,7 @@ mod tests {
     }
 
     #[test]
-    fn errors_add_up_per_ring_and_shares_are_differences_of_sums() {
+    fn errors_add_up_per_ring_and_over_views() {
         // 8x8, the left half object; the render is off by 0.5 in channel 0 of pixel
         // (0, 0) (object, d = 4) and by 0.1 in both channels of pixel (4, 0)
         // (background next to the silhouette).
@@ -322,24 +304,9 @@ mod tests {
         // background columns 4, 5 halo, 6, 7 far.
         assert_eq!(e.pixels, [8, 24, 0, 16, 16]);
         assert_eq!(e.sse, [0.0, 0.25, 0.0, 0.1f64.powi(2) * 2.0, 0.0]);
-        assert_eq!(e.pixel_shares(), [0.125, 0.375, 0.0, 0.25, 0.25]);
-        // A better model that fixes the inside pixel and halves the halo error, and
-        // a worse one in the halo.
-        let mut ours = e;
-        ours.sse[1] = 0.0;
-        ours.sse[3] = 0.01;
-        let s = RingErrors::reduction_shares(&e, &ours).expect("shares");
-        let total = 0.25 + 0.01;
-        assert!((s[1] - 0.25 / total).abs() < 1e-12 && (s[3] - 0.01 / total).abs() < 1e-12);
-        assert_eq!([s[0], s[2], s[4]], [0.0; 3]);
-        ours.sse[3] = 0.04;
-        let s = RingErrors::reduction_shares(&e, &ours).expect("shares");
-        assert!(s[3] < 0.0 && (s.iter().sum::<f64>() - 1.0).abs() < 1e-12);
-        assert_eq!(RingErrors::reduction_shares(&e, &e), None);
         let mut two = e;
         two.add(&e);
         assert_eq!(two.pixels, [16, 48, 0, 32, 32]);
         assert_eq!(RingErrors::total([e, e].into_iter()), Some(two));
-        assert_eq!(RingErrors::reduction_shares(&e, &two), None);
     }
 }

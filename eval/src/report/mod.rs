@@ -375,9 +375,10 @@ pub fn write_report(runs: &[PathBuf], out: &Path) -> Result<ReportOutput, Error>
              Each run against the first: the first run's squared error that the run removes, \
              split by the chessboard distance d of each pixel to the ground truth's \
              silhouette, as the paper's supplementary (`tab:supp_region`) splits its \
-             zoom-out gain. Where the last row (the total removed) is near zero, the shares divide by it \
-             and swing far past 100 %: read them only beside a clear total.\n\n",
+             zoom-out gain. ",
         );
+        md.push_str(rings::NEAR_ZERO_NOTE);
+        md.push_str("\n\n");
         md.push_str(&by_ring);
     }
     let _ = writeln!(

@@ -10,6 +10,10 @@ use serde::Serialize;
 use super::{ReportRun, scale_header};
 use crate::metrics::rings::Ring;
 
+/// What the ring tables' introductions say of the shares' one weakness.
+pub const NEAR_ZERO_NOTE: &str = "Where the last row (the total removed) is near zero, the \
+     shares divide by it and swing far past 100 %: read them only beside a clear total.";
+
 /// Where a gain lies at one scale, in [`Ring::ALL`] order.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct RingSharesAt {
@@ -126,6 +130,26 @@ mod tests {
             })
             .collect();
         ReportRun::for_test(label, "saro", "none", scales)
+    }
+
+    #[test]
+    fn shares_are_differences_of_sums_over_the_total_cut() {
+        // The metric test's view: pixels [8, 24, 0, 16, 16], error 0.25 inside and
+        // 0.02 in the halo. A model that fixes the inside pixel and halves the halo
+        // error, then one worse in the halo.
+        let pixels = [8.0, 24.0, 0.0, 16.0, 16.0];
+        let base = [0.0, 0.25, 0.0, 0.02, 0.0];
+        let r = RingSharesAt::of_sums(1.0, base, [0.0, 0.0, 0.0, 0.01, 0.0], pixels);
+        assert_eq!(r.pixels, [0.125, 0.375, 0.0, 0.25, 0.25]);
+        let s = r.shares;
+        let total = 0.25 + 0.01;
+        assert!((s[1] - 0.25 / total).abs() < 1e-12 && (s[3] - 0.01 / total).abs() < 1e-12);
+        assert_eq!([s[0], s[2], s[4]], [0.0; 3]);
+        let s = RingSharesAt::of_sums(1.0, base, [0.0, 0.0, 0.0, 0.04, 0.0], pixels).shares;
+        assert!(s[3] < 0.0 && (s.iter().sum::<f64>() - 1.0).abs() < 1e-12);
+        // Nothing removed: no shares, and nothing removed.
+        let same = RingSharesAt::of_sums(1.0, base, base, pixels);
+        assert_eq!((same.shares, same.removed), ([0.0; 5], 0.0));
     }
 
     #[test]

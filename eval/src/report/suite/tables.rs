@@ -297,9 +297,10 @@ pub fn markdown(summary: &SuiteSummary) -> String {
              alpha (object where it covers half the pixel), pooled over the shared scenes and \
              their views, as the paper's supplementary splits its zoom-out gain. A share \
              above the ring's pixel share means the gain concentrates there; negative: the \
-             method's error grew there. Where the last row (the total removed) is near zero, the shares divide by it \
-             and swing far past 100 %: read them only beside a clear total.\n\n",
+             method's error grew there. ",
         );
+        md.push_str(crate::report::rings::NEAR_ZERO_NOTE);
+        md.push_str("\n\n");
         md.push_str(&rings);
     }
     md.push_str(
