@@ -269,6 +269,12 @@ fn is_alex(v: &String) -> bool {
 /// ([`EvalReport::name`]).
 pub const OTHER_BACKGROUND_PREFIX: &str = "eval-on-";
 
+/// Name of the outputs of an evaluation on the background spelt `background`
+/// (`white`, `black`, `r,g,b`) when it is not the run's own: `eval-on-white`.
+pub fn other_background_name(background: &str) -> String {
+    format!("{OTHER_BACKGROUND_PREFIX}{background}")
+}
+
 impl EvalReport {
     /// Name of the evaluation's outputs in the run folder (`NAME.json` and the image
     /// folder `NAME/`): `eval` on the background the run trained on; on another one
@@ -279,10 +285,7 @@ impl EvalReport {
     pub fn name(&self) -> String {
         match self.trained_background {
             None => "eval".into(),
-            Some(_) => format!(
-                "{OTHER_BACKGROUND_PREFIX}{}",
-                maaf_data::background_name(self.background)
-            ),
+            Some(_) => other_background_name(&maaf_data::background_name(self.background)),
         }
     }
 

@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use anyhow::{Context, bail};
-use maaf_eval::eval_json::OTHER_BACKGROUND_PREFIX;
+use maaf_eval::eval_json::other_background_name;
 use maaf_eval::report::suite::{SuiteRun, write_suite_report};
 use maaf_filter::FilterKind;
 use maaf_scene::TrainConfig;
@@ -413,7 +413,7 @@ fn other_evaluations<'a>(spec: &'a SuiteSpec, run: &SuiteRun) -> anyhow::Result<
         .filter(|&bg| bg != own)
         .filter(|bg| {
             !run.dir
-                .join(format!("{OTHER_BACKGROUND_PREFIX}{bg}.json"))
+                .join(format!("{}.json", other_background_name(bg)))
                 .is_file()
         })
         .collect())
@@ -486,7 +486,8 @@ fn spawn(exe: &Path, args: &[String]) -> anyhow::Result<()> {
 /// Trains (or resumes) and evaluates one run, as far as it is not done yet.
 fn run_one(spec: &SuiteSpec, out: &Path, exe: &Path, run: &SuiteRun) -> anyhow::Result<String> {
     let others = other_evaluations(spec, run)?;
-    let mut what = if run.dir.join("eval.json").is_file() {
+    let evaluated = run.dir.join("eval.json").is_file();
+    let mut what = if evaluated {
         if others.is_empty() {
             return Ok("skipped (evaluated)".into());
         }
@@ -502,7 +503,7 @@ fn run_one(spec: &SuiteSpec, out: &Path, exe: &Path, run: &SuiteRun) -> anyhow::
         "trained and evaluated"
     }
     .to_string();
-    if !run.dir.join("eval.json").is_file() {
+    if !evaluated {
         spawn(exe, &eval_args(spec, run, None))?;
     }
     for bg in &others {
