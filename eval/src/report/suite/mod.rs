@@ -1,7 +1,9 @@
 //! The report of a D-NeRF suite (`maaf bench-suite`): one Tab. 2-shaped table of every
 //! method (preset / filter / background) averaged over the scenes it was evaluated on,
 //! with the paper's Tab. 2 rows and the released code's row beside it
-//! ([`super::published`], labelled as published), then per-scene PSNR, SSIM and LPIPS at
+//! ([`super::published`], labelled as published) and how hard each method's scenes are
+//! against all eight by the paper's per-scene table ([`scene_sets`]), then per-scene
+//! PSNR, SSIM and LPIPS at
 //! every evaluated scale and the cost of each run (training wall time, where the
 //! training time went by phase, Gaussians, model bytes), and a chart of each method's
 //! PSNR against its training time (`chart.rs`). Written as `report.md`, `report.json`
@@ -20,7 +22,7 @@ use std::path::{Path, PathBuf};
 use maaf_scene::Timings;
 use serde::{Deserialize, Serialize};
 
-use super::published::{PublishedRow, paper_tab2, released};
+use super::published::{PerScenePsnr, PublishedRow, paper_tab2, per_scene_psnr, released};
 use crate::EvalReport;
 use crate::eval_json::OTHER_BACKGROUND_PREFIX;
 use crate::metrics::rings::RingErrors;
@@ -29,10 +31,12 @@ use crate::{Error, write_atomic};
 mod chart;
 mod cost;
 mod gains;
+mod scene_set;
 mod tables;
 
 pub use cost::phase_shares;
 pub use gains::{Gain, GainAt, gains, gains_table, ring_shares_table};
+pub use scene_set::{SceneSet, scene_set, scene_set_table, scene_sets};
 pub use tables::{markdown, released_table, tab2_table};
 
 /// The scales of Tab. 2 (relative to the training scale), whose mean is its "Avg.".
@@ -195,6 +199,11 @@ pub struct SuiteSummary {
     pub paper_tab2: Vec<PublishedRow>,
     /// The released code's rows (published, 8 scenes, 4x).
     pub released: Vec<PublishedRow>,
+    /// The paper's per-scene table (published, trained at 800x800), which says how
+    /// each method's scenes sit against all eight.
+    pub paper_per_scene: PerScenePsnr,
+    /// Each method's scenes in that table ([`scene_sets`]).
+    pub scene_sets: Vec<SceneSet>,
 }
 
 /// What [`write_suite_report`] wrote.
@@ -372,14 +381,18 @@ pub fn summarise(runs: &[(SuiteRun, Option<EvalReport>)]) -> SuiteSummary {
     for m in &mut methods {
         m.average = average(&m.scenes, &scales);
     }
-    SuiteSummary {
+    let mut summary = SuiteSummary {
         gains: gains(&methods, &scales),
         scales,
         methods,
         missing,
         paper_tab2: paper_tab2(),
         released: released(),
-    }
+        paper_per_scene: per_scene_psnr(),
+        scene_sets: Vec::new(),
+    };
+    summary.scene_sets = scene_sets(&summary);
+    summary
 }
 
 /// Reads each run's `eval.json` (a run without one is listed as not evaluated yet)

@@ -414,3 +414,39 @@ fn ring_shares_pool_the_shared_scenes_after_averaging_seeds_and_follow_the_paper
     assert!(s.gains[0].rings.is_empty());
     assert!(!markdown(&s).contains("Where the gains lie"));
 }
+
+#[test]
+fn each_method_s_scenes_are_placed_against_the_eight_in_the_paper_s_table() {
+    let at = [1.0];
+    let runs = vec![
+        (run("mutant", "motion"), Some(eval(30.0, &at))),
+        (run("standup", "motion"), Some(eval(30.0, &at))),
+        (run("lego", "none"), Some(eval(20.0, &at))),
+        (run("mutant", "none"), None),
+    ];
+    let s = summarise(&runs);
+    // The not-yet-evaluated mutant run leaves `none` with lego alone.
+    let sets: Vec<String> = s
+        .scene_sets
+        .iter()
+        .map(|x| format!("{}: {}", x.method, x.scenes.join(", ")))
+        .collect();
+    assert_eq!(
+        sets,
+        [
+            "dnerf / motion / black: mutant, standup",
+            "dnerf / none / black: lego"
+        ]
+    );
+    let md = markdown(&s);
+    for row in [
+        // (36.75 + 38.37) / 2 = 37.56, 2.54 above the eight's 35.02; lego 10.36 below.
+        "| dnerf / motion / black | mutant, standup | 37.56 (+2.54) |",
+        "| dnerf / none / black | lego | 24.66 (-10.36) |",
+        "## How hard these scenes are",
+    ] {
+        assert!(md.contains(row), "`{row}` not in:\n{md}");
+    }
+    let json = serde_json::to_string(&s).expect("serialises");
+    assert!(json.contains("\"scene_sets\"") && json.contains("tab:supp_zoomout"));
+}
