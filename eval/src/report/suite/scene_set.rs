@@ -83,9 +83,10 @@ pub fn scene_sets(summary: &SuiteSummary) -> Vec<SceneSet> {
 
 /// A markdown table: per method, the table's mean over its scenes at each scale with
 /// the difference from the eight scenes' printed average in brackets (positive: easier
-/// than the eight), then the eight's average; `None` without a method.
+/// than the eight), then the eight's average; `None` when no method has a scene of
+/// the table (a suite over other data).
 pub fn scene_set_table(sets: &[SceneSet], table: &PerScenePsnr) -> Option<String> {
-    if sets.is_empty() {
+    if sets.iter().all(|s| s.unmatched.len() == s.scenes.len()) {
         return None;
     }
     let mut t = String::from("| Method | Scenes |");
@@ -173,5 +174,11 @@ mod tests {
             "{md}"
         );
         assert_eq!(scene_set_table(&[], &table), None);
+        let other = scene_set("m", &["my_scene"], &table);
+        assert_eq!(
+            scene_set_table(&[other], &table),
+            None,
+            "no scene of the table"
+        );
     }
 }
