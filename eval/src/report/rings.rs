@@ -215,5 +215,7 @@ mod tests {
             assert!(md.contains(row), "`{row}` not in:\n{md}");
         }
         assert_eq!(small.shares[1], 1.25, "report.json keeps the share");
+        let percent = format!("under {} %", (100.0 * MIN_REMOVED_FOR_SHARES).round());
+        assert!(NEAR_ZERO_NOTE.contains(&percent), "the note says {percent}");
     }
 }

@@ -3,11 +3,10 @@
 //! with the paper's Tab. 2 rows and the released code's row beside it
 //! ([`super::published`], labelled as published) and how hard each method's scenes are
 //! against all eight by the paper's per-scene table ([`scene_sets`]), then per-scene
-//! PSNR, SSIM and LPIPS at
-//! every evaluated scale and the cost of each run (training wall time, where the
-//! training time went by phase, Gaussians, model bytes), and a chart of each method's
-//! PSNR against its training time (`chart.rs`). Written as `report.md`, `report.json`
-//! and `speed_quality.png`.
+//! PSNR, SSIM and LPIPS at every evaluated scale and the cost of each run (training
+//! wall time, where the training time went by phase, Gaussians, model bytes), and a
+//! chart of each method's PSNR against its training time (`chart.rs`). Written as
+//! `report.md`, `report.json` and `speed_quality.png`.
 //!
 //! Averages are plain means over the scenes present: a cell is averaged only when every
 //! evaluated scene of the method has it, and a scene is counted only once it has an
