@@ -380,18 +380,17 @@ pub fn summarise(runs: &[(SuiteRun, Option<EvalReport>)]) -> SuiteSummary {
     for m in &mut methods {
         m.average = average(&m.scenes, &scales);
     }
-    let mut summary = SuiteSummary {
+    let paper_per_scene = per_scene_psnr();
+    SuiteSummary {
         gains: gains(&methods, &scales),
+        scene_sets: scene_sets(&methods, &paper_per_scene),
         scales,
         methods,
         missing,
         paper_tab2: paper_tab2(),
         released: released(),
-        paper_per_scene: per_scene_psnr(),
-        scene_sets: Vec::new(),
-    };
-    summary.scene_sets = scene_sets(&summary);
-    summary
+        paper_per_scene,
+    }
 }
 
 /// Reads each run's `eval.json` (a run without one is listed as not evaluated yet)

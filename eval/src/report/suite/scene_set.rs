@@ -10,7 +10,7 @@ use std::fmt::Write as _;
 
 use serde::Serialize;
 
-use super::SuiteSummary;
+use super::MethodResult;
 use crate::report::published::{PerScenePsnr, PublishedScene, scene_key};
 use crate::report::scale_header;
 
@@ -68,15 +68,14 @@ pub fn scene_set(method: &str, scenes: &[&str], table: &PerScenePsnr) -> SceneSe
     }
 }
 
-/// The scene set of every method of `summary` with an evaluated scene.
-pub fn scene_sets(summary: &SuiteSummary) -> Vec<SceneSet> {
-    summary
-        .methods
+/// The scene set of every method of `methods` with an evaluated scene.
+pub fn scene_sets(methods: &[MethodResult], table: &PerScenePsnr) -> Vec<SceneSet> {
+    methods
         .iter()
         .filter(|m| !m.scenes.is_empty())
         .map(|m| {
             let scenes: Vec<&str> = m.scenes.iter().map(|r| r.scene.as_str()).collect();
-            scene_set(&m.method, &scenes, &summary.paper_per_scene)
+            scene_set(&m.method, &scenes, table)
         })
         .collect()
 }
