@@ -5,7 +5,8 @@
 //! so scenes can run on several machines and a line run again resumes its run) and,
 //! without `--jobs-only`, run here one at a time, skipping evaluated runs and resuming
 //! interrupted ones. Then one report ([`maaf_eval::report::suite`]): the paper's Tab. 2
-//! layout with the published rows beside maaf's.
+//! layout with the published rows beside maaf's. `--record` keeps the measurements of
+//! a suite without its run folders ([`record`]).
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -22,6 +23,8 @@ use serde::{Deserialize, Serialize};
 
 use super::train::{FilterArg, SettingsArgs, config_from};
 
+mod record;
+
 /// Arguments of `maaf bench-suite`.
 #[derive(clap::Args, Debug)]
 pub struct BenchSuiteArgs {
@@ -31,18 +34,18 @@ pub struct BenchSuiteArgs {
     #[arg(long)]
     pub out: PathBuf,
     /// Folder of D-NeRF scenes: every subfolder holding transforms_train.json is a
-    /// scene [default: none; required unless --report-only or --job].
-    #[arg(long, required_unless_present_any = ["report_only", "job"])]
+    /// scene [default: none; required unless --report-only, --job or --record].
+    #[arg(long, required_unless_present_any = ["report_only", "job", "record"])]
     pub data: Option<PathBuf>,
     /// Only these scenes (folder names, comma-separated) [default: every scene].
     #[arg(long, value_delimiter = ',')]
     pub scenes: Vec<String>,
     /// Preset files (configs/*.json; repeat or comma-separate), one method each, named
-    /// by the file's stem [default: none; required unless --report-only or --job].
+    /// by the file's stem [default: none; required unless --report-only, --job or --record].
     #[arg(
         long = "preset",
         value_delimiter = ',',
-        required_unless_present_any = ["report_only", "job"]
+        required_unless_present_any = ["report_only", "job", "record"]
     )]
     pub presets: Vec<PathBuf>,
     /// 3D filters, one run each.
@@ -98,6 +101,13 @@ pub struct BenchSuiteArgs {
     /// is written (`--report-only` does that) [default: every job].
     #[arg(long, conflicts_with_all = PLANNING, conflicts_with = "report_only")]
     pub job: Option<usize>,
+    /// Copy the measurements of the suite in --out (suite.json and each evaluated
+    /// run's eval.json, summary.json and eval-on-*.json, a few kB per run) into DIR, a
+    /// record that `--report-only --out DIR` reports without the run folders; into an
+    /// earlier record, the runs are added to it (docs/cli.md). Reads OUT/suite.json
+    /// (the options that plan a suite are refused with it) [default: none].
+    #[arg(long, value_name = "DIR", conflicts_with_all = PLANNING, conflicts_with_all = ["report_only", "job"])]
+    pub record: Option<PathBuf>,
 }
 
 /// The options that plan a suite: `--job` and `--report-only` read the plan from
@@ -177,8 +187,37 @@ struct SuiteSpec {
     /// suite written without them.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     also_eval_on: Vec<String>,
-    /// Every run, in job order.
+    /// Every run, in job order (in a record, by scene, their folders relative to it).
     runs: Vec<SuiteRun>,
+    /// A record of measurements (`--record`): reported, never trained or evaluated;
+    /// absent from a suite.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    record: bool,
+}
+
+impl SuiteSpec {
+    /// The runs with their folders resolved against the suite folder `out` (a
+    /// record's are relative to it; a suite's are absolute already).
+    fn runs_in(&self, out: &Path) -> Vec<SuiteRun> {
+        self.runs
+            .iter()
+            .map(|r| SuiteRun {
+                dir: out.join(&r.dir),
+                ..r.clone()
+            })
+            .collect()
+    }
+
+    /// An error when this is a record: its runs are not trained or evaluated.
+    fn refuse_record(&self, out: &Path) -> anyhow::Result<()> {
+        if self.record {
+            bail!(
+                "{}: a record of measurements (`--record`), whose runs cannot be trained or evaluated; run them in the suite folder they were recorded from, or report it with --report-only",
+                out.join(SPEC_FILE).display()
+            );
+        }
+        Ok(())
+    }
 }
 
 const SPEC_FILE: &str = "suite.json";
@@ -352,6 +391,7 @@ fn plan(args: &BenchSuiteArgs, out: &Path) -> anyhow::Result<SuiteSpec> {
         eval_args: args.eval_args.clone(),
         also_eval_on,
         runs,
+        record: false,
     })
 }
 
@@ -426,6 +466,7 @@ fn write_suite(spec: &SuiteSpec, out: &Path, exe: &Path) -> anyhow::Result<()> {
     let spec_path = out.join(SPEC_FILE);
     if spec_path.is_file() {
         let old = read_spec(out)?;
+        old.refuse_record(out)?;
         let same_runs = SuiteSpec {
             also_eval_on: spec.also_eval_on.clone(),
             ..old
@@ -541,6 +582,7 @@ fn maaf_exe() -> anyhow::Result<PathBuf> {
 /// `--job n`: run `n` (1-based) of the suite written in `out`, by [`run_one`]'s rule.
 fn run_job(out: &Path, n: usize) -> anyhow::Result<()> {
     let spec = read_spec(out)?;
+    spec.refuse_record(out)?;
     let i = n
         .checked_sub(1)
         .filter(|&i| i < spec.runs.len())
@@ -562,6 +604,9 @@ pub fn run(args: &BenchSuiteArgs) -> anyhow::Result<()> {
         .with_context(|| format!("{}: cannot resolve", args.out.display()))?;
     if let Some(n) = args.job {
         return run_job(&out, n);
+    }
+    if let Some(dir) = &args.record {
+        return record_suite(&out, dir);
     }
     let spec = if args.report_only {
         read_spec(&out)?
@@ -606,12 +651,38 @@ pub fn run(args: &BenchSuiteArgs) -> anyhow::Result<()> {
         }
         spec
     };
-    let report = write_suite_report(&spec.runs, &out)?;
+    let report = write_suite_report(&spec.runs_in(&out), &out)?;
     print!("{}", report.table);
     println!(
         "report: {} ({})",
         report.markdown.display(),
         report.json.display()
+    );
+    Ok(())
+}
+
+/// `--record DIR`: [`record::record`] of the suite in `out`, then what was copied.
+fn record_suite(out: &Path, dir: &Path) -> anyhow::Result<()> {
+    let read = read_spec(out)?;
+    let spec = SuiteSpec {
+        runs: read.runs_in(out),
+        ..read
+    };
+    let dir =
+        std::path::absolute(dir).with_context(|| format!("{}: cannot resolve", dir.display()))?;
+    let done = record::record(&spec, out, &dir)?;
+    println!(
+        "recorded {} of {} runs into {}",
+        done.copied.len(),
+        spec.runs.len(),
+        dir.display()
+    );
+    for d in &done.not_evaluated {
+        println!("  not evaluated yet, left out: {}", d.display());
+    }
+    println!(
+        "its report: maaf bench-suite --out {} --report-only",
+        shell_quote(&dir.display().to_string())
     );
     Ok(())
 }
