@@ -509,3 +509,51 @@ fn a_record_keeps_the_measurements_reports_without_the_runs_and_gathers_suites()
         &["--record", "own folder"],
     );
 }
+
+/// Copies the folder `from` into `to`, recursively.
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).expect("mkdir");
+    for entry in std::fs::read_dir(from).expect("read_dir") {
+        let path = entry.expect("entry").path();
+        let target = to.join(path.file_name().expect("name"));
+        if path.is_dir() {
+            copy_dir(&path, &target);
+        } else {
+            std::fs::copy(&path, &target).expect("copy");
+        }
+    }
+}
+
+#[test]
+fn the_records_of_the_published_tables_still_report_every_run() {
+    let records = Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/results/suites");
+    let tmp = TempDir::fresh("cli_bench_suite_published_records");
+    let mut seen = 0;
+    for entry in std::fs::read_dir(&records).expect("docs/results/suites") {
+        let record = entry.expect("entry").path();
+        let copy = tmp.0.join(record.file_name().expect("name"));
+        copy_dir(&record, &copy);
+        for stale in ["report.md", "report.json", "speed_quality.png"] {
+            let _ = std::fs::remove_file(copy.join(stale));
+        }
+        ok(maaf(&["bench-suite", "--out", s(&copy), "--report-only"]));
+        let spec: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(copy.join("suite.json")).expect("suite.json"),
+        )
+        .expect("suite.json parses");
+        assert_eq!(spec["record"], true, "{}", record.display());
+        let md = std::fs::read_to_string(copy.join("report.md")).expect("report.md");
+        let runs = spec["runs"].as_array().expect("runs");
+        assert!(
+            md.contains(&format!("{} of {} runs evaluated", runs.len(), runs.len())),
+            "{}: {md}",
+            record.display()
+        );
+        for run in runs {
+            let scene = run["scene"].as_str().expect("scene");
+            assert!(md.contains(&format!(" | {scene} | ")), "{scene}: {md}");
+        }
+        seen += 1;
+    }
+    assert!(seen > 0, "no records in {}", records.display());
+}
