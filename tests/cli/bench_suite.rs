@@ -9,7 +9,7 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use super::support::{TempDir, maaf, refused, s};
+use super::support::{TempDir, copy_dir, maaf, refused, s};
 
 fn ok(out: Output) -> String {
     assert!(
@@ -508,20 +508,6 @@ fn a_record_keeps_the_measurements_reports_without_the_runs_and_gathers_suites()
         maaf(&["bench-suite", "--out", s(&third), "--record", s(&third)]),
         &["--record", "own folder"],
     );
-}
-
-/// Copies the folder `from` into `to`, recursively.
-fn copy_dir(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).expect("mkdir");
-    for entry in std::fs::read_dir(from).expect("read_dir") {
-        let path = entry.expect("entry").path();
-        let target = to.join(path.file_name().expect("name"));
-        if path.is_dir() {
-            copy_dir(&path, &target);
-        } else {
-            std::fs::copy(&path, &target).expect("copy");
-        }
-    }
 }
 
 #[test]
