@@ -477,7 +477,7 @@ fn write_suite(spec: &SuiteSpec, out: &Path, exe: &Path) -> anyhow::Result<()> {
                 spec_path.display()
             );
         }
-    } else if out.exists() && std::fs::read_dir(out).map(|mut d| d.next().is_some())? {
+    } else if holds_files(out)? {
         bail!(
             "{}: not empty and holds no {SPEC_FILE}; a suite is written into a new folder",
             out.display()
@@ -503,6 +503,16 @@ fn write_suite(spec: &SuiteSpec, out: &Path, exe: &Path) -> anyhow::Result<()> {
     write_atomic(&out.join("jobs.txt"), jobs.as_bytes())?;
     write_atomic(&spec_path, serde_json::to_string_pretty(spec)?.as_bytes())?;
     Ok(())
+}
+
+/// Whether `dir` exists and is not empty: a suite or a record is only written into a
+/// new folder or one holding its own `suite.json`.
+fn holds_files(dir: &Path) -> anyhow::Result<bool> {
+    Ok(dir.exists()
+        && std::fs::read_dir(dir)
+            .with_context(|| format!("{}: cannot read", dir.display()))?
+            .next()
+            .is_some())
 }
 
 fn read_spec(out: &Path) -> anyhow::Result<SuiteSpec> {

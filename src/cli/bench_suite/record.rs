@@ -18,7 +18,7 @@ use maaf_eval::eval_json::OTHER_BACKGROUND_PREFIX;
 use maaf_eval::report::suite::SuiteRun;
 use maaf_scene::write_atomic;
 
-use super::{SPEC_FILE, SuiteSpec, read_spec};
+use super::{SPEC_FILE, SuiteSpec, holds_files, read_spec};
 
 /// What [`record`] did: runs copied, and runs left out because not evaluated yet.
 pub(super) struct Recorded {
@@ -71,7 +71,7 @@ fn existing_record(dir: &Path) -> anyhow::Result<Option<SuiteSpec>> {
         }
         return Ok(Some(old));
     }
-    if dir.exists() && std::fs::read_dir(dir).map(|mut d| d.next().is_some())? {
+    if holds_files(dir)? {
         bail!(
             "{}: not empty and holds no {SPEC_FILE}; a record is written into a new folder or an earlier record",
             dir.display()
