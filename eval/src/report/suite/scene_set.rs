@@ -38,20 +38,15 @@ pub fn scene_set(method: &str, scenes: &[&str], table: &PerScenePsnr) -> SceneSe
             names.push((*s).to_string());
         }
     }
-    let rows: Vec<Option<&PublishedScene>> = names
-        .iter()
-        .map(|n| {
-            let key = scene_key(n);
-            table.scenes.iter().find(|r| scene_key(r.scene) == key)
-        })
-        .collect();
-    let unmatched: Vec<String> = names
-        .iter()
-        .zip(&rows)
-        .filter(|(_, r)| r.is_none())
-        .map(|(n, _)| n.clone())
-        .collect();
-    let matched: Vec<&PublishedScene> = rows.into_iter().flatten().collect();
+    let mut matched: Vec<&PublishedScene> = Vec::new();
+    let mut unmatched = Vec::new();
+    for n in &names {
+        let key = scene_key(n);
+        match table.scenes.iter().find(|r| scene_key(r.scene) == key) {
+            Some(row) => matched.push(row),
+            None => unmatched.push(n.clone()),
+        }
+    }
     let mean = |f: fn(&PublishedScene) -> [f64; 3]| {
         (unmatched.is_empty() && !matched.is_empty()).then(|| {
             std::array::from_fn(|k| {
