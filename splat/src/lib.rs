@@ -42,5 +42,5 @@ pub use math::quat_to_rotmat;
 pub use ply::{PlyError, VertexTable, read_ply, read_vertex_table, write_baked_ply, write_ply};
 pub use project::Filter2d;
 pub use render::{
-    GaussianVars, RenderOutput, RenderSettings, RenderedFrame, render, render_tensors,
+    GaussianVars, RenderOutput, RenderSettings, RenderedFrame, Window, render, render_tensors,
 };

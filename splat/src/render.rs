@@ -43,6 +43,26 @@ pub struct RenderSettings {
     pub alpha_cutoff: AlphaCutoff,
     /// Near plane: Gaussians with camera depth `<= near` are culled.
     pub near: f64,
+    /// Render only this rectangle of the camera's image ([`Window`]; `None`: all of
+    /// it).
+    pub window: Option<Window>,
+}
+
+/// A rectangle of a camera's pixels, columns `x0..x0 + width` and rows
+/// `y0..y0 + height`. The Gaussians are projected and culled with the whole camera
+/// and blended on the rectangle's pixels only (screen means shifted by `(-x0, -y0)`),
+/// so with `x0`, `y0` on the tile grid ([`crate::compositing::TILE`]) the render is
+/// exactly those pixels of the whole image, at the cost of the rectangle.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Window {
+    /// First column.
+    pub x0: u32,
+    /// First row.
+    pub y0: u32,
+    /// Columns.
+    pub width: u32,
+    /// Rows.
+    pub height: u32,
 }
 
 impl Default for RenderSettings {
@@ -53,6 +73,7 @@ impl Default for RenderSettings {
             sh_degree: 3,
             alpha_cutoff: AlphaCutoff::Hard,
             near: NEAR_PLANE,
+            window: None,
         }
     }
 }
@@ -134,15 +155,23 @@ pub fn render<'t, T: SplatFloat>(
         .iter()
         .map(|&r| Float::to_f64(r) as u32)
         .collect();
+    let (means2d, width, height) = match settings.window {
+        None => (proj.means2d, camera.width, camera.height),
+        Some(w) => {
+            let shift =
+                Tensor::from_vec(vec![T::of(-f64::from(w.x0)), T::of(-f64::from(w.y0))], &[2]);
+            (proj.means2d + tape.constant(shift), w.width, w.height)
+        }
+    };
     let out = rasterize(
-        proj.means2d,
+        means2d,
         proj.conics,
         colors,
         proj.opacity,
         proj.depths,
         proj.radii,
-        camera.width,
-        camera.height,
+        width,
+        height,
         settings.background,
         settings.alpha_cutoff,
     );

@@ -19,7 +19,9 @@ use maaf_splat::cov3d::quat_scale_to_cov;
 use maaf_splat::project::project_ewa;
 use maaf_splat::rasterize::{Rasterize, Rasterized, rasterize};
 use maaf_splat::sh::sh_color;
-use maaf_splat::{AlphaCutoff, Camera, Filter2d, GaussianVars, RenderSettings, reference, render};
+use maaf_splat::{
+    AlphaCutoff, Camera, Filter2d, GaussianVars, RenderSettings, Window, reference, render,
+};
 
 const W: u32 = 24;
 const H: u32 = 20;
@@ -394,6 +396,29 @@ fn whole_chain_gradcheck() {
             assert!(report.passed(), "{filter:?} {cut:?}: {report}");
         }
     }
+}
+
+/// A window of the image: its render's gradient is the whole chain's through the
+/// screen-mean shift (the window's pixels only).
+#[test]
+fn windowed_chain_gradcheck() {
+    let s = scene();
+    let inputs = s.tensors();
+    let st = RenderSettings {
+        window: Some(Window {
+            x0: 3,
+            y0: 2,
+            width: 15,
+            height: 11,
+        }),
+        ..settings(Filter2d::Mip, AlphaCutoff::Smooth)
+    };
+    let report = gradcheck(
+        |t, x| flat(&chain(t, x, &st)),
+        &inputs,
+        &cfg().with_seed(11),
+    );
+    assert!(report.passed(), "{report}");
 }
 
 #[test]
