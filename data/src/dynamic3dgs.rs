@@ -17,8 +17,10 @@
 //! without it, training starts from [`super::visual_hull`]'s points.
 //!
 //! # Splits and time
-//! `train_meta.json` gives the `train` split, `test_meta.json` the `test` split. Both
-//! are ordered camera by camera (cameras in order of first appearance, each camera's
+//! `train_meta.json` gives the `train` split, `test_meta.json` the `test` split and an
+//! optional `val_meta.json` (not part of the reference layout) a `val` split, e.g. a
+//! training camera held out to choose settings on without touching the test cameras.
+//! All are ordered camera by camera (cameras in order of first appearance, each camera's
 //! frames in order), so a frame stride picks the same frames of every test camera.
 //! Frame `j` of `F` has `t = j / (F - 1)` (`0` when `F = 1`), so time spans `[0, 1]`.
 //!
@@ -43,6 +45,8 @@ use super::image::image_size;
 pub const TRAIN_META: &str = "train_meta.json";
 /// File name of the test cameras' table.
 pub const TEST_META: &str = "test_meta.json";
+/// File name of the optional validation cameras' table (same format).
+pub const VAL_META: &str = "val_meta.json";
 /// Folder of the images, `ims/<cam>/<frame:06>.jpg`.
 pub const IMAGES_DIR: &str = "ims";
 /// Folder of the foreground masks, `seg/<cam>/<frame:06>.png`.
@@ -136,31 +140,42 @@ impl Meta {
     }
 }
 
-/// Both splits of a Dynamic 3D Gaussians folder.
+/// The splits of a Dynamic 3D Gaussians folder.
 #[derive(Clone, Debug)]
 pub struct Dynamic3dgs {
     /// `train_meta.json`, parsed.
     pub train: Meta,
     /// `test_meta.json`, parsed.
     pub test: Meta,
+    /// `val_meta.json`, parsed, when the folder has one.
+    pub val: Option<Meta>,
 }
 
 impl Dynamic3dgs {
-    /// The `train` and `test` [`SplitMeta`]s.
+    /// The `train`, `test` and (when present) `val` [`SplitMeta`]s.
     pub fn splits(&self) -> BTreeMap<Split, SplitMeta> {
-        BTreeMap::from([
+        let mut splits = BTreeMap::from([
             (Split::Train, self.train.split_meta(Split::Train)),
             (Split::Test, self.test.split_meta(Split::Test)),
-        ])
+        ]);
+        if let Some(val) = &self.val {
+            splits.insert(Split::Val, val.split_meta(Split::Val));
+        }
+        splits
     }
 }
 
-/// Reads both meta files of `root` and every image header (module doc); no image is
+/// Reads the meta files of `root` and every image header (module doc); no image is
 /// decoded. Errors name the file and the entry at fault.
 pub fn read_dynamic3dgs(root: &Path) -> Result<Dynamic3dgs, DataError> {
     let train = read_meta(root, &root.join(TRAIN_META))?;
     let test = read_meta(root, &root.join(TEST_META))?;
-    Ok(Dynamic3dgs { train, test })
+    let val_json = root.join(VAL_META);
+    let val = val_json
+        .is_file()
+        .then(|| read_meta(root, &val_json))
+        .transpose()?;
+    Ok(Dynamic3dgs { train, test, val })
 }
 
 /// Parses one meta file (see the module doc) and checks its image headers.

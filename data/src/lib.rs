@@ -3,6 +3,7 @@
 //!
 //! - [`dnerf`]: `transforms_{train,val,test}.json` parsing, OpenGL to OpenCV cameras.
 //! - [`n3dv`]: Plenoptic Video `poses_bounds.npy` and `camXX/images/`, LLFF to OpenCV.
+//! - [`shell`]: initial static points on a capture dome's wall and floor.
 //! - [`dynamic3dgs`]: the Dynamic 3D Gaussians layout (CMU Panoptic): `train_meta.json`,
 //!   `test_meta.json`, per-frame intrinsics and world-to-camera matrices.
 //! - [`visual_hull`]: initial points carved from foreground masks when none ship.
@@ -27,6 +28,7 @@ pub mod median_mask;
 pub mod n3dv;
 mod point_cloud;
 pub mod points;
+pub mod shell;
 pub mod synthetic;
 pub mod visual_hull;
 

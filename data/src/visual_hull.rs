@@ -20,7 +20,8 @@
 //! uniform in the box spanned by the training camera centres and the hull's points (a
 //! capture dome's walls lie on it, and the floor the movers stand on inside it) with
 //! uniform random colours and uniform random times (what SaRO-GS draws for untimed
-//! points).
+//! points), or with `shell` on the dome's wall and floor ([`crate::shell`]) with the
+//! colours of the background pixels they are seen in.
 //!
 //! Occlusion is ignored (every camera votes), so two people close in one view do
 //! not carve each other; the hull is a superset of the true shape, as any visual hull.
@@ -36,6 +37,7 @@ use rayon::prelude::*;
 use super::bounds::Aabb;
 use super::error::DataError;
 use super::median_mask::{Rgb8, decode_rgb8};
+use super::shell::{Shell, shell_points};
 use crate::PointCloud;
 
 /// One training view of a time step: camera, image and its foreground mask.
@@ -75,6 +77,9 @@ pub struct HullOptions {
     /// The carved region is the box of the camera centres grown by this fraction of
     /// its size on every side (a dome's floor lies below its lowest camera).
     pub margin: f64,
+    /// Put the static points on the capture dome's wall and floor
+    /// ([`crate::shell`]) instead of uniformly in the box.
+    pub shell: bool,
 }
 
 impl Default for HullOptions {
@@ -89,18 +94,20 @@ impl Default for HullOptions {
             miss_fraction: 0.1,
             dynamic_fraction: 0.5,
             margin: 0.5,
+            shell: false,
         }
     }
 }
 
 /// A decoded view: camera, 8-bit RGB image and foreground bits.
-struct Decoded {
-    camera: Camera,
-    image: Rgb8,
-    mask: Vec<bool>,
+pub(crate) struct Decoded {
+    pub(crate) camera: Camera,
+    pub(crate) image: Rgb8,
+    pub(crate) mask: Vec<bool>,
 }
 
-fn decode(view: &HullView) -> Result<Decoded, DataError> {
+/// Decodes a view's image and mask, checking both against the camera's size.
+pub(crate) fn decode(view: &HullView) -> Result<Decoded, DataError> {
     let image = decode_rgb8(&view.image)?;
     let mask = decode_rgb8(&view.mask)?;
     if (mask.width, mask.height) != (view.camera.width, view.camera.height)
@@ -239,6 +246,9 @@ pub fn carve_step(
     Ok(cloud)
 }
 
+/// Time steps whose background pixels colour the shell's points.
+const SHELL_STEPS: usize = 4;
+
 /// The initial cloud of at most `budget` points (module doc) and how many of them are
 /// hull surface points (the first ones): hull surface points of every step in `steps`
 /// plus static points in the box of `camera_centres` and the hull. Seeded;
@@ -281,6 +291,26 @@ pub fn hull_cloud(
     let dynamic = ((options.dynamic_fraction * budget as f64).round() as usize).min(hull.len());
     let mut cloud = hull.subsample(dynamic, seed);
     let mut rng = Pcg64::seed_from_u64(seed.wrapping_add(0x5eed));
+    if options.shell {
+        let views: Vec<HullView> = steps.iter().flat_map(|s| s.views.clone()).collect();
+        let cameras: Vec<Camera> = views.iter().map(|v| v.camera.clone()).collect();
+        if let Some(shell) = Shell::fit(&cameras, &hull.points) {
+            // A few evenly spread steps' views are enough to colour the shell.
+            let picked: Vec<HullView> = (0..SHELL_STEPS.min(steps.len()))
+                .flat_map(|k| {
+                    steps[k * steps.len() / SHELL_STEPS.min(steps.len())]
+                        .views
+                        .clone()
+                })
+                .collect();
+            let on_shell = shell_points(&shell, &picked, budget - cloud.len(), seed)?;
+            cloud.points.extend(on_shell.points.iter().copied());
+            cloud.colours.extend(on_shell.colours.iter().copied());
+            if let Some(t) = cloud.times.as_mut() {
+                t.extend((0..on_shell.len()).map(|_| rng.random_range(0.0..1.0)));
+            }
+        }
+    }
     for _ in cloud.len()..budget {
         cloud
             .points

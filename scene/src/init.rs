@@ -9,6 +9,7 @@ use maaf_splat::Camera;
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 
+use crate::config::StaticPoints;
 use crate::{Error, TrainConfig};
 
 /// Radius of the sphere around the mean camera centre that holds every camera,
@@ -53,7 +54,12 @@ pub fn training_views(data: &Dataset, config: &TrainConfig) -> Result<Vec<View>,
 pub fn model_init(data: &Dataset, config: &TrainConfig) -> Result<ModelInit, Error> {
     let views = training_views(data, config)?;
     let cloud = match data
-        .initial_cloud(config.init_points, config.hull_fraction, config.seed)
+        .initial_cloud(
+            config.init_points,
+            config.hull_fraction,
+            config.static_points == StaticPoints::Shell,
+            config.seed,
+        )
         .map_err(|e| Error::Input(e.to_string()))?
     {
         Some(init) => {

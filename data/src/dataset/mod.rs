@@ -284,12 +284,14 @@ impl Dataset {
     /// one, with a line saying which: `points3d.ply` subsampled to `budget`; else, when
     /// the training images have foreground masks (the Dynamic 3D Gaussians layout),
     /// [`hull_cloud`] over at most `HullOptions::steps` evenly spread training times with
-    /// `hull_fraction` of the budget on the hulls; `None` otherwise (the trainer then
-    /// draws random points).
+    /// `hull_fraction` of the budget on the hulls and the rest static, with `shell` on
+    /// the capture dome's wall and floor ([`crate::shell`]); `None` otherwise (the
+    /// trainer then draws random points).
     pub fn initial_cloud(
         &self,
         budget: usize,
         hull_fraction: f64,
+        shell: bool,
         seed: u64,
     ) -> Result<Option<InitialCloud>, DataError> {
         if let Some(cloud) = self.point_cloud()? {
@@ -312,6 +314,7 @@ impl Dataset {
         times.dedup();
         let options = HullOptions {
             dynamic_fraction: hull_fraction,
+            shell,
             ..HullOptions::default()
         };
         let picked = spread(&times, options.steps);
@@ -338,11 +341,16 @@ impl Dataset {
         centres.dedup();
         let (cloud, dynamic) = hull_cloud(&steps, &centres, budget, &options, seed)?;
         let description = format!(
-            "{} points: {dynamic} on the visual hulls of the foreground masks at {} times (at most {:.0} % of the budget), {} static at random in the box of the cameras and the hulls ({:.1} s)",
+            "{} points: {dynamic} on the visual hulls of the foreground masks at {} times (at most {:.0} % of the budget), {} static {} ({:.1} s)",
             cloud.len(),
             steps.len(),
             100.0 * options.dynamic_fraction,
             cloud.len() - dynamic,
+            if shell {
+                "on the capture dome's wall and floor (random in the box where rays miss it)"
+            } else {
+                "at random in the box of the cameras and the hulls"
+            },
             start.elapsed().as_secs_f64()
         );
         Ok(Some(InitialCloud {
@@ -554,6 +562,28 @@ impl Dataset {
     /// Where the test views' moving masks come from.
     pub fn mask_source(&self) -> &MaskSource {
         &self.masks
+    }
+
+    /// Foreground coverage of `train` view `index` at `scale` (`[H, W, 1]`, the
+    /// fraction of each pixel its mask file calls foreground, box-averaged over the
+    /// `k x k` source pixels), or `None` when the view has no mask file (only the
+    /// Dynamic 3D Gaussians layout's `seg/` gives training views masks).
+    pub fn train_foreground(&self, index: usize, scale: f64) -> Result<Option<Image>, DataError> {
+        let k = self.factor(Split::Train, scale)?;
+        let frame = self.frame(Split::Train, index)?;
+        let Some(path) = self.train_mask(&frame.file) else {
+            return Ok(None);
+        };
+        let full = masks::read_coverage(path, &frame.camera)?;
+        let binary = Image {
+            data: full
+                .data
+                .iter()
+                .map(|&v| f32::from(u8::from(v > 0.5)))
+                .collect(),
+            ..full
+        };
+        masks::downsample_coverage(binary, k, scale, path)
     }
 
     /// The foreground mask file of a training image, when the data set has one.
