@@ -227,7 +227,7 @@ impl DrawnPairs {
         let mut bins = vec![0; n];
         let (mut lo, mut hi) = (vec![[f32::INFINITY; 3]; n], vec![[f32::NEG_INFINITY; 3]; n]);
         for s in 0..grid.grid_t() {
-            let [means, _, _, opacity, _] = scene.gaussians_at(f64::from(grid.bin_time(s)));
+            let [means, _, _, opacity, _] = scene.model_gaussians_at(f64::from(grid.bin_time(s)));
             let centres = means.data().chunks_exact(3);
             for (k, (&o, p)) in opacity.data().iter().zip(centres).enumerate().take(n) {
                 if o < DRAWN {

@@ -154,6 +154,101 @@ impl Default for PruneConfig {
     }
 }
 
+/// Per-camera colour correction of the training renders (Dynamic 3D Gaussians'
+/// `cam_m`, `cam_c`): `exp(a_c) * I + b_c` per training camera `c` and channel,
+/// learned with the model; evaluation renders without it. Off by default: on data
+/// whose views each have their own camera (D-NeRF) it only adds freedom.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct CameraColourConfig {
+    /// Learn the corrections.
+    pub enabled: bool,
+    /// Adam learning rate of `a` and `b` (the reference: 1e-4).
+    pub lr: f64,
+}
+
+impl Default for CameraColourConfig {
+    fn default() -> Self {
+        CameraColourConfig {
+            enabled: false,
+            lr: 1e-4,
+        }
+    }
+}
+
+/// Where the static initial points of a data set with training masks and no point
+/// cloud lie (`static_points`; the visual hull's points are the movers').
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum StaticPoints {
+    /// Uniform in the box of the cameras and the hulls, with random colours.
+    #[default]
+    Box,
+    /// On a capture dome's shell: the sphere through the cameras and the floor under
+    /// the movers, coloured by the background pixels that see them
+    /// ([`maaf_data::shell`]).
+    Shell,
+}
+
+/// Which pixels of a training view the objective sees (`loss_region`). `background`
+/// and `foreground` need foreground masks of the training views (the Dynamic 3D
+/// Gaussians layout's `seg/`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LossRegion {
+    /// Every pixel.
+    #[default]
+    All,
+    /// The pixels the view's mask calls background, each weighted by its background
+    /// share `1 - m`: what a run's background layer is fitted on.
+    Background,
+    /// The rectangle around the view's foreground mask, grown by `focus_margin`
+    /// pixels: the view is rendered on that rectangle only, so an iteration costs a
+    /// fraction of a full view (the whole view when its mask is empty).
+    Foreground,
+}
+
+/// A static background layer fitted before the model (`backdrop`): a run of plain
+/// 3D Gaussians (Deformable-3DGS's static stage) on the training views' background
+/// pixels (`loss_region = background`), trained into `RUN/backdrop/` first and then
+/// held fixed; the run's own model is rendered over it
+/// (`C = C_model + T_model * C_background`). Needs foreground masks of the training
+/// views. The layer takes the run's seed, scale, filter, colour correction and
+/// photometric loss; the keys below are its own.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct BackdropConfig {
+    /// Iterations of the background layer's run; 0 = no background layer.
+    pub iterations: usize,
+    /// Its initial points, random in the box of the cameras.
+    pub init_points: usize,
+    /// Its Gaussian cap.
+    pub max_gaussians: usize,
+    /// Its last densification iteration.
+    pub densify_until: usize,
+    /// Its spherical-harmonics degree.
+    pub sh_degree: usize,
+}
+
+impl Default for BackdropConfig {
+    fn default() -> Self {
+        BackdropConfig {
+            iterations: 0,
+            init_points: 20_000,
+            max_gaussians: 30_000,
+            densify_until: 3_500,
+            sh_degree: 0,
+        }
+    }
+}
+
+impl BackdropConfig {
+    /// Whether the run has a background layer.
+    pub fn enabled(&self) -> bool {
+        self.iterations > 0
+    }
+}
+
 /// Everything a training run needs besides the data.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -186,6 +281,17 @@ pub struct TrainConfig {
     /// paper's and the released code's D-NeRF runs train on a constant background.
     /// Validation and evaluation use the data set's background either way.
     pub random_background: bool,
+    /// Where the static initial points lie ([`StaticPoints`]).
+    pub static_points: StaticPoints,
+    /// Per-camera colour correction of the training renders ([`CameraColourConfig`]).
+    pub camera_colour: CameraColourConfig,
+    /// Which pixels of a training view the objective sees ([`LossRegion`]).
+    pub loss_region: LossRegion,
+    /// Pixels (at the training scale) added around the foreground mask's rectangle
+    /// with `loss_region = foreground`.
+    pub focus_margin: u32,
+    /// The static background layer ([`BackdropConfig`]; off by default).
+    pub backdrop: BackdropConfig,
     /// Further loss terms by name with their weights, `{"opacity_entropy": 0.001}`:
     /// the built-in regularisers (`maaf_train::loss::builtin`) or terms the training
     /// program registered (`maaf_train::loss::TermRegistry`). Added after the
@@ -232,6 +338,11 @@ impl Default for TrainConfig {
             hull_fraction: 0.5,
             lambda_dssim: 0.2,
             random_background: false,
+            static_points: StaticPoints::Box,
+            camera_colour: CameraColourConfig::default(),
+            loss_region: LossRegion::All,
+            focus_margin: 8,
+            backdrop: BackdropConfig::default(),
             terms: BTreeMap::new(),
             sh_degree_every: 1000,
             checkpoint_every: 5000,
@@ -286,6 +397,40 @@ fn count(field: &str, v: usize, lo: usize, hi: usize) -> Result<(), Error> {
 }
 
 impl TrainConfig {
+    /// The configuration of this run's background layer ([`BackdropConfig`]):
+    /// plain 3D Gaussians (Deformable-3DGS that never leaves its static stage) at
+    /// `backdrop.sh_degree`, fitted on the background pixels (`loss_region =
+    /// background`) for `backdrop.iterations` from `backdrop.init_points` random
+    /// points (no visual-hull points), densified until `backdrop.densify_until` up
+    /// to `backdrop.max_gaussians`; one view per iteration, no extra terms and no
+    /// sensitivity pruning. Seed, scale, filter, colour correction, photometric loss,
+    /// the rest of the densification and the logging keys are the run's.
+    pub fn backdrop_layer(&self) -> TrainConfig {
+        let b = &self.backdrop;
+        TrainConfig {
+            iterations: b.iterations,
+            batch: 1,
+            init_points: b.init_points,
+            hull_fraction: 0.0,
+            terms: BTreeMap::new(),
+            loss_region: LossRegion::Background,
+            backdrop: BackdropConfig::default(),
+            model: ModelConfig::Deform(maaf_models::DeformConfig {
+                warm_up: usize::MAX,
+                sh_degree: b.sh_degree,
+                ..maaf_models::DeformConfig::default()
+            }),
+            densify: DensifyConfig {
+                until: b.densify_until.min(b.iterations),
+                from: self.densify.from.min(b.densify_until.min(b.iterations)),
+                max_gaussians: b.max_gaussians,
+                ..self.densify.clone()
+            },
+            prune: PruneConfig::default(),
+            ..self.clone()
+        }
+    }
+
     /// Checks every setting before any work starts; the error is one line naming the
     /// field, its value and the allowed range.
     pub fn validate(&self) -> Result<(), Error> {
@@ -301,6 +446,25 @@ impl TrainConfig {
         count("init_points", self.init_points, 1, MAX_GAUSSIANS_CAP)?;
         in_range("hull_fraction", self.hull_fraction, 0.0, 1.0)?;
         in_range("lambda_dssim", self.lambda_dssim, 0.0, 1.0)?;
+        in_range("camera_colour.lr", self.camera_colour.lr, 0.0, 1.0)?;
+        let b = &self.backdrop;
+        if b.enabled() {
+            count("backdrop.init_points", b.init_points, 1, MAX_GAUSSIANS_CAP)?;
+            count(
+                "backdrop.max_gaussians",
+                b.max_gaussians,
+                b.init_points,
+                MAX_GAUSSIANS_CAP,
+            )?;
+            count("backdrop.sh_degree", b.sh_degree, 0, 3)?;
+            if self.random_background {
+                return Err(bad(
+                    "random_background",
+                    &true,
+                    "false with a background layer (the layer is drawn on the data set's background)",
+                ));
+            }
+        }
         for (name, &weight) in &self.terms {
             if let Some(problem) = crate::name_problem(name) {
                 return Err(Error::Input(format!("config: terms: {problem}")));

@@ -14,6 +14,7 @@
 //! this type; a trainer becomes one with `maaf_train::trainer::Trainer::into_scene`.
 //! `docs/architecture.md` says where this crate sits.
 
+pub mod backdrop;
 pub mod checkpoint_read;
 pub mod config;
 mod error;
@@ -37,7 +38,8 @@ use maaf_splat::{Camera, Filter2d, RenderSettings};
 
 pub use checkpoint_read::Opened;
 pub use config::{
-    DensifyConfig, DensifyGradient, MAX_BATCH, OpacityReset, PruneConfig, TrainConfig,
+    BackdropConfig, CameraColourConfig, DensifyConfig, DensifyGradient, LossRegion, MAX_BATCH,
+    OpacityReset, PruneConfig, StaticPoints, TrainConfig,
 };
 pub use error::{Error, write_atomic};
 pub use init::{camera_extent, model_init, training_views};
@@ -71,6 +73,9 @@ pub struct TrainedScene {
     pub train_seconds: f64,
     /// Training cameras and times, initial cloud box, time range, background.
     pub record: SceneRecord,
+    /// The run's static background layer (`RUN/backdrop`), drawn behind the model
+    /// ([`backdrop`]), when its config has one.
+    pub backdrop: Option<Box<TrainedScene>>,
 }
 
 /// Render settings of a run of `config` on `background` at `iteration`: the 2D Mip
@@ -200,15 +205,23 @@ impl TrainedScene {
         };
         let (observed, _) = observed_views(&record.times, observes, config.filter.max_views);
         let observations = opened.observations(&observed, record.times.len())?;
+        let backdrop = if config.backdrop.enabled() {
+            let layer = backdrop::backdrop_dir_of(dir);
+            Some(Box::new(Self::load(&layer, registry)?))
+        } else {
+            None
+        };
         let state = opened.state;
+        let layer_seconds = backdrop.as_ref().map_or(0.0, |b| b.train_seconds);
         Ok(TrainedScene {
             model,
             filter: state.filter,
             observations,
             config: state.config,
             iteration: state.iteration,
-            train_seconds: state.timings.total(),
+            train_seconds: state.timings.total() + layer_seconds,
             record,
+            backdrop,
         })
     }
 
@@ -253,25 +266,30 @@ impl TrainedScene {
         time: f64,
         settings: &RenderSettings,
     ) -> Tensor<f32> {
-        let tape = maaf_autodiff::Tape::new();
-        let params = self.model.params().bind_constants(&tape);
-        let out = forward(
+        render_over(
             self.model.as_ref(),
-            &params,
             &self.filter,
+            self.backdrop.as_deref(),
             camera,
             time,
             settings,
-        );
-        // The binding ends the borrow of the tape before the tape is dropped.
-        #[allow(clippy::let_and_return)]
-        let image = out.render.image.value().clone();
-        image
+        )
     }
 
     /// The deformed, filtered Gaussians at `time` as plain tensors
-    /// `[means, scales, quats, opacity, sh]`: what the renderer draws.
+    /// `[means, scales, quats, opacity, sh]`: what the renderer draws, the background
+    /// layer's after the model's (its SH padded with zero bands to the model's).
     pub fn gaussians_at(&self, time: f64) -> [Tensor<f32>; 5] {
+        let own = self.model_gaussians_at(time);
+        match &self.backdrop {
+            Some(layer) => stack_gaussians(own, layer.gaussians_at(time)),
+            None => own,
+        }
+    }
+
+    /// [`Self::gaussians_at`] of the model alone, without the background layer: one
+    /// row per row of [`Self::filter`].
+    pub fn model_gaussians_at(&self, time: f64) -> [Tensor<f32>; 5] {
         gaussians_at(self.model.as_ref(), &self.filter, time)
     }
 
@@ -292,4 +310,82 @@ impl TrainedScene {
         let centres = centres(self.model.params().value(ids.means));
         static_nu(&centres, &self.record.cameras, &self.config.filter)
     }
+}
+
+/// The rows of `a` followed by those of `b` (`[means, scales, quats, opacity, sh]`);
+/// the SH of the one with fewer coefficients is padded with zero bands.
+fn stack_gaussians(a: [Tensor<f32>; 5], b: [Tensor<f32>; 5]) -> [Tensor<f32>; 5] {
+    let k = a[4].shape()[1].max(b[4].shape()[1]);
+    let pad = |sh: &Tensor<f32>| -> Vec<f32> {
+        let have = sh.shape()[1];
+        sh.data()
+            .chunks_exact(3 * have)
+            .flat_map(|row| {
+                row.iter()
+                    .copied()
+                    .chain(std::iter::repeat_n(0.0, 3 * (k - have)))
+            })
+            .collect()
+    };
+    let [am, as_, aq, ao, ash] = a;
+    let [bm, bs, bq, bo, bsh] = b;
+    let cat = |x: Tensor<f32>, y: Tensor<f32>| {
+        let mut shape = x.shape().to_vec();
+        shape[0] += y.shape()[0];
+        let mut data = x.into_vec();
+        data.extend_from_slice(y.data());
+        Tensor::from_vec(data, &shape)
+    };
+    let n = ash.shape()[0] + bsh.shape()[0];
+    let mut sh = pad(&ash);
+    sh.extend(pad(&bsh));
+    [
+        cat(am, bm),
+        cat(as_, bs),
+        cat(aq, bq),
+        cat(ao, bo),
+        Tensor::from_vec(sh, &[n, k, 3]),
+    ]
+}
+
+/// Renders `model` with `filter` at `time` from `camera` with `settings` through the
+/// training pipeline ([`forward()`]) with the parameters as constants; over the
+/// background layer `backdrop` when given ([`backdrop::over_backdrop`]: the model on
+/// black, the layer on `settings.background` and window with its own SH degree and 2D
+/// filter).
+pub fn render_over(
+    model: &dyn Representation<f32>,
+    filter: &FilterState,
+    backdrop: Option<&TrainedScene>,
+    camera: &Camera,
+    time: f64,
+    settings: &RenderSettings,
+) -> Tensor<f32> {
+    let back = backdrop.map(|layer| {
+        let own = RenderSettings {
+            background: settings.background,
+            window: settings.window,
+            ..layer.render_settings()
+        };
+        layer.render_with(camera, time, &own)
+    });
+    let settings = RenderSettings {
+        background: if back.is_some() {
+            [0.0; 3]
+        } else {
+            settings.background
+        },
+        ..settings.clone()
+    };
+    let tape = maaf_autodiff::Tape::new();
+    let params = model.params().bind_constants(&tape);
+    let out = forward(model, &params, filter, camera, time, &settings);
+    let image = match &back {
+        Some(b) => backdrop::over_backdrop(out.render.image, out.render.alpha, b),
+        None => out.render.image,
+    };
+    // The binding ends the borrow of the tape before the tape is dropped.
+    #[allow(clippy::let_and_return)]
+    let image = image.value().clone();
+    image
 }

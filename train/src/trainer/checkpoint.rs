@@ -31,7 +31,9 @@ const LOWERED: &str = "liveness/lowered";
 pub fn save_checkpoint(trainer: &Trainer, dir: &Path) -> Result<(), Error> {
     let mut named: Vec<(String, Vec<usize>, Vec<u8>)> = Vec::new();
     let mut adam_steps = HashMap::new();
-    for (name, value) in trainer.model.params().named_tensors() {
+    let colour = trainer.camera_colour.as_ref().map(|c| c.params());
+    let stores = std::iter::once(trainer.model.params()).chain(colour);
+    for (name, value) in stores.flat_map(|s| s.named_tensors()) {
         named.push((
             format!("param/{name}"),
             value.shape().to_vec(),
@@ -247,8 +249,32 @@ impl Trainer {
         let mut fresh: Vec<String> = kept.keys().cloned().collect();
         fresh.sort_unstable();
         opened.load_model(self.model.as_mut(), dir, kept)?;
+        if let Some(correction) = self.camera_colour.as_mut() {
+            for p in correction.params_mut().iter_mut() {
+                let key = format!("param/{}", p.name);
+                // A branch onto a run without corrections starts them at the identity.
+                if branch && st.tensor(&key).is_err() {
+                    continue;
+                }
+                let value = tensor(&st, &key, blob_path)?;
+                if value.shape() != p.value.shape() {
+                    return Err(Error::Input(format!(
+                        "{}: `param/{}` has shape {:?}, the run's training cameras need {:?}",
+                        blob_path.display(),
+                        p.name,
+                        value.shape(),
+                        p.value.shape()
+                    )));
+                }
+                p.value = value;
+            }
+        }
         let n = opened.state.num_gaussians;
-        for name in self.model.params().names() {
+        let colour_names = self
+            .camera_colour
+            .as_ref()
+            .map_or_else(Vec::new, |c| c.params().names());
+        for name in self.model.params().names().into_iter().chain(colour_names) {
             if let Some(&steps) = opened.state.adam_steps.get(&name) {
                 let m = tensor(&st, &format!("adam_m/{name}"), blob_path)?;
                 let v = tensor(&st, &format!("adam_v/{name}"), blob_path)?;

@@ -10,13 +10,16 @@
 //! a run directory.
 
 mod background;
+pub mod camera_colour;
 mod checkpoint;
 mod cpu_clock;
 mod densify;
 mod health;
+mod layer;
 mod log;
 mod prune;
 mod refresh;
+pub mod region;
 mod reset;
 mod resume;
 mod run;
@@ -38,8 +41,8 @@ pub use densify::{DensifyPlan, DensifyStats, ViewGrad, plan as plan_densify};
 /// The run's configuration, its timings and what it starts from: `maaf-scene` types,
 /// here under the trainer's paths.
 pub use maaf_scene::{
-    DensifyConfig, DensifyGradient, MAX_BATCH, OpacityReset, PruneConfig, Timings, TrainConfig,
-    camera_extent, model_init, repair_run_dir,
+    BackdropConfig, CameraColourConfig, DensifyConfig, DensifyGradient, LossRegion, MAX_BATCH,
+    OpacityReset, PruneConfig, Timings, TrainConfig, camera_extent, model_init, repair_run_dir,
 };
 pub use prune::{keep_highest, removal_sensitivity};
 pub use reset::{Liveness, opacity_caps};
@@ -80,6 +83,9 @@ pub struct Trainer {
     /// The densification strategy (the one `densify.strategy` names, or a user's:
     /// [`Trainer::set_strategy`]); `None` only while one of its hooks runs.
     strategy: Option<Box<dyn Strategy>>,
+    /// Per-camera colour correction of the training renders (`camera_colour`), when
+    /// the config turns it on.
+    pub camera_colour: Option<camera_colour::CameraColour>,
     /// Objective (named weighted terms): the photometric loss, the model's
     /// regularisers and the terms `config.terms` names; push further terms here.
     pub objective: Objective<f32>,
@@ -127,6 +133,13 @@ pub struct Trainer {
     observed_slot: Vec<Option<usize>>,
     extent: f64,
     background: [f32; 3],
+    /// The run's background layer and its renders behind the training views.
+    backdrop: Option<layer::Layer>,
+    /// Each training view's foreground coverage, kept for `loss_region = background`.
+    masks: Vec<crate::data::Image>,
+    /// Each training view's rectangle around its foreground, for `loss_region =
+    /// foreground` (`None`: the whole view).
+    crops: Vec<Option<maaf_splat::Window>>,
     /// `(min, max)` of the data set's time stamps (the scene record's).
     time_range: (f64, f64),
 }
@@ -235,7 +248,27 @@ impl Trainer {
         )?;
         let strategy = plugins.strategies.build(&config)?;
         let held_out = validation::held_out_views(data, config.val_views, config.train_scale)?;
+        let masks = match config.loss_region {
+            LossRegion::All => Vec::new(),
+            _ => region::training_masks(data, config.train_scale)?,
+        };
+        let crops = match config.loss_region {
+            LossRegion::Foreground => masks
+                .iter()
+                .map(|m| region::window_around(m, config.focus_margin))
+                .collect(),
+            _ => Vec::new(),
+        };
+        let masks = match config.loss_region {
+            LossRegion::Background => masks,
+            _ => Vec::new(),
+        };
+        let camera_colour = config
+            .camera_colour
+            .enabled
+            .then(|| camera_colour::CameraColour::new(&cameras, config.camera_colour.lr));
         Ok(Trainer {
+            camera_colour,
             adam: Adam::new(AdamConfig::default()),
             filter: FilterState::None { rows: n },
             sampling,
@@ -265,6 +298,9 @@ impl Trainer {
             observed,
             observed_slot,
             extent,
+            backdrop: None,
+            masks,
+            crops,
         })
     }
 
@@ -341,13 +377,18 @@ impl Trainer {
     pub fn into_scene(self) -> TrainedScene {
         let record = self.scene_record();
         TrainedScene {
-            train_seconds: self.timings.total(),
+            train_seconds: self.timings.total()
+                + self
+                    .backdrop
+                    .as_ref()
+                    .map_or(0.0, |l| l.scene.train_seconds),
             model: self.model,
             filter: self.filter,
             observations: self.observations,
             config: self.config,
             iteration: self.iteration,
             record,
+            backdrop: self.backdrop.map(|l| Box::new(l.scene)),
         }
     }
 

@@ -14,7 +14,9 @@ use super::{
     repair_run_dir, save_checkpoint, truncate_log,
 };
 use crate::data::Dataset;
+use crate::scene::TrainedScene;
 use crate::{Error, Plugins, write_atomic};
+use maaf_scene::backdrop::BACKDROP_DIR;
 
 /// What a finished run reports (also written as `RUN/summary.json`).
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -109,7 +111,7 @@ pub fn train_run_with_plugins(
     } else {
         None
     };
-    let trainer = match found {
+    let mut trainer = match found {
         Some((mut t, dir)) => {
             same_settings(&t.config, &config, &dir, out)?;
             check_budget(t.iteration, budget, &dir)?;
@@ -119,7 +121,41 @@ pub fn train_run_with_plugins(
         }
         None => Trainer::with_plugins(data, config, plugins)?,
     };
+    attach_backdrop(&mut trainer, data, out, plugins)?;
     run_trainer(trainer, out, resume)
+}
+
+/// With a background layer in the run's config ([`super::BackdropConfig`]): trains
+/// it into `RUN/backdrop` first (a run of its own with
+/// [`TrainConfig::backdrop_layer`]'s settings; resumed when cut short, left as it
+/// is when finished), then puts it behind `trainer` ([`Trainer::set_backdrop`]).
+fn attach_backdrop(
+    trainer: &mut Trainer,
+    data: &Dataset,
+    out: &Path,
+    plugins: &Plugins,
+) -> Result<(), Error> {
+    if !trainer.config.backdrop.enabled() {
+        return Ok(());
+    }
+    let dir = out.join(BACKDROP_DIR);
+    let config = trainer.config.backdrop_layer();
+    let done = std::fs::read(dir.join("summary.json"))
+        .ok()
+        .and_then(|b| serde_json::from_slice::<RunSummary>(&b).ok())
+        .is_some_and(|s| s.iterations == config.iterations);
+    if !done {
+        log_line(&format!(
+            "background layer: {} iterations into {}",
+            config.iterations,
+            dir.display()
+        ));
+        let resume = dir.join("config.json").is_file();
+        train_run_with_plugins(data, config, &dir, resume, plugins)?;
+    }
+    let layer = TrainedScene::load(&dir, &plugins.models)?;
+    trainer.set_backdrop(layer);
+    Ok(())
 }
 
 /// The exclusive lock of the run folder `out` for a training ([`maaf_io::RunLock`]).
@@ -221,6 +257,7 @@ pub fn branch_run_with_plugins(
     let _lock = lock_run(out)?;
     let mut trainer = Trainer::with_plugins(data, config, plugins)?;
     let fresh = trainer.branch_from(from)?;
+    attach_backdrop(&mut trainer, data, out, plugins)?;
     if trainer.iteration >= trainer.config.iterations {
         return Err(Error::Input(format!(
             "{}: the checkpoint is at iteration {}, so a branch from it needs a budget above {} iterations (this one is {})",
@@ -284,6 +321,12 @@ fn say_resumed(trainer: &Trainer, dir: &Path) {
 }
 
 fn run_trainer(mut trainer: Trainer, out: &Path, resume: bool) -> Result<RunSummary, Error> {
+    if trainer.config.backdrop.enabled() && trainer.backdrop().is_none() {
+        return Err(Error::Input(format!(
+            "{}: the config has a background layer but the trainer none (train_run and branch_run train it; with train_run_with call Trainer::set_backdrop first)",
+            out.display()
+        )));
+    }
     trainer.check_memory(trainer.num_gaussians())?;
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let model_dir = out.join("model");

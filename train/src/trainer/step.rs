@@ -11,13 +11,16 @@ use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_pcg::Pcg64;
 
+use super::LossRegion;
 use super::cpu_clock::CpuStamp;
+use super::region::{background_target, crop, share};
 use super::strategy::StepInfo;
 use super::{DensifyGradient, ViewGrad};
 use super::{Trainer, log_line};
-use crate::forward::forward_bound;
+use crate::forward::{Forward, forward_bound};
 use crate::loss::{Evaluated, ForwardTerms, batch_mean};
 use crate::scene::centres;
+use maaf_scene::backdrop::over_backdrop;
 
 impl Trainer {
     /// Render settings at `iteration` ([`crate::scene::render_settings`], the 2D filter
@@ -87,35 +90,45 @@ impl Trainer {
         let t_bind = Instant::now();
         let bound = self.model.bind(&params);
         let bind_seconds = t_bind.elapsed().as_secs_f64();
-        let targets: Vec<_> = views
-            .iter()
-            .enumerate()
-            .map(|(slot, &vi)| self.view_target(it, slot, vi))
-            .collect();
-        let fwds: Vec<_> = views
-            .iter()
-            .zip(&targets)
-            .map(|(&vi, (background, _))| {
-                let (camera, time) = (&self.cameras[vi], self.view_times[vi]);
-                let settings = RenderSettings {
-                    background: background.map(f64::from),
-                    ..settings.clone()
-                };
-                forward_bound(bound.as_ref(), &self.filter, camera, time, &settings)
-            })
-            .collect();
+        let mut fwds = Vec::with_capacity(views.len());
+        let mut gts = Vec::with_capacity(views.len());
+        let mut shares = Vec::with_capacity(views.len());
+        for (slot, &vi) in views.iter().enumerate() {
+            let (fwd, gt, share) = self.view_pass(bound.as_ref(), &settings, it, slot, vi);
+            fwds.push(fwd);
+            gts.push(gt);
+            shares.push(share);
+        }
+        let colour = self.camera_colour.as_ref().map(|c| c.bind(&tape));
+        if let (Some(correction), Some(bound)) = (&self.camera_colour, &colour) {
+            for (fwd, &vi) in fwds.iter_mut().zip(&views) {
+                fwd.render.image = correction.apply(bound, vi, fwd.render.image);
+            }
+        }
+        if self.config.loss_region == LossRegion::Background {
+            for ((fwd, gt), &vi) in fwds.iter().zip(&mut gts).zip(&views) {
+                *gt = background_target(gt, &fwd.render.image.value(), &self.masks[vi]);
+            }
+        }
         let t_obj = Instant::now();
         let evals: Vec<_> = fwds
             .iter()
-            .zip(&views)
-            .zip(&targets)
-            .map(|((fwd, &vi), (_, target))| {
-                let gt = target.as_ref().unwrap_or(&self.gts[vi]);
-                fwd.objective(&self.objective, gt, it - 1)
-            })
+            .zip(&gts)
+            .map(|(fwd, gt)| fwd.objective(&self.objective, gt, it - 1))
             .collect();
         let batch = views.len();
-        let totals: Vec<_> = evals.iter().map(|e| e.total).collect();
+        // A rectangle's objective counts as the whole view's with no error outside it.
+        let totals: Vec<_> = evals
+            .iter()
+            .zip(&shares)
+            .map(|(e, &share)| {
+                if share < 1.0 {
+                    e.total.scale(share)
+                } else {
+                    e.total
+                }
+            })
+            .collect();
         let total = batch_mean(&totals);
         let t2 = Instant::now();
 
@@ -170,6 +183,15 @@ impl Trainer {
                             p.weight_decay,
                             scale.as_deref(),
                         );
+                    }
+                }
+                if let Some(correction) = self.camera_colour.as_mut() {
+                    for p in correction.params_mut().iter_mut() {
+                        if let Some(gr) = grads.param(&p.name) {
+                            let lr = p.lr.at(it - 1);
+                            self.adam
+                                .step_rows(&p.name, &mut p.value, gr, lr, 0.0, None);
+                        }
                     }
                 }
                 t_updated = Some(Instant::now());
@@ -235,6 +257,7 @@ impl Trainer {
         self.timings.optimiser += (t_updated - t3).as_secs_f64();
         self.timings.statistics += (t4 - t_updated).as_secs_f64();
         drop(fwds);
+        drop(colour);
         drop(bound);
         drop(params);
         self.iteration = it;
@@ -261,6 +284,49 @@ impl Trainer {
         }
         self.timings.filter_refresh += t5.elapsed().as_secs_f64();
         cpu0.charge(&mut self.timings);
+    }
+}
+
+impl Trainer {
+    /// The forward pass of training view `view` as the `slot`-th view of `iteration`
+    /// and what its objective compares it with: the view's camera, with
+    /// `loss_region = foreground` on the window around its mask only
+    /// ([`super::region::window_around`]); the model drawn on the view's background, or on
+    /// black over the background layer's render ([`maaf_scene::backdrop`]); the
+    /// ground truth (recomposited with `random_background`) on the same pixels; and
+    /// the share of the view's pixels they cover.
+    fn view_pass<'t>(
+        &self,
+        bound: &dyn maaf_models::Bound<'t, f32>,
+        settings: &RenderSettings,
+        iteration: usize,
+        slot: usize,
+        view: usize,
+    ) -> (Forward<'t, f32>, Tensor<f32>, f64) {
+        let (background, target) = self.view_target(iteration, slot, view);
+        let window = self.crops.get(view).copied().flatten();
+        let camera = &self.cameras[view];
+        let background = match self.backdrop {
+            Some(_) => [0.0; 3],
+            None => background.map(f64::from),
+        };
+        let settings = RenderSettings {
+            background,
+            window,
+            ..settings.clone()
+        };
+        let time = self.view_times[view];
+        let mut fwd = forward_bound(bound, &self.filter, camera, time, &settings);
+        if let Some(layer) = &self.backdrop {
+            let image = layer.image(view);
+            let behind = window.map_or_else(|| image.clone(), |w| crop(image, &w));
+            fwd.render.image = over_backdrop(fwd.render.image, fwd.render.alpha, &behind);
+        }
+        let gt = target.unwrap_or_else(|| self.gts[view].clone());
+        match window {
+            Some(w) => (fwd, crop(&gt, &w), share(&w, camera.width, camera.height)),
+            None => (fwd, gt, 1.0),
+        }
     }
 }
 

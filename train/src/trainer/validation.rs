@@ -3,14 +3,14 @@
 //! drawn against training time without a separate evaluation (issue: speed against
 //! accuracy as curves). Outside the tape and the optimiser: the run is unchanged.
 
-use maaf_autodiff::{Tape, Tensor};
+use maaf_autodiff::Tensor;
 use maaf_splat::Camera;
 
 use super::Trainer;
 use crate::Error;
 use crate::data::{Dataset, Split};
-use crate::forward::forward;
 use crate::metrics::psnr;
+use maaf_scene::render_over;
 
 /// A held-back view at the training scale.
 pub(super) struct HeldOut {
@@ -62,17 +62,14 @@ impl Trainer {
             .held_out
             .iter()
             .map(|v| {
-                let tape = Tape::new();
-                let params = self.model.params().bind_constants(&tape);
-                let out = forward(
+                let image = render_over(
                     self.model.as_ref(),
-                    &params,
                     &self.filter,
+                    self.backdrop(),
                     &v.camera,
                     v.time,
                     &settings,
                 );
-                let image = out.render.image.value().clone();
                 psnr(&image, &v.gt).unwrap_or(f64::NAN)
             })
             .sum();
