@@ -57,7 +57,7 @@ pub fn normalise_rows<T: Float>(q: &Tensor<T>) -> Tensor<T> {
             .fold(T::zero(), |a, b| a + b)
             .sqrt();
         for v in row {
-            *v = *v / norm;
+            *v /= norm;
         }
     }
     out

@@ -33,16 +33,18 @@ impl FrameSchedule {
                 "model.first_frame_iterations = {share}: of iterations = {iterations}, frame 0 takes {first} and leaves {rest} for {later} later frames (each needs at least one): lower it or raise iterations"
             ));
         }
-        let mut ends = vec![first];
-        if later > 0 {
-            let (each, extra) = (rest / later, rest % later);
-            for f in 0..later {
-                let last = ends[f];
-                ends.push(last + each + usize::from(f < extra));
+        let ends = match rest.checked_div(later) {
+            Some(each) => {
+                let extra = rest % later;
+                let mut ends = vec![first];
+                for f in 0..later {
+                    ends.push(ends[f] + each + usize::from(f < extra));
+                }
+                ends
             }
-        } else {
-            ends[0] = iterations.max(1);
-        }
+            // A single frame takes the whole run.
+            None => vec![iterations.max(1)],
+        };
         Ok(FrameSchedule { times, ends })
     }
 

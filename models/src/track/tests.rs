@@ -163,11 +163,8 @@ fn nlerp_takes_the_shorter_arc() {
         *v = -q;
     }
     let (_, quats) = at_time(&m, 0.125);
-    for c in 0..4 {
-        assert!(
-            (quats.data()[c] - q0[c]).abs() < 1e-14,
-            "halfway is the same rotation"
-        );
+    for (got, want) in quats.data()[..4].iter().zip(&q0) {
+        assert!((got - want).abs() < 1e-14, "halfway is the same rotation");
     }
 }
 
