@@ -155,12 +155,13 @@ mod tests {
     use crate::PointCloud;
 
     #[test]
-    fn knn_matches_brute_force() {
+    fn neighbours_and_the_initial_scale_match_brute_force() {
         let mut points = PointCloud::random_in_box(300, -1.3, 1.3, 4).points;
         // A flat patch and a duplicate: degenerate boxes and zero distances.
         points.extend((0..20).map(|i| [0.1 * f64::from(i), 0.5, 0.5]));
         points.push(points[0]);
         let got = knn(&points, 20);
+        let initial = crate::knn_mean_sq_dist(&points, 3);
         assert_eq!(got.k, 20);
         for (i, p) in points.iter().enumerate() {
             let mut d: Vec<f64> = points
@@ -172,6 +173,8 @@ mod tests {
             d.sort_by(f64::total_cmp);
             let row = &got.sq_dist[20 * i..20 * (i + 1)];
             assert_eq!(row, &d[..20], "row {i}");
+            let mean3 = (d[0] + d[1] + d[2]) / 3.0;
+            assert_eq!(mean3.max(1e-7), initial[i], "3DGS's initial scale, row {i}");
             for (s, &j) in got.index[20 * i..20 * (i + 1)].iter().enumerate() {
                 let q = points[j];
                 let d2: f64 = (0..3).map(|a| (q[a] - p[a]).powi(2)).sum();

@@ -14,7 +14,7 @@ use std::sync::Arc;
 use maaf_autodiff::op::{BackwardCtx, Op};
 use maaf_autodiff::{Float, Tensor};
 
-use super::neighbours::{EPS, Neighbours, row};
+use super::neighbours::{EPS, Neighbours, root_vjp, row};
 
 /// The isometry op: input the centres `[N, 3]` of the current frame, output the
 /// scalar `L` (module docs).
@@ -61,20 +61,10 @@ impl<T: Float> Op<T> for Isometry {
     fn forward(&self, x: &[&Tensor<T>]) -> (Vec<Tensor<T>>, ()) {
         let nb = &self.neighbours;
         let means = x[0].data();
-        let sum = nb.sum_rows(|i| {
-            (i * nb.k..(i + 1) * nb.k)
-                .map(|p| {
-                    let (_, l) = offset(nb, means, i, p);
-                    let gap = l - nb.distance[p];
-                    (nb.weight[p] * gap * gap + EPS).sqrt()
-                })
-                .sum()
-        });
-        let mean = if nb.pairs() == 0 {
-            0.0
-        } else {
-            sum / nb.pairs() as f64
-        };
+        let mean = nb.mean_root(
+            |_| (),
+            |(), i, p| [offset(nb, means, i, p).1 - nb.distance[p]],
+        );
         (vec![Tensor::scalar(T::of(mean))], ())
     }
 
@@ -83,15 +73,14 @@ impl<T: Float> Op<T> for Isometry {
     fn backward(&self, c: &BackwardCtx<'_, T, ()>) -> Vec<Option<Tensor<T>>> {
         let nb = &self.neighbours;
         let means = c.inputs[0].data();
-        let g = c.grad_outputs[0].data()[0].to_f64() / nb.pairs().max(1) as f64;
+        let g = nb.seed(&c.grad_outputs[0]);
         #[cfg(test)]
         let g = if self.fault { 2.0 * g } else { g };
         let (own, to_neighbour) = nb.per_row::<3, 3>(|i, own, out| {
             for (s, slot) in out.iter_mut().enumerate() {
                 let p = i * nb.k + s;
                 let (d, l) = offset(nb, means, i, p);
-                let (w, gap) = (nb.weight[p], l - nb.distance[p]);
-                let gl = g * w * gap / (w * gap * gap + EPS).sqrt();
+                let [gl] = root_vjp(g, nb.weight[p], [l - nb.distance[p]]);
                 *slot = d.map(|v| gl * v / l);
                 for a in 0..3 {
                     own[a] -= slot[a];

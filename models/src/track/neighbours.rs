@@ -81,11 +81,37 @@ impl Neighbours {
         3 * self.pairs()
     }
 
-    /// `sum_i row(i)` over the Gaussians, each row computed on its own (in parallel)
-    /// and summed in order.
-    pub fn sum_rows(&self, row: impl Fn(usize) -> f64 + Sync + Send) -> f64 {
-        let rows: Vec<f64> = (0..self.len()).into_par_iter().map(row).collect();
-        rows.iter().sum()
+    /// `mean_ij sqrt(w_ij |v_ij|^2 + 1e-20)` over every pair (0 without pairs), the
+    /// form of the three neighbour terms: `v_ij = residual(&setup(i), i, p)` for pair
+    /// `p = (i, j)`, with `setup(i)` computed once per Gaussian. Each Gaussian's pairs
+    /// are summed on their own (in parallel), then the Gaussians in order.
+    pub fn mean_root<S, const W: usize>(
+        &self,
+        setup: impl Fn(usize) -> S + Sync + Send,
+        residual: impl Fn(&S, usize, usize) -> [f64; W] + Sync + Send,
+    ) -> f64 {
+        let rows: Vec<f64> = (0..self.len())
+            .into_par_iter()
+            .map(|i| {
+                let s = setup(i);
+                (i * self.k..(i + 1) * self.k)
+                    .map(|p| {
+                        let v = residual(&s, i, p);
+                        (self.weight[p] * v.iter().map(|x| x * x).sum::<f64>() + EPS).sqrt()
+                    })
+                    .sum::<f64>()
+            })
+            .collect();
+        match self.pairs() {
+            0 => 0.0,
+            m => rows.iter().sum::<f64>() / m as f64,
+        }
+    }
+
+    /// The cotangent of each pair's root from the cotangent of the mean (the op's
+    /// output): `dL/dL_out / (n k)`.
+    pub fn seed<T: maaf_autodiff::Float>(&self, grad_output: &maaf_autodiff::Tensor<T>) -> f64 {
+        grad_output.data()[0].to_f64() / self.pairs().max(1) as f64
     }
 
     /// The cotangents of a per-Gaussian input of width `W` when each Gaussian `i` gives
@@ -128,6 +154,13 @@ impl Neighbours {
         }
         (own, pairs)
     }
+}
+
+/// `g d/dv sqrt(w |v|^2 + 1e-20) = g w v / sqrt(w |v|^2 + 1e-20)`: the cotangent of a
+/// pair's residual `v` from the cotangent `g` of its root.
+pub fn root_vjp<const W: usize>(g: f64, w: f64, v: [f64; W]) -> [f64; W] {
+    let root = (w * v.iter().map(|x| x * x).sum::<f64>() + EPS).sqrt();
+    v.map(|x| g * w * x / root)
 }
 
 /// Row `i` of a row-major `[n, W]` slice, as f64.

@@ -19,8 +19,10 @@ use maaf_autodiff::op::{BackwardCtx, Op};
 use maaf_autodiff::{Float, Tensor};
 
 use super::frames::Frame;
-use super::neighbours::{EPS, Neighbours, row};
-use super::quat::{Relative, rotation, rotation_vjp};
+use maaf_splat::math::{quat_to_rotmat, rotmat_vjp};
+
+use super::neighbours::{Neighbours, root_vjp, row};
+use super::quat::Relative;
 
 /// The local-rigidity op: inputs the centres `[N, 3]` and quaternions `[N, 4]` of the
 /// current frame, output the scalar `L` (module docs).
@@ -53,7 +55,7 @@ impl<T: Float> Rigidity<T> {
     /// Gaussian `i`'s relative rotation and its matrix.
     fn relative(&self, quats: &[T], i: usize) -> (Relative, [[f64; 3]; 3]) {
         let rel = Relative::new(row(quats, i), row(self.previous.quats.data(), i));
-        let r = rotation(rel.value);
+        let r = quat_to_rotmat(rel.value);
         (rel, r)
     }
 
@@ -78,44 +80,29 @@ impl<T: Float> Op<T> for Rigidity<T> {
     }
 
     fn forward(&self, x: &[&Tensor<T>]) -> (Vec<Tensor<T>>, ()) {
-        let nb = &self.neighbours;
         let (means, quats) = (x[0].data(), x[1].data());
-        let sum = nb.sum_rows(|i| {
-            let (_, r) = self.relative(quats, i);
-            (i * nb.k..(i + 1) * nb.k)
-                .map(|p| {
-                    let (_, e) = self.residual(means, &r, i, p);
-                    let e2: f64 = e.iter().map(|v| v * v).sum();
-                    (nb.weight[p] * e2 + EPS).sqrt()
-                })
-                .sum()
-        });
-        let mean = if nb.pairs() == 0 {
-            0.0
-        } else {
-            sum / nb.pairs() as f64
-        };
+        let mean = self.neighbours.mean_root(
+            |i| self.relative(quats, i).1,
+            |r, i, p| self.residual(means, r, i, p).1,
+        );
         (vec![Tensor::scalar(T::of(mean))], ())
     }
 
     /// With `g = dL/dL_out / M`: `dL/de = g w e / sqrt(w |e|^2 + 1e-20)`,
     /// `dL/d(mu_j - mu_i) = R dL/de` (to `mu_j`, minus to `mu_i`), and
-    /// `dL/dR = sum_j (mu_j - mu_i) (dL/de)^T`, which [`rotation_vjp`] and
+    /// `dL/dR = sum_j (mu_j - mu_i) (dL/de)^T`, which [`rotmat_vjp`] and
     /// [`Relative::vjp`] carry to `q_i`.
     fn backward(&self, c: &BackwardCtx<'_, T, ()>) -> Vec<Option<Tensor<T>>> {
         let nb = &self.neighbours;
         let (means, quats) = (c.inputs[0].data(), c.inputs[1].data());
-        let pairs = nb.pairs().max(1) as f64;
-        let g = c.grad_outputs[0].data()[0].to_f64() / pairs;
+        let g = nb.seed(&c.grad_outputs[0]);
         let (own, to_neighbour) = nb.per_row::<7, 3>(|i, own, out| {
             let (rel, r) = self.relative(quats, i);
             let mut gr = [[0.0; 3]; 3];
             for (s, slot) in out.iter_mut().enumerate() {
                 let p = i * nb.k + s;
                 let (d, e) = self.residual(means, &r, i, p);
-                let w = nb.weight[p];
-                let root = (w * e.iter().map(|v| v * v).sum::<f64>() + EPS).sqrt();
-                let ge = e.map(|v| g * w * v / root);
+                let ge = root_vjp(g, nb.weight[p], e);
                 *slot = std::array::from_fn(|b| (0..3).map(|a| r[b][a] * ge[a]).sum());
                 for b in 0..3 {
                     own[b] -= slot[b];
@@ -128,7 +115,7 @@ impl<T: Float> Op<T> for Rigidity<T> {
             if self.fault {
                 return;
             }
-            let gq = rel.vjp(rotation_vjp(rel.value, &gr));
+            let gq = rel.vjp(rotmat_vjp(rel.value, &gr));
             own[3..].copy_from_slice(&gq);
         });
         let own_means: Vec<[f64; 3]> = own.iter().map(|o| [o[0], o[1], o[2]]).collect();

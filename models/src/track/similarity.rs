@@ -16,7 +16,7 @@ use maaf_autodiff::{Float, Tensor};
 use rayon::prelude::*;
 
 use super::frames::Frame;
-use super::neighbours::{EPS, Neighbours, row};
+use super::neighbours::{Neighbours, root_vjp, row};
 use super::quat::Relative;
 
 /// The rotation-similarity op: input the quaternions `[N, 4]` of the current frame,
@@ -72,20 +72,7 @@ impl<T: Float> Op<T> for Similarity<T> {
     fn forward(&self, x: &[&Tensor<T>]) -> (Vec<Tensor<T>>, ()) {
         let nb = &self.neighbours;
         let rel = self.relative(x[0].data());
-        let sum = nb.sum_rows(|i| {
-            (i * nb.k..(i + 1) * nb.k)
-                .map(|p| {
-                    let d = difference(&rel, i, nb.index[p]);
-                    let d2: f64 = d.iter().map(|v| v * v).sum();
-                    (nb.weight[p] * d2 + EPS).sqrt()
-                })
-                .sum()
-        });
-        let mean = if nb.pairs() == 0 {
-            0.0
-        } else {
-            sum / nb.pairs() as f64
-        };
+        let mean = nb.mean_root(|_| (), |(), i, p| difference(&rel, i, nb.index[p]));
         (vec![Tensor::scalar(T::of(mean))], ())
     }
 
@@ -94,14 +81,11 @@ impl<T: Float> Op<T> for Similarity<T> {
     fn backward(&self, c: &BackwardCtx<'_, T, ()>) -> Vec<Option<Tensor<T>>> {
         let nb = &self.neighbours;
         let rel = self.relative(c.inputs[0].data());
-        let g = c.grad_outputs[0].data()[0].to_f64() / nb.pairs().max(1) as f64;
+        let g = nb.seed(&c.grad_outputs[0]);
         let (own, to_neighbour) = nb.per_row::<4, 4>(|i, own, out| {
             for (s, slot) in out.iter_mut().enumerate() {
                 let p = i * nb.k + s;
-                let d = difference(&rel, i, nb.index[p]);
-                let w = nb.weight[p];
-                let root = (w * d.iter().map(|v| v * v).sum::<f64>() + EPS).sqrt();
-                *slot = d.map(|v| g * w * v / root);
+                *slot = root_vjp(g, nb.weight[p], difference(&rel, i, nb.index[p]));
                 for a in 0..4 {
                     own[a] -= slot[a];
                 }
