@@ -10,7 +10,7 @@
 //! iteration ([`TrainingHooks::training_time`]). The current frame's centres and
 //! quaternions are the canonical 3DGS tensors `xyz` and `rotation` of the store, so
 //! densification, the opacity reset, the 3D filter and the optimiser see them
-//! unchanged; a finished frame's are kept as constants ([`frames`], carried in
+//! unchanged; a finished frame's are kept as constants ([`Frame`], carried in
 //! checkpoints as buffers).
 //!
 //! **Switching to frame k > 0** ([`Representation::set_iteration`] at the frame's
@@ -20,17 +20,17 @@
 //! the Adam moments of `xyz` and `rotation` restart ([`TrainingHooks::reset_moments`]).
 //! At the first switch each Gaussian's `knn` nearest neighbours `j` on the frame-0
 //! centres are found once, with weights `w_ij = exp(-neighbour_falloff |mu_j0 -
-//! mu_i0|^2)` ([`neighbours`]). Opacity and log-scales are frozen from then on
+//! mu_i0|^2)` ([`Neighbours`]). Opacity and log-scales are frozen from then on
 //! (learning rate 0, `LrSchedule::Until`); the colour keeps its rate.
 //!
 //! **Regularisers of frame k > 0** (`loss.py`; the previous frame's values are
 //! constants), each a term of the objective under its name with its weight:
 //! - `rigidity` (4): `mean_ij sqrt(w_ij |R_i^T (mu_j - mu_i) - (mu'_j - mu'_i)|^2 +
-//!   1e-20)`, `R_i` the rotation of `q_i / |q_i| conj(p_i)` ([`rigidity`]);
+//!   1e-20)`, `R_i` the rotation of `q_i / |q_i| conj(p_i)` ([`Rigidity`]);
 //! - `rotation` (4): `mean_ij sqrt(w_ij |r_j - r_i|^2 + 1e-20)`, `r_i = q_i / |q_i|
-//!   conj(p_i)` ([`similarity`]);
+//!   conj(p_i)` ([`Similarity`]);
 //! - `isometry` (2): `mean_ij sqrt(w_ij (|mu_j - mu_i| - |mu_j0 - mu_i0|)^2 + 1e-20)`
-//!   ([`isometry`]);
+//!   ([`Isometry`]);
 //! - `colour_consistency` (0.01): `mean_i sum_c |col_i - col'_i|`, `col'` the colours
 //!   at the switch to frame k;
 //!
@@ -38,17 +38,17 @@
 //! floor and background terms are data-set specific and left out; every Gaussian is
 //! tracked.
 //!
-//! **Rendering at time t** ([`bound::TrackBound`]): at a frame's time that frame; between
+//! **Rendering at time t** ([`TrackBound`]): at a frame's time that frame; between
 //! two trained frames the centres interpolated linearly and the quaternions by
 //! normalised linear interpolation; before the first frame or after the current one,
 //! clamped to it.
 
 mod bound;
 mod config;
-pub mod frames;
+mod frames;
 mod hooks;
 mod isometry;
-pub mod neighbours;
+mod neighbours;
 mod quat;
 mod rigidity;
 mod schedule;
@@ -181,16 +181,6 @@ impl<T: Float> TrackModel<T> {
     /// The frame whose variables the store holds (0-based).
     pub fn current_frame(&self) -> usize {
         self.finished.len()
-    }
-
-    /// The frame schedule.
-    pub fn schedule(&self) -> &FrameSchedule {
-        &self.schedule
-    }
-
-    /// The finished frames, in order.
-    pub fn finished(&self) -> &[Arc<Frame<T>>] {
-        &self.finished
     }
 
     /// The neighbour pairs (found at the first switch).

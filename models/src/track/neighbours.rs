@@ -76,11 +76,6 @@ impl Neighbours {
         self.index.len()
     }
 
-    /// Scalars kept (index, weight and distance per pair).
-    pub fn scalars(&self) -> usize {
-        3 * self.pairs()
-    }
-
     /// `mean_ij sqrt(w_ij |v_ij|^2 + 1e-20)` over every pair (0 without pairs), the
     /// form of the three neighbour terms: `v_ij = residual(&setup(i), i, p)` for pair
     /// `p = (i, j)`, with `setup(i)` computed once per Gaussian. Each Gaussian's pairs
@@ -95,10 +90,7 @@ impl Neighbours {
             .map(|i| {
                 let s = setup(i);
                 (i * self.k..(i + 1) * self.k)
-                    .map(|p| {
-                        let v = residual(&s, i, p);
-                        (self.weight[p] * v.iter().map(|x| x * x).sum::<f64>() + EPS).sqrt()
-                    })
+                    .map(|p| root(self.weight[p], residual(&s, i, p)))
                     .sum::<f64>()
             })
             .collect();
@@ -156,11 +148,16 @@ impl Neighbours {
     }
 }
 
+/// A pair's root `sqrt(w |v|^2 + 1e-20)` of its weight `w` and residual `v`.
+fn root<const W: usize>(w: f64, v: [f64; W]) -> f64 {
+    (w * v.iter().map(|x| x * x).sum::<f64>() + EPS).sqrt()
+}
+
 /// `g d/dv sqrt(w |v|^2 + 1e-20) = g w v / sqrt(w |v|^2 + 1e-20)`: the cotangent of a
 /// pair's residual `v` from the cotangent `g` of its root.
 pub fn root_vjp<const W: usize>(g: f64, w: f64, v: [f64; W]) -> [f64; W] {
-    let root = (w * v.iter().map(|x| x * x).sum::<f64>() + EPS).sqrt();
-    v.map(|x| g * w * x / root)
+    let r = root(w, v);
+    v.map(|x| g * w * x / r)
 }
 
 /// Row `i` of a row-major `[n, W]` slice, as f64.

@@ -56,7 +56,7 @@ impl Trainer {
     /// The training views (indices into the train split) of `iteration` (1-based):
     /// `batch` consecutive entries of the seeded epoch order (SaRO-GS draws its
     /// batches from a shuffled loader the same way), or of the views at the one time
-    /// the model trains on then ([`Trainer::views_at_time`]).
+    /// the model trains on then (`trainer/timed.rs`).
     pub fn views_at(&self, iteration: usize) -> Vec<usize> {
         if let Some(at) = self.model.hooks().and_then(|h| h.training_time(iteration)) {
             return self.views_at_time(iteration, at);
