@@ -27,6 +27,14 @@ pub enum LrSchedule {
         /// Length of the decay.
         max_steps: usize,
     },
+    /// `lr` for iterations below `until`, 0 from `until` on: a parameter frozen after
+    /// a first stage (Dynamic 3D Gaussians' opacities and scales after frame 0).
+    Until {
+        /// Rate before `until`.
+        lr: f64,
+        /// First iteration at rate 0.
+        until: usize,
+    },
 }
 
 impl LrSchedule {
@@ -44,6 +52,13 @@ impl LrSchedule {
                 }
                 let u = (iteration as f64 / max_steps.max(1) as f64).clamp(0.0, 1.0);
                 ((1.0 - u) * init.ln() + u * last.ln()).exp()
+            }
+            LrSchedule::Until { lr, until } => {
+                if iteration < until {
+                    lr
+                } else {
+                    0.0
+                }
             }
         }
     }
@@ -238,6 +253,18 @@ impl<T: Float> Adam<T> {
     /// The moments of `name`, for resizing with its parameter or checkpointing.
     pub fn moments_mut(&mut self, name: &str) -> Option<&mut Moments<T>> {
         self.state.get_mut(name)
+    }
+
+    /// Zeroes both moments of `name`, keeping its step count (PyTorch keeps `step`
+    /// when a parameter's `exp_avg` and `exp_avg_sq` are replaced, as 3DGS's opacity
+    /// reset and Dynamic 3D Gaussians' new frames do); false when it has none yet.
+    pub fn zero_moments(&mut self, name: &str) -> bool {
+        let Some(m) = self.state.get_mut(name) else {
+            return false;
+        };
+        m.m.data_mut().fill(T::zero());
+        m.v.data_mut().fill(T::zero());
+        true
     }
 
     /// The moments of `name`.
@@ -490,6 +517,28 @@ mod tests {
         assert!((s.at(100) - 1.6e-6).abs() < 1e-18);
         assert!((s.at(500) - 1.6e-6).abs() < 1e-18);
         assert!((s.at(50) - 1.6e-5).abs() < 1e-15);
+        let frozen = LrSchedule::Until {
+            lr: 0.05,
+            until: 10,
+        };
+        assert_eq!(
+            (frozen.at(9), frozen.at(10), frozen.at(99)),
+            (0.05, 0.0, 0.0)
+        );
+    }
+
+    #[test]
+    fn zeroed_moments_keep_their_step_count() {
+        let mut adam = Adam::<f64>::new(AdamConfig::default());
+        let mut x = Tensor::from_vec(vec![1.0, 2.0], &[2]);
+        adam.step("x", &mut x, &Tensor::from_vec(vec![0.5, -0.5], &[2]), 0.1);
+        assert!(adam.zero_moments("x"));
+        let m = adam.moments("x").expect("moments");
+        assert_eq!(
+            (m.m.data(), m.v.data(), m.steps),
+            (&[0.0, 0.0][..], &[0.0, 0.0][..], 1)
+        );
+        assert!(!adam.zero_moments("y"));
     }
 
     #[test]

@@ -9,7 +9,10 @@
 
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
-use super::{DeformConfig, DeformModel, PointCloud, Representation, SaroConfig, SaroModel};
+use super::{
+    DeformConfig, DeformModel, PointCloud, Representation, SaroConfig, SaroModel, TrackConfig,
+    TrackModel,
+};
 
 /// Which representation to train, with its settings (`--model`).
 #[derive(Clone, Debug, PartialEq)]
@@ -19,6 +22,9 @@ pub enum ModelConfig {
     /// Deformable 3D Gaussians (Yang et al. 2024): canonical Gaussians plus a
     /// deformation MLP on the encoded centre and time (the paper's plug-in base).
     Deform(DeformConfig),
+    /// Dynamic 3D Gaussians (Luiten et al. 2024): a centre and a rotation per frame,
+    /// trained frame by frame with neighbour rigidity terms (`models/src/track`).
+    Track(TrackConfig),
     /// A representation registered by name by the program that trains it, with its
     /// own options (the `model` section's keys other than `kind`), which its factory
     /// reads and validates.
@@ -43,6 +49,7 @@ impl<'de> Deserialize<'de> for ModelConfig {
         enum Tagged {
             Saro(SaroConfig),
             Deform(DeformConfig),
+            Track(TrackConfig),
         }
         let mut value = serde_json::Value::deserialize(d)?;
         if let Some(obj) = value.as_object_mut() {
@@ -62,6 +69,7 @@ impl<'de> Deserialize<'de> for ModelConfig {
         match serde_json::from_value(value).map_err(serde::de::Error::custom)? {
             Tagged::Saro(c) => Ok(ModelConfig::Saro(c)),
             Tagged::Deform(c) => Ok(ModelConfig::Deform(c)),
+            Tagged::Track(c) => Ok(ModelConfig::Track(c)),
         }
     }
 }
@@ -73,10 +81,12 @@ impl Serialize for ModelConfig {
         enum Tagged<'a> {
             Saro(&'a SaroConfig),
             Deform(&'a DeformConfig),
+            Track(&'a TrackConfig),
         }
         match self {
             ModelConfig::Saro(c) => Tagged::Saro(c).serialize(s),
             ModelConfig::Deform(c) => Tagged::Deform(c).serialize(s),
+            ModelConfig::Track(c) => Tagged::Track(c).serialize(s),
             ModelConfig::Custom { kind, options } => {
                 let mut map = serde_json::Map::new();
                 map.insert("kind".into(), kind.clone().into());
@@ -89,7 +99,7 @@ impl Serialize for ModelConfig {
 
 impl ModelConfig {
     /// The built-in kinds.
-    pub const KINDS: [&'static str; 2] = ["saro", "deform"];
+    pub const KINDS: [&'static str; 3] = ["saro", "deform", "track"];
 
     /// SH degree of a custom representation whose options give no `sh_degree`.
     pub const CUSTOM_SH_DEGREE: usize = 3;
@@ -100,6 +110,7 @@ impl ModelConfig {
         match self {
             ModelConfig::Saro(_) => "saro",
             ModelConfig::Deform(_) => "deform",
+            ModelConfig::Track(_) => "track",
             ModelConfig::Custom { kind, .. } => kind,
         }
     }
@@ -111,6 +122,7 @@ impl ModelConfig {
         match name {
             "saro" => Ok(ModelConfig::Saro(SaroConfig::default())),
             "deform" => Ok(ModelConfig::Deform(DeformConfig::default())),
+            "track" => Ok(ModelConfig::Track(TrackConfig::default())),
             other => {
                 let custom = ModelConfig::Custom {
                     kind: other.to_string(),
@@ -136,6 +148,7 @@ impl ModelConfig {
         match self {
             ModelConfig::Saro(c) => c.validate(),
             ModelConfig::Deform(c) => c.validate(),
+            ModelConfig::Track(c) => c.validate(),
             ModelConfig::Custom { kind, .. } => {
                 if maaf_io::is_plugin_name(kind) {
                     Ok(())
@@ -154,6 +167,7 @@ impl ModelConfig {
         match self {
             ModelConfig::Saro(c) => c.sh_degree,
             ModelConfig::Deform(c) => c.sh_degree,
+            ModelConfig::Track(c) => c.sh_degree,
             ModelConfig::Custom { options, .. } => options
                 .get("sh_degree")
                 .and_then(serde_json::Value::as_u64)
@@ -163,12 +177,13 @@ impl ModelConfig {
 
     /// Iterations rendered as plain 3D Gaussians before the dynamic stage, mutably:
     /// SaRO's `static_iterations`, deform's `warm_up` (demos and tests shorten it);
-    /// `None` for a custom representation.
+    /// `None` for the tracking model (its first frame is a share of the run) and a
+    /// custom representation.
     pub fn warm_up_mut(&mut self) -> Option<&mut usize> {
         match self {
             ModelConfig::Saro(c) => Some(&mut c.static_iterations),
             ModelConfig::Deform(c) => Some(&mut c.warm_up),
-            ModelConfig::Custom { .. } => None,
+            ModelConfig::Track(_) | ModelConfig::Custom { .. } => None,
         }
     }
 
@@ -178,9 +193,9 @@ impl ModelConfig {
     pub fn resolve(&mut self, init: &ModelInit) {
         match self {
             ModelConfig::Saro(c) => {
-                c.duration.get_or_insert(init.frames as f64);
+                c.duration.get_or_insert(init.frames() as f64);
             }
-            ModelConfig::Deform(_) | ModelConfig::Custom { .. } => {}
+            ModelConfig::Deform(_) | ModelConfig::Track(_) | ModelConfig::Custom { .. } => {}
         }
     }
 }
@@ -194,8 +209,18 @@ pub struct ModelInit {
     pub extent: f64,
     /// Seed of every random initialisation.
     pub seed: u64,
+    /// The distinct training times, ascending (the frames of the sequence).
+    pub times: Vec<f64>,
+    /// Iterations of the run (a model whose stages are shares of the run reads it:
+    /// the tracking model's frames).
+    pub iterations: usize,
+}
+
+impl ModelInit {
     /// Number of distinct training times (frames of the sequence).
-    pub frames: usize,
+    pub fn frames(&self) -> usize {
+        self.times.len()
+    }
 }
 
 /// Builds the built-in representation `config` describes (config already resolved);
@@ -213,9 +238,10 @@ pub fn build_model(
         ))),
         ModelConfig::Deform(c) => {
             let mut m = DeformModel::<f32>::from_point_cloud(&init.cloud, c.clone(), init.seed);
-            m.set_frames(init.frames);
+            m.set_frames(init.frames());
             Ok(Box::new(m))
         }
+        ModelConfig::Track(c) => Ok(Box::new(TrackModel::<f32>::new(c.clone(), init)?)),
         ModelConfig::Custom { kind, .. } => Err(format!(
             "model.kind `{kind}` is not a built-in representation ({})",
             ModelConfig::KINDS.join(", ")
@@ -267,7 +293,8 @@ mod tests {
             cloud: PointCloud::random_in_box(4, -1.0, 1.0, 0),
             extent: 1.0,
             seed: 0,
-            frames: 5,
+            times: (0..5).map(|t| f64::from(t) / 5.0).collect(),
+            iterations: 100,
         }
     }
 
@@ -277,7 +304,8 @@ mod tests {
             cloud: PointCloud::random_in_box(4, -1.0, 1.0, 0),
             extent: 1.0,
             seed: 0,
-            frames: 50,
+            times: (0..50).map(|t| f64::from(t) / 50.0).collect(),
+            iterations: 100,
         };
         let mut c = ModelConfig::default();
         c.resolve(&init);

@@ -22,8 +22,11 @@ use crate::Representation;
 ///   (its size). Deformable-3DGS's GroupFlow tables are such state.
 /// - **training customisations**: [`TrainingHooks::short_lived`] (Gaussians to prune),
 ///   [`TrainingHooks::lr_row_scale`] and [`TrainingHooks::densify_grad_scale`]
-///   (per-Gaussian scales of the learning rate and of the densification statistic).
-///   SaRO-GS's temporal pruning and adaptive optimisation are such customisations.
+///   (per-Gaussian scales of the learning rate and of the densification statistic),
+///   [`TrainingHooks::training_time`] (the one time an iteration trains on) and
+///   [`TrainingHooks::reset_moments`] (optimiser moments to restart). SaRO-GS's
+///   temporal pruning and adaptive optimisation, and the tracking model's frame by
+///   frame training, are such customisations.
 pub trait TrainingHooks<T: Float> {
     /// Resizes the representation's own per-Gaussian state (not its parameter store,
     /// which the caller resizes with the same list) to `old\[index\[0]], old\[index\[1]],
@@ -68,6 +71,36 @@ pub trait TrainingHooks<T: Float> {
     fn densify_grad_scale(&self) -> Option<Arc<[T]>> {
         None
     }
+
+    /// The only time iteration `iteration` (1-based) may train on, or `None` (the
+    /// default): every training view, in the run's seeded order. With a time, the
+    /// trainer draws the iteration's views among the training views at that time
+    /// (the nearest time the data has), in a seeded order reshuffled for every pass
+    /// over them, the passes counted from [`TrainingTime::since`]. Called after
+    /// [`Representation::set_iteration`](crate::Representation::set_iteration).
+    fn training_time(&self, _iteration: usize) -> Option<TrainingTime> {
+        None
+    }
+
+    /// Names of the parameters whose Adam moments restart (both zeroed, the step
+    /// count kept, as PyTorch keeps `step` when a parameter is replaced) before the
+    /// update of iteration `iteration`, after
+    /// [`Representation::set_iteration`](crate::Representation::set_iteration).
+    /// Default: none.
+    fn reset_moments(&self, _iteration: usize) -> Vec<String> {
+        Vec::new()
+    }
+}
+
+/// What [`TrainingHooks::training_time`] returns: the time an iteration trains on and
+/// the first iteration of the run of iterations that train on it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TrainingTime {
+    /// The time (the data's).
+    pub time: f64,
+    /// The first iteration (1-based) at this time: the passes over its views count
+    /// from there, so a resumed run draws the same views.
+    pub since: usize,
 }
 
 /// A representation is a per-Gaussian container: its rows are its store's, and a

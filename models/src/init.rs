@@ -7,6 +7,8 @@ use maaf_autodiff::{Float, Tensor};
 use maaf_data::PointCloud;
 use maaf_splat::sh::SH_C0;
 
+use crate::knn::knn;
+
 /// The canonical 3DGS tensors a representation starts from (3DGS `create_from_pcd`,
 /// as SaRO-GS and Deformable-3DGS do it).
 #[derive(Clone, Debug, PartialEq)]
@@ -55,119 +57,21 @@ pub fn rgb_to_sh_dc(c: f64) -> f64 {
 }
 
 /// Mean squared distance from each point to its `k` nearest other points (3DGS
-/// `distCUDA2` uses k = 3), clamped below at 1e-7 as 3DGS does. Exact: a uniform grid
-/// is searched ring by ring until the k-th candidate is closer than the searched
-/// radius, so the result equals brute force. O(N) for roughly uniform clouds.
+/// `distCUDA2` uses k = 3), clamped below at 1e-7 as 3DGS does; exact ([`knn`]).
 pub fn knn_mean_sq_dist(points: &[[f64; 3]], k: usize) -> Vec<f64> {
-    let n = points.len();
-    if n <= 1 || k == 0 {
-        return vec![1e-7; n];
+    let near = knn(points, k);
+    if near.k == 0 {
+        return vec![1e-7; points.len()];
     }
-    let k = k.min(n - 1);
-    let cloud = PointCloud {
-        points: points.to_vec(),
-        colours: Vec::new(),
-        times: None,
-    };
-    let (lo, hi) = cloud.bounds();
-    // About two points per cell on average.
-    let volume: f64 = (0..3).map(|a| hi[a] - lo[a]).product();
-    let cell = (2.0 * volume / n as f64).cbrt().max(1e-9);
-    let dims: [usize; 3] =
-        std::array::from_fn(|a| (((hi[a] - lo[a]) / cell).ceil() as usize).clamp(1, 1 << 10));
-    let cell_of = |p: &[f64; 3]| -> [usize; 3] {
-        std::array::from_fn(|a| {
-            (((p[a] - lo[a]) / cell).floor().max(0.0) as usize).min(dims[a] - 1)
-        })
-    };
-    let flat = |c: [usize; 3]| (c[2] * dims[1] + c[1]) * dims[0] + c[0];
-    // Counting sort of the points by cell.
-    let mut start = vec![0usize; dims[0] * dims[1] * dims[2] + 1];
-    for p in points {
-        start[flat(cell_of(p)) + 1] += 1;
-    }
-    for i in 1..start.len() {
-        start[i] += start[i - 1];
-    }
-    let mut fill = start.clone();
-    let mut order = vec![0usize; n];
-    for (i, p) in points.iter().enumerate() {
-        let c = flat(cell_of(p));
-        order[fill[c]] = i;
-        fill[c] += 1;
-    }
-    let max_ring = dims.iter().copied().max().unwrap_or(1);
-    let mut out = Vec::with_capacity(n);
-    let mut best: Vec<f64> = Vec::with_capacity(k + 1);
-    for (i, p) in points.iter().enumerate() {
-        let c = cell_of(p);
-        best.clear();
-        for ring in 0..=max_ring {
-            // Visit the cells at Chebyshev distance exactly `ring` from c.
-            let r = ring as isize;
-            for dz in -r..=r {
-                for dy in -r..=r {
-                    for dx in -r..=r {
-                        if dx.abs().max(dy.abs()).max(dz.abs()) != r {
-                            continue;
-                        }
-                        let q = [c[0] as isize + dx, c[1] as isize + dy, c[2] as isize + dz];
-                        if (0..3).any(|a| q[a] < 0 || q[a] >= dims[a] as isize) {
-                            continue;
-                        }
-                        let cf = flat([q[0] as usize, q[1] as usize, q[2] as usize]);
-                        for &j in &order[start[cf]..start[cf + 1]] {
-                            if j == i {
-                                continue;
-                            }
-                            let d2: f64 = (0..3).map(|a| (points[j][a] - p[a]).powi(2)).sum();
-                            if best.len() < k || d2 < best[k - 1] {
-                                let pos = best.partition_point(|&b| b <= d2);
-                                best.insert(pos, d2);
-                                best.truncate(k);
-                            }
-                        }
-                    }
-                }
-            }
-            // Every point within distance ring*cell of p lies in rings 0..=ring.
-            let covered = ring as f64 * cell;
-            if best.len() == k && best[k - 1] <= covered * covered {
-                break;
-            }
-        }
-        let mean = best.iter().sum::<f64>() / best.len().max(1) as f64;
-        out.push(mean.max(1e-7));
-    }
-    out
+    near.sq_dist
+        .chunks_exact(near.k)
+        .map(|row| (row.iter().sum::<f64>() / near.k as f64).max(1e-7))
+        .collect()
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn knn_matches_brute_force() {
-        let cloud = PointCloud::random_in_box(400, -1.3, 1.3, 3);
-        let fast = knn_mean_sq_dist(&cloud.points, 3);
-        for (i, p) in cloud.points.iter().enumerate() {
-            let mut d: Vec<f64> = cloud
-                .points
-                .iter()
-                .enumerate()
-                .filter(|&(j, _)| j != i)
-                .map(|(_, q)| (0..3).map(|a| (q[a] - p[a]).powi(2)).sum())
-                .collect();
-            d.sort_by(f64::total_cmp);
-            let want = (d[0] + d[1] + d[2]) / 3.0;
-            // Same three distances summed in possibly another order: ~1 ulp.
-            assert!(
-                (fast[i] - want).abs() <= 1e-12 * want,
-                "{i}: {} vs {want}",
-                fast[i]
-            );
-        }
-    }
 
     #[test]
     fn subsample_keeps_distinct_points_in_order_with_their_times() {

@@ -30,9 +30,11 @@ pub mod deform;
 pub mod encoding;
 mod hooks;
 mod init;
+mod knn;
 pub mod kplane;
 pub mod params;
 pub mod saro;
+pub mod track;
 
 use maaf_autodiff::{Float, Tape, Tensor, Var};
 use maaf_splat::GaussianVars;
@@ -42,11 +44,13 @@ use crate::params::{BoundParams, ParamStore};
 pub use canonical::{Canonical, CanonicalIds};
 pub use config::{ModelConfig, ModelInit, build_model};
 pub use deform::{DeformConfig, DeformModel};
-pub use hooks::TrainingHooks;
+pub use hooks::{TrainingHooks, TrainingTime};
 pub use init::{InitialGaussians, knn_mean_sq_dist, rgb_to_sh_dc};
+pub use knn::{Knn, knn};
 pub use kplane::{KPlaneConfig, KPlaneField};
 pub use maaf_data::PointCloud;
 pub use saro::{SaroConfig, SaroModel};
+pub use track::{TrackConfig, TrackModel};
 
 /// A representation bound on one tape: deforms to any time, any number of times.
 ///

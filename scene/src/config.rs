@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 use maaf_filter::FilterConfig;
 use serde::{Deserialize, Serialize};
 
-use maaf_models::ModelConfig;
+use maaf_models::{ModelConfig, TrackConfig};
 
 use crate::Error;
 
@@ -550,9 +550,33 @@ impl TrainConfig {
         self.model
             .validate()
             .map_err(|e| Error::Input(format!("config: {e}")))?;
+        if let ModelConfig::Track(track) = &self.model {
+            self.check_first_frame(track)?;
+        }
         self.filter
             .validate()
             .map_err(|e| Error::Input(format!("config: filter: {e}")))
+    }
+
+    /// With the tracking model the set of Gaussians may change only in frame 0
+    /// ([`TrackConfig::first_frame_end`] iterations; Dynamic 3D Gaussians densifies
+    /// and resets opacities in its first timestep only, and tracks every Gaussian
+    /// after it): refuses a `densify.until` (densification and opacity reset) or
+    /// `prune.until` past it.
+    fn check_first_frame(&self, track: &TrackConfig) -> Result<(), Error> {
+        let end = track.first_frame_end(self.iterations);
+        let range = format!(
+            "<= {end}, the last iteration of frame 0 with model.kind track (model.first_frame_iterations = {} of iterations = {}): the Gaussians are tracked after it",
+            track.first_frame_iterations, self.iterations
+        );
+        let d = &self.densify;
+        if (d.every > 0 || d.opacity_reset_every > 0) && d.until > end {
+            return Err(bad("densify.until", &d.until, &range));
+        }
+        if self.prune.every > 0 && self.prune.until > end {
+            return Err(bad("prune.until", &self.prune.until, &range));
+        }
+        Ok(())
     }
 }
 
@@ -623,6 +647,34 @@ mod tests {
             );
             assert!(!msg.contains('\n'), "{msg}");
         }
+    }
+
+    #[test]
+    fn the_tracking_model_densifies_and_prunes_only_in_frame_zero() {
+        let mut c = TrainConfig {
+            model: ModelConfig::default_of("track").expect("built in"),
+            iterations: 10_000,
+            ..TrainConfig::default()
+        };
+        // Frame 0 is the first 0.2 x 10 000 = 2000 iterations.
+        let msg = c.validate().expect_err("default densify.until").to_string();
+        assert!(
+            msg.starts_with(
+                "config: densify.until = 15000: must be <= 2000, the last iteration of frame 0"
+            ),
+            "{msg}"
+        );
+        c.densify.until = 2000;
+        c.validate().expect("densification within frame 0");
+        c.prune.every = 100;
+        let msg = c.validate().expect_err("default prune.until").to_string();
+        assert!(
+            msg.starts_with("config: prune.until = 30000: must be <= 2000"),
+            "{msg}"
+        );
+        c.prune.until = 1500;
+        c.prune.from = 1000;
+        c.validate().expect("pruning within frame 0");
     }
 
     #[test]

@@ -48,9 +48,9 @@ pub fn training_views(data: &Dataset, config: &TrainConfig) -> Result<Vec<View>,
 /// its foreground masks ([`Dataset::initial_cloud`]); otherwise
 /// `init_points` random points in the data set's scene bounds with random colours
 /// (as SaRO-GS and Deformable-3DGS initialise synthetic D-NeRF scenes). Plus the
-/// camera extent, the seed and the number of distinct training times. The same for
-/// every representation, so a user's model starts from the same cloud as the
-/// built-in one.
+/// camera extent, the seed, the distinct training times and the run's iterations.
+/// The same for every representation, so a user's model starts from the same cloud
+/// as the built-in one.
 pub fn model_init(data: &Dataset, config: &TrainConfig) -> Result<ModelInit, Error> {
     let views = training_views(data, config)?;
     let cloud = match data
@@ -76,7 +76,8 @@ pub fn model_init(data: &Dataset, config: &TrainConfig) -> Result<ModelInit, Err
         cloud,
         extent: camera_extent(&cameras),
         seed: config.seed,
-        frames: times.len(),
+        times,
+        iterations: config.iterations,
     })
 }
 

@@ -194,7 +194,7 @@ impl TrainedScene {
             None => fallback(&opened.state.config)?,
         };
         let config = &opened.state.config;
-        let init = record.model_init(config.seed);
+        let init = record.model_init(config);
         let mut model = registry
             .build(&opened.state.model, config, &init)
             .map_err(|e| Error::Input(format!("{}: {e}", dir.display())))?;

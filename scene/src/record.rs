@@ -68,12 +68,12 @@ impl SceneRecord {
         })
     }
 
-    /// What the representation is rebuilt from: the 8 corners of the initial cloud's
-    /// box (so its bounds are the saved ones), the training cameras' extent, the run's
-    /// seed and the number of distinct training times, as [`model_init`] gave them at
-    /// training. The corners stand in for the cloud: a representation's tensors come
-    /// from the checkpoint.
-    pub fn model_init(&self, seed: u64) -> ModelInit {
+    /// What the representation of a run of `config` is rebuilt from: the 8 corners of
+    /// the initial cloud's box (so its bounds are the saved ones), the training
+    /// cameras' extent, the run's seed, the distinct training times and the run's
+    /// iterations, as [`model_init`] gave them at training. The corners stand in for
+    /// the cloud: a representation's tensors come from the checkpoint.
+    pub fn model_init(&self, config: &TrainConfig) -> ModelInit {
         let (lo, hi) = self.init_box;
         let points: Vec<[f64; 3]> = (0..8)
             .map(|c| std::array::from_fn(|a| if c >> a & 1 == 0 { lo[a] } else { hi[a] }))
@@ -88,8 +88,9 @@ impl SceneRecord {
                 times: None,
             },
             extent: camera_extent(&self.cameras),
-            seed,
-            frames: times.len(),
+            seed: config.seed,
+            times,
+            iterations: config.iterations,
         }
     }
 

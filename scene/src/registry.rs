@@ -3,7 +3,7 @@
 //! [`Representation::name`]; [`super::TrainedScene::load`] looks that name up here and
 //! calls the loader with the run's configuration and a [`ModelInit`] rebuilt from the
 //! checkpoint ([`super::SceneRecord::model_init`]), then loads the saved tensors into
-//! what it returns. The built-in `saro` and `deform` are registered by
+//! what it returns. The built-in `saro`, `deform` and `track` are registered by
 //! [`ModelRegistry::builtin`]; a custom representation registers its own loader.
 
 use std::collections::BTreeMap;
@@ -32,12 +32,12 @@ impl ModelRegistry {
         }
     }
 
-    /// The built-in representations, `saro` and `deform`, both built by
+    /// The built-in representations, `saro`, `deform` and `track`, all built by
     /// [`build_model`] from the run's `config.model` (resolved as
     /// `maaf_train::trainer::Trainer::new` resolves it).
     pub fn builtin() -> Self {
         let mut r = Self::empty();
-        for name in ["saro", "deform"] {
+        for name in maaf_models::ModelConfig::KINDS {
             r.register(name, |config, init| {
                 let mut model = config.model.clone();
                 model.resolve(init);

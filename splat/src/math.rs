@@ -90,7 +90,7 @@ pub fn quat_to_rotmat<T: Float>(q: [T; 4]) -> [[T; 3]; 3] {
 /// Vector-Jacobian product of [`quat_to_rotmat`] at a unit quaternion `q` with `s = 2`
 /// held fixed: given `G = dL/dR`, returns `dL/dq` treating `q` as free. The caller
 /// adds the normalisation, `dq = (dq_hat - q_hat (q_hat . dq_hat)) / |q|`.
-pub(crate) fn rotmat_vjp<T: Float>(q: [T; 4], g: &M3<T>) -> [T; 4] {
+pub fn rotmat_vjp<T: Float>(q: [T; 4], g: &[[T; 3]; 3]) -> [T; 4] {
     let [w, x, y, z] = q;
     let two = T::of(2.0);
     let four = T::of(4.0);

@@ -45,9 +45,9 @@ pub struct SettingsArgs {
     /// RUN/data.json].
     #[arg(long)]
     pub data: Option<PathBuf>,
-    /// 4D representation: `saro` (SaRO-GS), `deform` (Deformable-3DGS) or one the
-    /// program registers (docs/extending.md); its settings: the `model` section of
-    /// --config [default: the config's, else saro].
+    /// 4D representation: `saro` (SaRO-GS), `deform` (Deformable-3DGS), `track` (Dynamic
+    /// 3D Gaussians' tracking) or one the program registers (docs/extending.md); its
+    /// settings: the `model` section of --config [default: the config's, else saro].
     #[arg(long)]
     pub model: Option<String>,
     /// 3D smoothing filter: `none` (classic 0.3 px^2 2D dilation), `mip3d`

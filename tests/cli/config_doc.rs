@@ -1,6 +1,6 @@
 //! `docs/config.md` documents every key the training configuration accepts, with its
-//! default, for both model kinds: the key list and the defaults come from serialising
-//! the default configurations, so the document cannot drift from the code.
+//! default, for every built-in model kind: the key list and the defaults come from
+//! serialising the default configurations, so the document cannot drift from the code.
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -11,12 +11,13 @@ use serde_json::Value;
 
 use crate::support::{config_json, json_leaves};
 
-/// Which table a documented key belongs to: the Deformable-3DGS model section, or any
-/// other (the top level, SaRO's model section, filter, densify, prune).
+/// Which table a documented key belongs to: the Deformable-3DGS or the tracking model
+/// section, or any other (the top level, SaRO's model section, filter, densify, prune).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 enum Kind {
     Saro,
     Deform,
+    Track,
 }
 
 /// The rows of `docs/config.md`: `| `key` | `default` | range | meaning |`, keyed by
@@ -30,6 +31,8 @@ fn documented() -> BTreeMap<(Kind, String), Value> {
         if let Some(heading) = line.strip_prefix("## ") {
             kind = if heading.contains("\"deform\"") {
                 Kind::Deform
+            } else if heading.contains("\"track\"") {
+                Kind::Track
             } else {
                 Kind::Saro
             };
@@ -52,19 +55,21 @@ fn documented() -> BTreeMap<(Kind, String), Value> {
 }
 
 /// Every key of the default configuration with SaRO, and of the model section with
-/// Deformable-3DGS, with its default.
+/// Deformable-3DGS and with the tracking model, with its default.
 fn from_code() -> BTreeMap<(Kind, String), Value> {
     let mut keys = BTreeMap::new();
     for (key, value) in json_leaves(&config_json(&TrainConfig::default())) {
         keys.insert((Kind::Saro, key), value);
     }
-    let deform = TrainConfig {
-        model: ModelConfig::default_of("deform").expect("deform"),
-        ..TrainConfig::default()
-    };
-    for (key, value) in json_leaves(&config_json(&deform)) {
-        if key.starts_with("model.") {
-            keys.insert((Kind::Deform, key), value);
+    for (kind, name) in [(Kind::Deform, "deform"), (Kind::Track, "track")] {
+        let other = TrainConfig {
+            model: ModelConfig::default_of(name).expect("a built-in kind"),
+            ..TrainConfig::default()
+        };
+        for (key, value) in json_leaves(&config_json(&other)) {
+            if key.starts_with("model.") {
+                keys.insert((kind, key), value);
+            }
         }
     }
     keys

@@ -19,3 +19,4 @@ mod resume_faults;
 mod run_integrity;
 mod support;
 mod sweep;
+mod track;

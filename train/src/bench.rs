@@ -166,12 +166,13 @@ fn deform_mlp_forward_flops(n: usize, c: &DeformConfig, views: usize) -> f64 {
 }
 
 /// Forward FLOPs of every MLP one step of `views` views of `model` evaluates for `n`
-/// Gaussians (0 for a custom representation, whose networks maaf does not know).
+/// Gaussians (0 for the tracking model, which has none, and for a custom
+/// representation, whose networks maaf does not know).
 fn mlp_forward_flops(n: usize, model: &ModelConfig, views: usize) -> f64 {
     match model {
         ModelConfig::Saro(c) => saro_mlp_forward_flops(n, c, views),
         ModelConfig::Deform(c) => deform_mlp_forward_flops(n, c, views),
-        ModelConfig::Custom { .. } => 0.0,
+        ModelConfig::Track(_) | ModelConfig::Custom { .. } => 0.0,
     }
 }
 

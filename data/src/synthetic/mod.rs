@@ -14,13 +14,16 @@
 //! ([`multiview`]): the same static set, with movers whose distance to the cameras
 //! changes 3 to 4 times over the sequence. The `plunge` scene ([`plunge`]) is the
 //! stability suite's: a mover whose distance changes 4.8x within a tenth of the
-//! sequence, and bars thinner than a pixel moving less than a pixel per frame.
+//! sequence, and bars thinner than a pixel moving less than a pixel per frame. The
+//! `glide` scene ([`glide`]) is the tracking model's: movers that travel less than
+//! their size between frames of a short video, at constant velocity.
 //!
 //! Cameras sit on a spherical cap 4 units from the target (0, 0, 0.6), azimuth within
 //! 60 degrees of the front (-y), elevation 12 to 50 degrees, field of view 50 degrees.
 
 pub mod approach;
 pub mod dynamic3dgs;
+pub mod glide;
 pub mod multiview;
 pub mod plunge;
 pub mod points;
@@ -40,7 +43,7 @@ pub use multiview::{MultiviewOptions, generate_multiview};
 pub use write::{GenerateOptions, GenerateSummary, Rig, generate};
 
 /// Names of the built-in scenes (`--scene`).
-pub const SCENES: &[&str] = &["dolly", "approach", "plunge"];
+pub const SCENES: &[&str] = &["dolly", "approach", "plunge", "glide"];
 
 /// The default scene name.
 pub const DEFAULT_SCENE: &str = "dolly";
@@ -51,6 +54,7 @@ pub fn build_scene(name: &str) -> Result<Scene, DataError> {
         "dolly" => Ok(dolly()),
         "approach" => Ok(approach::approach()),
         "plunge" => Ok(plunge::plunge()),
+        "glide" => Ok(glide::glide()),
         _ => Err(DataError::Request {
             path: "--scene".into(),
             message: format!(

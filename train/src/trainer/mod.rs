@@ -25,6 +25,7 @@ mod resume;
 mod run;
 mod step;
 mod strategy;
+mod timed;
 mod validation;
 
 use std::sync::Arc;

@@ -146,10 +146,7 @@ impl Trainer {
         let caps = opacity_caps(mode, &self.filter, &scales, 0.01);
         let store = self.model.params_mut();
         let reset = store.cap_opacity(ids, &caps);
-        if let Some(m) = self.adam.moments_mut(&store.param(reset).name) {
-            m.m.data_mut().fill(0.0);
-            m.v.data_mut().fill(0.0);
-        }
+        self.adam.zero_moments(&store.param(reset).name);
         let after = self.model.params().value(opacity);
         let lowered = before.data().iter().zip(after.data()).map(|(a, b)| a != b);
         self.liveness.reset(lowered.collect());

@@ -58,8 +58,12 @@ impl Trainer {
 
     /// The training views (indices into the train split) of `iteration` (1-based):
     /// `batch` consecutive entries of the seeded epoch order (SaRO-GS draws its
-    /// batches from a shuffled loader the same way).
+    /// batches from a shuffled loader the same way), or of the views at the one time
+    /// the model trains on then (`trainer/timed.rs`).
     pub fn views_at(&self, iteration: usize) -> Vec<usize> {
+        if let Some(at) = self.model.hooks().and_then(|h| h.training_time(iteration)) {
+            return self.views_at_time(iteration, at);
+        }
         (0..self.config.batch)
             .map(|slot| self.view_at(self.entry(iteration, slot)))
             .collect()
@@ -80,6 +84,7 @@ impl Trainer {
         self.ensure_filter();
         let it = self.iteration + 1;
         self.model.set_iteration(it);
+        self.restart_moments(it);
         let views = self.views_at(it);
         let tape = Tape::new();
         tape.set_validate(self.config.validate);
