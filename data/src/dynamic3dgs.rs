@@ -20,7 +20,11 @@
 //! `train_meta.json` gives the `train` split, `test_meta.json` the `test` split. Both
 //! are ordered camera by camera (cameras in order of first appearance, each camera's
 //! frames in order), so a frame stride picks the same frames of every test camera.
-//! Frame `j` of `F` has `t = j / (F - 1)` (`0` when `F = 1`), so time spans `[0, 1]`.
+//! Frame `j` of the `F` training frames has `t = j / (F - 1)` (`0` when `F = 1`), so
+//! time spans `[0, 1]`. The test views are mapped by frame number: frame `j` of
+//! `test_meta.json` is frame `j` of the training sequence, at the same time, also when
+//! the test file lists fewer frames; one listing more frames than the training file
+//! (frames with no training time) is refused.
 //!
 //! # Moving pixels of the test views
 //! When every test image has a mask (the generator writes exact ones) those are the
@@ -97,12 +101,13 @@ pub struct Meta {
 }
 
 impl Meta {
-    /// The time of frame `j`: `j / (F - 1)`, or `0` for a single frame.
-    pub fn time(&self, j: usize) -> f64 {
-        if self.frames <= 1 {
+    /// The time of frame `j` of a sequence of `frames`: `j / (frames - 1)`, or `0`
+    /// for a single frame.
+    pub fn time(j: usize, frames: usize) -> f64 {
+        if frames <= 1 {
             0.0
         } else {
-            j as f64 / (self.frames - 1) as f64
+            j as f64 / (frames - 1) as f64
         }
     }
 
@@ -111,8 +116,10 @@ impl Meta {
         camera_order(&self.views)
     }
 
-    /// The split's [`SplitMeta`] (frames in the order of [`Meta::views`]).
-    pub fn split_meta(&self, split: Split) -> SplitMeta {
+    /// The split's [`SplitMeta`] (frames in the order of [`Meta::views`]), frame `j`
+    /// at the time of frame `j` of a sequence of `timeline` frames (the training
+    /// file's: test frames are mapped by frame number).
+    pub fn split_meta(&self, split: Split, timeline: usize) -> SplitMeta {
         let focal = self.views.first().map_or(1.0, |v| v.camera.fx);
         SplitMeta {
             split,
@@ -126,7 +133,7 @@ impl Meta {
                 .iter()
                 .map(|v| Frame {
                     file: v.image.clone(),
-                    time: self.time(v.frame),
+                    time: Self::time(v.frame, timeline),
                     camera: v.camera.clone(),
                     flow: None,
                 })
@@ -149,8 +156,14 @@ impl Dynamic3dgs {
     /// The `train` and `test` [`SplitMeta`]s.
     pub fn splits(&self) -> BTreeMap<Split, SplitMeta> {
         BTreeMap::from([
-            (Split::Train, self.train.split_meta(Split::Train)),
-            (Split::Test, self.test.split_meta(Split::Test)),
+            (
+                Split::Train,
+                self.train.split_meta(Split::Train, self.train.frames),
+            ),
+            (
+                Split::Test,
+                self.test.split_meta(Split::Test, self.train.frames),
+            ),
         ])
     }
 }
@@ -160,6 +173,16 @@ impl Dynamic3dgs {
 pub fn read_dynamic3dgs(root: &Path) -> Result<Dynamic3dgs, DataError> {
     let train = read_meta(root, &root.join(TRAIN_META))?;
     let test = read_meta(root, &root.join(TEST_META))?;
+    if test.frames > train.frames {
+        return Err(DataError::field(
+            &test.json,
+            "fn",
+            format!(
+                "has {} frames but {TRAIN_META} has {}: test frame j is training frame j (its time), so the test views may not outlast the training sequence",
+                test.frames, train.frames
+            ),
+        ));
+    }
     Ok(Dynamic3dgs { train, test })
 }
 
@@ -305,8 +328,15 @@ fn entry_camera(json: &Path, j: usize, i: usize, file: &MetaFile) -> Result<Came
     }
     let w2c = DMat4::from_cols_array_2d(&rows).transpose();
     check_rigid(json, &field, &w2c)?;
-    Camera::new(file.w, file.h, fx, fy, cx, cy, rows)
-        .map_err(|e| DataError::field(json, field, e.to_string()))
+    Camera::new(file.w, file.h, fx, fy, cx, cy, rows).map_err(|e| {
+        // Name the table the camera's bad value came from.
+        let field = match e.field() {
+            Some("fx" | "fy" | "cx" | "cy") => format!("k[{j}][{i}]"),
+            Some("width/height") => "w, h".to_string(),
+            _ => field,
+        };
+        DataError::field(json, field, e.reason())
+    })
 }
 
 /// The image of `v` must exist and be `w x h`.
