@@ -50,7 +50,7 @@ pub use eval_json::{
 };
 pub use maaf_scene::{Error, write_atomic};
 pub use render::{load_scene_on, run_camera};
-pub use sequence::frame_times;
+pub use sequence::{MAX_SEQUENCE_FRAMES, check_frame_count, frame_times};
 
 /// The paper's evaluation scales relative to the training scale: 1/4x, 1/2x (zoom-out),
 /// 1x, 2x and 4x (zoom-in).

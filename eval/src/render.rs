@@ -10,7 +10,7 @@ use maaf_splat::Camera;
 use serde::{Deserialize, Serialize};
 
 use super::images;
-use super::sequence::check_own_folder;
+use super::sequence::{check_frame_count, check_own_folder};
 use crate::{Error, write_atomic};
 
 /// What a run was trained on, written as `RUN/data.json` by [`record_data`] when the
@@ -224,10 +224,12 @@ pub fn run_camera(
 
 /// Renders one frame per `(camera, time)` of `frames` (a fixed camera over time, a
 /// camera path, or a data set's views) into `out` as `frame_NNNN.png` plus an
-/// animated `video.gif` (10 frames per second). Returns the PNG paths. The frames are
-/// built in a fresh temporary folder swapped in for `out` ([`maaf_io::replace_dir`]),
-/// so no frame of an earlier, longer video stays beside the new ones; an `out`
-/// holding anything but such frames is refused.
+/// animated `video.gif` (10 frames per second). Returns the PNG paths. Frames are
+/// rendered and written one at a time (the GIF streamed, [`images::GifWriter`]), so
+/// a video needs the memory of one frame. The frames are built in a fresh temporary
+/// folder swapped in for `out` ([`maaf_io::write_dir`]), so no frame of an earlier,
+/// longer video stays beside the new ones; an `out` holding anything but such frames
+/// is refused.
 pub fn render_video(
     scene: &TrainedScene,
     frames: &[(Camera, f64)],
@@ -236,31 +238,22 @@ pub fn render_video(
     if frames.is_empty() {
         return Err(Error::Input("a video needs at least one frame".into()));
     }
+    check_frame_count(frames.len())?;
     check_own_folder(out, "video", |name| {
         name == "video.gif" || (name.starts_with("frame_") && name.ends_with(".png"))
     })?;
-    let tmp = maaf_io::temp_sibling(out);
-    if tmp.exists() {
-        std::fs::remove_dir_all(&tmp).map_err(|e| Error::io(&tmp, e))?;
-    }
-    std::fs::create_dir_all(&tmp).map_err(|e| Error::io(&tmp, e))?;
     let settings = scene.render_settings();
     let names: Vec<String> = (0..frames.len())
         .map(|i| format!("frame_{i:04}.png"))
         .collect();
-    let written = (|| {
-        let mut rgb = Vec::with_capacity(frames.len());
+    maaf_io::write_dir(out, Error::io, |tmp| {
+        let mut gif = images::GifWriter::create(&tmp.join("video.gif"), 100)?;
         for (name, (camera, t)) in names.iter().zip(frames) {
             let img = images::to_rgb8(&scene.render_with(camera, *t, &settings))?;
             images::save_png(&img, &tmp.join(name))?;
-            rgb.push(img);
+            gif.push(&img)?;
         }
-        images::save_gif(&rgb, 100, &tmp.join("video.gif"))?;
-        maaf_io::replace_dir(&tmp, out).map_err(|e| Error::io(out, e))
-    })();
-    if let Err(e) = written {
-        let _ = std::fs::remove_dir_all(&tmp);
-        return Err(e);
-    }
+        gif.finish()
+    })?;
     Ok(names.iter().map(|name| out.join(name)).collect())
 }
