@@ -262,7 +262,7 @@ fn refuse_facing_away(steps: &[HullStep], centre: DVec3) -> Result<(), DataError
         return Err(DataError::request(
             &masks_folder(steps),
             format!(
-                "every one of the {} training cameras carved faces away from the middle of the cameras (the region the visual hull is carved in): check the poses (w2c) or ship points3d.ply",
+                "the camera of every one of the {} training views carved faces away from the middle of the cameras (the region the visual hull is carved in): check the poses (w2c) or ship points3d.ply",
                 views.len()
             ),
         ));

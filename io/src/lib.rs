@@ -146,12 +146,7 @@ pub fn remove_stale_temps(dir: &Path) -> io::Result<usize> {
     for entry in entries.flatten() {
         let name = entry.file_name().to_string_lossy().into_owned();
         if name.starts_with('.') && name.contains(TEMP_MARK) {
-            let path = entry.path();
-            if entry.file_type()?.is_dir() {
-                fs::remove_dir_all(&path)?;
-            } else {
-                fs::remove_file(&path)?;
-            }
+            remove_entry(&entry)?;
             removed += 1;
         }
     }
@@ -186,15 +181,19 @@ pub fn remove_dead_temps(path: &Path) -> io::Result<usize> {
         if process::alive(pid) {
             continue;
         }
-        let temp = entry.path();
-        if entry.file_type()?.is_dir() {
-            fs::remove_dir_all(&temp)?;
-        } else {
-            fs::remove_file(&temp)?;
-        }
+        remove_entry(&entry)?;
         removed += 1;
     }
     Ok(removed)
+}
+
+/// Removes a folder entry, a file or a whole folder.
+fn remove_entry(entry: &fs::DirEntry) -> io::Result<()> {
+    if entry.file_type()?.is_dir() {
+        fs::remove_dir_all(entry.path())
+    } else {
+        fs::remove_file(entry.path())
+    }
 }
 
 #[cfg(test)]

@@ -12,7 +12,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
-use maaf_eval::eval_json::{OTHER_BACKGROUND_PREFIX, other_background_name};
+use maaf_eval::eval_json::other_background_name;
 use maaf_eval::report::suite::{SuiteRun, write_suite_report};
 use maaf_filter::FilterKind;
 use maaf_scene::TrainConfig;
@@ -492,8 +492,8 @@ fn write_suite(spec: &SuiteSpec, out: &Path, exe: &Path) -> anyhow::Result<()> {
         let old = read_spec(out)?;
         old.refuse_record(out)?;
         let mut removed = 0;
-        for run in reevaluated(&old, spec, &spec_path)? {
-            removed += remove_evaluations(&run.dir)?;
+        for run in eval_plan::reevaluated(&old, spec, &spec_path)? {
+            removed += eval_plan::remove_evaluations(&run.dir)?;
         }
         if removed > 0 {
             println!(
@@ -526,69 +526,6 @@ fn write_suite(spec: &SuiteSpec, out: &Path, exe: &Path) -> anyhow::Result<()> {
     write_atomic(&out.join("jobs.txt"), jobs.as_bytes())?;
     write_atomic(&spec_path, serde_json::to_string_pretty(spec)?.as_bytes())?;
     Ok(())
-}
-
-/// The runs of `new` whose evaluations the change from `old` makes stale: every run
-/// when the `maaf eval` arguments changed, else those whose split changed. Refuses
-/// (one line) a `new` that differs from `old` in anything that trains a run.
-fn reevaluated<'a>(
-    old: &SuiteSpec,
-    new: &'a SuiteSpec,
-    spec_path: &Path,
-) -> anyhow::Result<Vec<&'a SuiteRun>> {
-    let training = |s: &SuiteSpec| SuiteSpec {
-        eval_args: String::new(),
-        also_eval_on: Vec::new(),
-        runs: s
-            .runs
-            .iter()
-            .map(|r| SuiteRun {
-                split: String::new(),
-                ..r.clone()
-            })
-            .collect(),
-        ..s.clone()
-    };
-    if training(old) != training(new) {
-        bail!(
-            "{}: holds a suite written with other options (scenes, presets, filters, backgrounds, seeds or --iters; --eval-args, --split and --also-eval-on may change, its runs then evaluated again, never retrained); give the same options or another --out",
-            spec_path.display()
-        );
-    }
-    let args_changed = words(&old.eval_args) != new.eval_args;
-    Ok(new
-        .runs
-        .iter()
-        .zip(&old.runs)
-        .filter(|(n, o)| args_changed || n.split != o.split)
-        .map(|(n, _)| n)
-        .collect())
-}
-
-/// `--eval-args` as `suite.json` stores it: its words joined by one space.
-fn words(eval_args: &str) -> String {
-    eval_args.split_whitespace().collect::<Vec<_>>().join(" ")
-}
-
-/// Removes the evaluations of the run in `dir` (`eval.json`, `eval-on-*.json`), so
-/// the suite evaluates it again; returns how many there were.
-fn remove_evaluations(dir: &Path) -> anyhow::Result<usize> {
-    let Ok(entries) = std::fs::read_dir(dir) else {
-        return Ok(0);
-    };
-    let mut removed = 0;
-    for entry in entries.flatten() {
-        let name = entry.file_name().to_string_lossy().into_owned();
-        let evaluation = name == "eval.json"
-            || (name.starts_with(OTHER_BACKGROUND_PREFIX) && name.ends_with(".json"));
-        if evaluation {
-            let path = entry.path();
-            std::fs::remove_file(&path)
-                .with_context(|| format!("{}: cannot remove", path.display()))?;
-            removed += 1;
-        }
-    }
-    Ok(removed)
 }
 
 /// Whether `dir` exists and is not empty: a suite or a record is only written into a

@@ -18,7 +18,8 @@ use maaf_eval::eval_json::OTHER_BACKGROUND_PREFIX;
 use maaf_eval::report::suite::SuiteRun;
 use maaf_scene::write_atomic;
 
-use super::{SPEC_FILE, SuiteSpec, holds_files, read_spec, words};
+use super::eval_plan::words;
+use super::{SPEC_FILE, SuiteSpec, holds_files, read_spec};
 
 /// What [`record`] did: runs copied, and runs left out because not evaluated yet.
 pub(super) struct Recorded {
