@@ -6,19 +6,7 @@
 
 use std::path::{Path, PathBuf};
 
-use super::support::{Fixture, copy_dir, fixture, maaf, refused, s, succeeded};
-
-/// A copy of the fixture's data under `name` with `edit` applied to its training json.
-fn edited(fx: &Fixture, name: &str, edit: impl Fn(&mut serde_json::Value)) -> PathBuf {
-    let copy = fx.root.join(name);
-    copy_dir(&fx.data, &copy);
-    let json = copy.join("transforms_train.json");
-    let mut v: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&json).expect("read")).expect("parse");
-    edit(&mut v);
-    std::fs::write(&json, v.to_string()).expect("write");
-    copy
-}
+use super::support::{copy_dir, fixture, maaf, panoptic, refused, s, succeeded};
 
 /// Every file of a run's checkpoints and model, with its bytes.
 fn checkpoint_bytes(run: &Path) -> Vec<(PathBuf, Vec<u8>)> {
@@ -47,12 +35,10 @@ fn a_run_without_data_json_refuses_other_data_instead_of_starting_over() {
     let run = fx.trained("run");
     std::fs::remove_file(run.join("data.json")).expect("rm");
     let before = checkpoint_bytes(&run);
-    let fewer = edited(&fx, "fewer", |v| {
+    let fewer = fx.edited_copy("fewer", "train", |v| {
         v["frames"].as_array_mut().expect("frames").pop();
     });
-    let moved = edited(&fx, "moved", |v| {
-        v["frames"][0]["transform_matrix"][0][3] = serde_json::json!(0.125);
-    });
+    let moved = fx.moved_copy();
     for other in [&fewer, &moved] {
         refused(
             maaf(&[
@@ -135,9 +121,7 @@ fn the_same_json_over_other_images_is_another_data_set() {
 fn a_branch_onto_another_data_set_needs_other_data() {
     let fx = fixture("identity_branch");
     let run = fx.trained("run");
-    let moved = edited(&fx, "moved", |v| {
-        v["frames"][0]["transform_matrix"][0][3] = serde_json::json!(0.125);
-    });
+    let moved = fx.moved_copy();
     let branch = |out: &str, extra: &[&str]| {
         let out = fx.root.join(out);
         let mut args = vec![
@@ -172,25 +156,7 @@ fn a_branch_onto_another_data_set_needs_other_data() {
 fn panoptic_test_frames_take_the_training_frames_times() {
     let t = fixture("identity_panoptic");
     let data = t.root.join("pan");
-    succeeded(maaf(&[
-        "generate",
-        "--rig",
-        "multiview",
-        "--layout",
-        "dynamic3dgs",
-        "--out",
-        s(&data),
-        "--size",
-        "32",
-        "--height",
-        "32",
-        "--cameras",
-        "3",
-        "--frames",
-        "5",
-        "--samples",
-        "1",
-    ]));
+    panoptic(&data, "32", "32", "3", "5");
     // Keep the first two of the five frames in test_meta.json.
     let path = data.join("test_meta.json");
     let mut meta: serde_json::Value =

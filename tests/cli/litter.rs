@@ -7,7 +7,7 @@ use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use super::support::{Fixture, copy_dir, fixture, maaf, refused, s, succeeded};
+use super::support::{fixture, maaf, refused, s, succeeded};
 
 /// The names in `dir` containing the temporaries' marker.
 fn temporaries(dir: &Path) -> Vec<String> {
@@ -61,7 +61,7 @@ fn two_generations_into_one_folder_do_not_both_succeed() {
         std::thread::sleep(Duration::from_millis(10));
     }
     let pid = first.id().to_string();
-    let line = refused(
+    let second = || {
         maaf(&[
             "generate",
             "--out",
@@ -70,23 +70,12 @@ fn two_generations_into_one_folder_do_not_both_succeed() {
             "16",
             "--frames",
             "2",
-        ]),
-        &["is being generated (maaf generate, pid", &pid],
-    );
+        ])
+    };
+    let line = refused(second(), &["is being generated (maaf generate, pid", &pid]);
     assert_eq!(line.matches("is being generated").count(), 1, "{line}");
     assert!(first.wait().expect("wait").success());
-    refused(
-        maaf(&[
-            "generate",
-            "--out",
-            s(&out),
-            "--size",
-            "16",
-            "--frames",
-            "2",
-        ]),
-        &["already exists"],
-    );
+    refused(second(), &["already exists"]);
     let train = std::fs::read_to_string(out.join("transforms_train.json")).expect("json");
     assert_eq!(
         train.matches("\"file_path\"").count(),
@@ -187,19 +176,6 @@ fn cameras_into_an_earlier_camera_folder_replaces_it_whole() {
     );
 }
 
-/// A copy of the fixture's data with the first training camera moved: another data
-/// set with the same view count.
-fn moved_copy(fx: &Fixture) -> std::path::PathBuf {
-    let copy = fx.root.join("moved");
-    copy_dir(&fx.data, &copy);
-    let json = copy.join("transforms_train.json");
-    let mut v: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&json).expect("read")).expect("parse");
-    v["frames"][0]["transform_matrix"][0][3] = serde_json::json!(0.125);
-    std::fs::write(&json, v.to_string()).expect("write");
-    copy
-}
-
 #[test]
 fn a_refused_train_branch_or_eval_leaves_no_folder_or_lock_of_its_own() {
     let fx = fixture("litter_refused");
@@ -211,7 +187,7 @@ fn a_refused_train_branch_or_eval_leaves_no_folder_or_lock_of_its_own() {
         &["`nope` is not registered"],
     );
     assert!(!new.exists(), "a refused train leaves no folder");
-    let moved = moved_copy(&fx);
+    let moved = fx.moved_copy();
     let branch = fx.root.join("branch");
     refused(
         maaf(&[

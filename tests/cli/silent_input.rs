@@ -9,7 +9,7 @@
 use std::path::Path;
 use std::process::Command;
 
-use super::support::{fixture, maaf, refused, s, stderr, succeeded};
+use super::support::{copy_dir, fixture, maaf, panoptic, refused, s, stderr, succeeded};
 
 /// A camera file looking down the z axis from 4 units out, with `w2c` edited.
 fn camera_file(path: &Path, cx: f64, edit: impl Fn(&mut [[f64; 4]; 4])) {
@@ -67,29 +67,6 @@ fn camera_files_must_hold_a_rigid_pose_and_a_principal_point_in_view() {
     refused(render(), &["field `cx`", "degrees off the optical axis"]);
 }
 
-/// A Panoptic-layout scene (6 cameras, 4 frames, 64x48) in `dir`.
-fn panoptic(dir: &Path) {
-    succeeded(maaf(&[
-        "generate",
-        "--rig",
-        "multiview",
-        "--layout",
-        "dynamic3dgs",
-        "--out",
-        s(dir),
-        "--size",
-        "64",
-        "--height",
-        "48",
-        "--cameras",
-        "6",
-        "--frames",
-        "4",
-        "--samples",
-        "1",
-    ]));
-}
-
 /// `train_meta.json` of `dir` with `edit` applied to every entry's `k` and `w2c`.
 fn edit_train_meta(dir: &Path, edit: impl Fn(&mut serde_json::Value, &mut serde_json::Value)) {
     let path = dir.join("train_meta.json");
@@ -128,10 +105,10 @@ fn train(data: &Path, out: &Path) -> std::process::Output {
 fn panoptic_data_that_would_train_on_nothing_is_refused() {
     let fx = fixture("silent_panoptic");
     let data = fx.root.join("pan");
-    panoptic(&data);
+    panoptic(&data, "64", "48", "6", "4");
     // Every camera turned to face away, its centre kept: R' = diag(-1, 1, -1) R.
     let away = fx.root.join("away");
-    super::support::copy_dir(&data, &away);
+    copy_dir(&data, &away);
     edit_train_meta(&away, |_, w2c| {
         for r in [0, 2] {
             for c in 0..4 {
@@ -146,7 +123,7 @@ fn panoptic_data_that_would_train_on_nothing_is_refused() {
     );
     // Every foreground mask all background.
     let black = fx.root.join("black");
-    super::support::copy_dir(&data, &black);
+    copy_dir(&data, &black);
     let mut stack = vec![black.join("seg")];
     while let Some(dir) = stack.pop() {
         for e in std::fs::read_dir(&dir).expect("ls").flatten() {
@@ -165,7 +142,7 @@ fn panoptic_data_that_would_train_on_nothing_is_refused() {
     );
     // A focal length too short for a pinhole camera is named as the k entry.
     let wide = fx.root.join("wide");
-    super::support::copy_dir(&data, &wide);
+    copy_dir(&data, &wide);
     edit_train_meta(&wide, |k, _| k[0][0] = serde_json::json!(0.01));
     refused(
         maaf(&["inspect", "--data", s(&wide)]),
@@ -173,7 +150,7 @@ fn panoptic_data_that_would_train_on_nothing_is_refused() {
     );
     // A principal point at 10^12 px.
     let far = fx.root.join("far");
-    super::support::copy_dir(&data, &far);
+    copy_dir(&data, &far);
     edit_train_meta(&far, |k, _| k[0][2] = serde_json::json!(1e12));
     refused(
         maaf(&["inspect", "--data", s(&far)]),

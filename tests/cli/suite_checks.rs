@@ -43,22 +43,19 @@ fn suite_fixture(name: &str) -> Suite {
 impl Suite {
     /// `maaf bench-suite` of the one scene with the `none` filter, `eval_args` and
     /// `extra` options.
+    fn command(&self, eval_args: &str, extra: &[&str]) -> Command {
+        let mut command = Command::new(env!("CARGO_BIN_EXE_maaf"));
+        command
+            .args(["bench-suite", "--data", s(&self.scenes), "--preset"])
+            .args([s(&self.preset), "--out", s(&self.out), "--filters", "none"])
+            .args(["--eval-args", eval_args])
+            .args(extra);
+        command
+    }
+
+    /// [`Suite::command`], run to its end.
     fn run(&self, eval_args: &str, extra: &[&str]) -> Output {
-        let mut args = vec![
-            "bench-suite",
-            "--data",
-            s(&self.scenes),
-            "--preset",
-            s(&self.preset),
-            "--out",
-            s(&self.out),
-            "--filters",
-            "none",
-            "--eval-args",
-            eval_args,
-        ];
-        args.extend_from_slice(extra);
-        maaf(&args)
+        self.command(eval_args, extra).output().expect("run maaf")
     }
 
     /// The one run's folder.
@@ -254,22 +251,8 @@ fn gone(pid: u32) -> bool {
 fn a_killed_suite_leaves_no_training_running() {
     let st = suite_fixture("suite_orphans");
     for signal in ["KILL", "TERM"] {
-        let mut suite = Command::new(env!("CARGO_BIN_EXE_maaf"))
-            .args([
-                "bench-suite",
-                "--data",
-                s(&st.scenes),
-                "--preset",
-                s(&st.preset),
-                "--out",
-                s(&st.out),
-                "--filters",
-                "none",
-                "--iters",
-                "100000000",
-                "--eval-args",
-                EVAL,
-            ])
+        let mut suite = st
+            .command(EVAL, &["--iters", "100000000"])
             .stdout(Stdio::null())
             .stderr(Stdio::null())
             .spawn()
