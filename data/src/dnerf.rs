@@ -306,8 +306,8 @@ fn matrix4(json: &Path, field: &str, v: Option<&Value>) -> Result<DMat4, DataErr
     ))
 }
 
-/// A camera-to-world matrix must be invertible and rigid: last row `0 0 0 1` and an
-/// orthonormal 3x3 block (`|R^T R - I| < 1e-3` entrywise, `det R > 0`).
+/// A camera-to-world matrix must be invertible and rigid
+/// ([`maaf_splat::camera::rigid_problem`]: last row `0 0 0 1` and a rotation block).
 pub(crate) fn check_rigid(json: &Path, field: &str, m: &DMat4) -> Result<(), DataError> {
     let det = m.determinant();
     if det.abs() < 1e-9 {
@@ -317,32 +317,10 @@ pub(crate) fn check_rigid(json: &Path, field: &str, m: &DMat4) -> Result<(), Dat
             format!("matrix is not invertible (determinant {det:.3e})"),
         ));
     }
-    let last = m.row(3);
-    if (last - DVec4::new(0.0, 0.0, 0.0, 1.0)).abs().max_element() > 1e-6 {
-        return Err(DataError::field(
-            json,
-            field,
-            format!("last row is {last:?}, expected [0, 0, 0, 1]"),
-        ));
+    match maaf_splat::camera::rigid_problem(m) {
+        Some(problem) => Err(DataError::field(json, field, problem)),
+        None => Ok(()),
     }
-    let r = glam::DMat3::from_mat4(*m);
-    let rtr = r.transpose() * r;
-    let err = (rtr.x_axis - DVec3::X)
-        .abs()
-        .max_element()
-        .max((rtr.y_axis - DVec3::Y).abs().max_element())
-        .max((rtr.z_axis - DVec3::Z).abs().max_element());
-    if err > 1e-3 || r.determinant() <= 0.0 {
-        return Err(DataError::field(
-            json,
-            field,
-            format!(
-                "rotation block is not a rotation (|R^T R - I| = {err:.2e}, det {:.3})",
-                r.determinant()
-            ),
-        ));
-    }
-    Ok(())
 }
 
 pub(crate) fn parse_bounds(json: &Path, v: &Value) -> Result<Aabb, DataError> {

@@ -22,7 +22,11 @@
 //! training camera held out to choose settings on without touching the test cameras.
 //! All are ordered camera by camera (cameras in order of first appearance, each camera's
 //! frames in order), so a frame stride picks the same frames of every test camera.
-//! Frame `j` of `F` has `t = j / (F - 1)` (`0` when `F = 1`), so time spans `[0, 1]`.
+//! Frame `j` of the `F` training frames has `t = j / (F - 1)` (`0` when `F = 1`), so
+//! time spans `[0, 1]`. The test views are mapped by frame number: frame `j` of
+//! `test_meta.json` is frame `j` of the training sequence, at the same time, also when
+//! the test file lists fewer frames; one listing more frames than the training file
+//! (frames with no training time) is refused.
 //!
 //! # Moving pixels of the test views
 //! When every test image has a mask (the generator writes exact ones) those are the
@@ -101,12 +105,13 @@ pub struct Meta {
 }
 
 impl Meta {
-    /// The time of frame `j`: `j / (F - 1)`, or `0` for a single frame.
-    pub fn time(&self, j: usize) -> f64 {
-        if self.frames <= 1 {
+    /// The time of frame `j` of a sequence of `frames`: `j / (frames - 1)`, or `0`
+    /// for a single frame.
+    pub fn time(j: usize, frames: usize) -> f64 {
+        if frames <= 1 {
             0.0
         } else {
-            j as f64 / (self.frames - 1) as f64
+            j as f64 / (frames - 1) as f64
         }
     }
 
@@ -115,8 +120,10 @@ impl Meta {
         camera_order(&self.views)
     }
 
-    /// The split's [`SplitMeta`] (frames in the order of [`Meta::views`]).
-    pub fn split_meta(&self, split: Split) -> SplitMeta {
+    /// The split's [`SplitMeta`] (frames in the order of [`Meta::views`]), frame `j`
+    /// at the time of frame `j` of a sequence of `timeline` frames (the training
+    /// file's: test frames are mapped by frame number).
+    pub fn split_meta(&self, split: Split, timeline: usize) -> SplitMeta {
         let focal = self.views.first().map_or(1.0, |v| v.camera.fx);
         SplitMeta {
             split,
@@ -130,7 +137,7 @@ impl Meta {
                 .iter()
                 .map(|v| Frame {
                     file: v.image.clone(),
-                    time: self.time(v.frame),
+                    time: Self::time(v.frame, timeline),
                     camera: v.camera.clone(),
                     flow: None,
                 })
@@ -154,12 +161,13 @@ pub struct Dynamic3dgs {
 impl Dynamic3dgs {
     /// The `train`, `test` and (when present) `val` [`SplitMeta`]s.
     pub fn splits(&self) -> BTreeMap<Split, SplitMeta> {
+        let frames = self.train.frames;
         let mut splits = BTreeMap::from([
-            (Split::Train, self.train.split_meta(Split::Train)),
-            (Split::Test, self.test.split_meta(Split::Test)),
+            (Split::Train, self.train.split_meta(Split::Train, frames)),
+            (Split::Test, self.test.split_meta(Split::Test, frames)),
         ]);
         if let Some(val) = &self.val {
-            splits.insert(Split::Val, val.split_meta(Split::Val));
+            splits.insert(Split::Val, val.split_meta(Split::Val, frames));
         }
         splits
     }
@@ -175,6 +183,20 @@ pub fn read_dynamic3dgs(root: &Path) -> Result<Dynamic3dgs, DataError> {
         .is_file()
         .then(|| read_meta(root, &val_json))
         .transpose()?;
+    for (meta, name) in
+        std::iter::once((&test, TEST_META)).chain(val.as_ref().map(|v| (v, VAL_META)))
+    {
+        if meta.frames > train.frames {
+            return Err(DataError::field(
+                &meta.json,
+                "fn",
+                format!(
+                    "has {} frames but {TRAIN_META} has {}: frame j of {name} is training frame j (its time), so its views may not outlast the training sequence",
+                    meta.frames, train.frames
+                ),
+            ));
+        }
+    }
     Ok(Dynamic3dgs { train, test, val })
 }
 
@@ -320,8 +342,15 @@ fn entry_camera(json: &Path, j: usize, i: usize, file: &MetaFile) -> Result<Came
     }
     let w2c = DMat4::from_cols_array_2d(&rows).transpose();
     check_rigid(json, &field, &w2c)?;
-    Camera::new(file.w, file.h, fx, fy, cx, cy, rows)
-        .map_err(|e| DataError::field(json, field, e.to_string()))
+    Camera::new(file.w, file.h, fx, fy, cx, cy, rows).map_err(|e| {
+        // Name the table the camera's bad value came from.
+        let field = match e.field() {
+            Some("fx" | "fy" | "cx" | "cy") => format!("k[{j}][{i}]"),
+            Some("width/height") => "w, h".to_string(),
+            _ => field,
+        };
+        DataError::field(json, field, e.reason())
+    })
 }
 
 /// The image of `v` must exist and be `w x h`.

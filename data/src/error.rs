@@ -52,6 +52,9 @@ pub enum DataError {
         /// Why it is refused.
         message: String,
     },
+    /// The output folder is being written by another process ([`maaf_io::RunLock`]).
+    #[error(transparent)]
+    Lock(#[from] maaf_io::LockError),
     /// A request that does not fit the data set (absent split, index out of range,
     /// bad generator option).
     #[error("{path}: {message}")]

@@ -249,11 +249,63 @@ pub fn carve_step(
 /// Time steps whose background pixels colour the shell's points.
 const SHELL_STEPS: usize = 4;
 
+/// The folder of the masks of `steps` (the first view's), for messages.
+fn masks_folder(steps: &[HullStep]) -> PathBuf {
+    steps
+        .iter()
+        .flat_map(|s| &s.views)
+        .next()
+        .map_or_else(PathBuf::new, |v| maaf_io::parent_of(&v.mask).to_path_buf())
+}
+
+/// Refuses cameras that all face away from `centre` (the middle of the carved
+/// region): `centre` is behind every camera of `steps` by more than a tenth of its
+/// distance. A capture that surrounds its subject sees the middle of its cameras;
+/// carving with cameras turned around would find nothing and say nothing.
+fn refuse_facing_away(steps: &[HullStep], centre: DVec3) -> Result<(), DataError> {
+    let views: Vec<&HullView> = steps.iter().flat_map(|s| &s.views).collect();
+    let behind = |v: &&HullView| {
+        let c = v.camera.to_camera(centre);
+        c.z < -0.1 * c.length()
+    };
+    if !views.is_empty() && views.iter().all(behind) {
+        return Err(DataError::request(
+            &masks_folder(steps),
+            format!(
+                "the camera of every one of the {} training views carved faces away from the middle of the cameras (the region the visual hull is carved in): check the poses (w2c) or ship points3d.ply",
+                views.len()
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Refuses masks of `steps` that are all background (no pixel above 127): they mark
+/// nothing to start the movers from, and training would start from random points
+/// and report nothing wrong.
+fn refuse_empty_masks(steps: &[HullStep]) -> Result<(), DataError> {
+    let views: Vec<&HullView> = steps.iter().flat_map(|s| &s.views).collect();
+    let any_foreground = views
+        .par_iter()
+        .any(|v| decode(v).is_ok_and(|d| d.mask.contains(&true)));
+    if !any_foreground {
+        return Err(DataError::request(
+            &masks_folder(steps),
+            format!(
+                "every foreground mask of the {} training views carved is all background: the masks mark nothing for the visual hull; fix the masks or ship points3d.ply",
+                views.len()
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// The initial cloud of at most `budget` points (module doc) and how many of them are
 /// hull surface points (the first ones): hull surface points of every step in `steps`
 /// plus static points in the box of `camera_centres` and the hull. Seeded;
 /// steps are carved one after the other (each in parallel), so memory holds one
-/// step's images.
+/// step's images. Refused: cameras that all face away from the middle of their
+/// centres, and an empty hull whose masks are all background.
 pub fn hull_cloud(
     steps: &[HullStep],
     camera_centres: &[DVec3],
@@ -270,6 +322,7 @@ pub fn hull_cloud(
         min: lo - margin,
         max: hi + margin,
     };
+    refuse_facing_away(steps, 0.5 * (lo + hi))?;
     let mut hull = PointCloud {
         points: Vec::new(),
         colours: Vec::new(),
@@ -282,6 +335,9 @@ pub fn hull_cloud(
         if let (Some(t), Some(p)) = (hull.times.as_mut(), part.times) {
             t.extend(p);
         }
+    }
+    if hull.is_empty() {
+        refuse_empty_masks(steps)?;
     }
     // The static box reaches the floor the movers stand on, below the lowest camera.
     let (lo, hi) = hull.points.iter().fold((lo, hi), |(lo, hi), p| {

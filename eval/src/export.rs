@@ -17,7 +17,7 @@
 //! file-name order) and SuperSplat takes dropped files as a sequence only when all share
 //! one prefix followed by a frame number (`docs/viewing.md`).
 
-use std::io::{BufWriter, Read, Write};
+use std::io::{BufWriter, Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
 use maaf_autodiff::Tensor;
@@ -102,8 +102,16 @@ pub fn finite_frame_gaussians(scene: &TrainedScene, time: f64) -> Result<Gaussia
 /// Returns how many Gaussians it holds (those drawn at `time`).
 pub fn export_frame(scene: &TrainedScene, time: f64, out: &Path) -> Result<usize, Error> {
     let g = finite_frame_gaussians(scene, time)?;
+    sweep_dead_temps(out)?;
     write_atomic(out, &ply_bytes_with_comments(&g, &[time_comment(time)]))?;
     Ok(g.len())
+}
+
+/// Removes what a killed export to `out` left beside it ([`maaf_io::remove_dead_temps`]).
+pub(crate) fn sweep_dead_temps(out: &Path) -> Result<(), Error> {
+    maaf_io::remove_dead_temps(out)
+        .map(|_| ())
+        .map_err(|e| Error::io(out, e))
 }
 
 /// The header comment that records a frame's time.
@@ -198,22 +206,12 @@ pub fn export_sequence(
 ) -> Result<Vec<PathBuf>, Error> {
     let times = frame_times(range, frames)?;
     check_sequence_folder(out)?;
-    let tmp = maaf_io::temp_sibling(out);
-    if tmp.exists() {
-        std::fs::remove_dir_all(&tmp).map_err(|e| Error::io(&tmp, e))?;
-    }
-    std::fs::create_dir_all(&tmp).map_err(|e| Error::io(&tmp, e))?;
-    let result = (|| {
+    maaf_io::write_dir(out, Error::io, |tmp| {
         for (i, &t) in times.iter().enumerate() {
             write_atomic(&tmp.join(frame_name(i)), &frame_bytes(scene, t)?)?;
         }
         Ok(())
-    })();
-    if let Err(e) = result {
-        let _ = std::fs::remove_dir_all(&tmp);
-        return Err(e);
-    }
-    maaf_io::replace_dir(&tmp, out).map_err(|e| Error::io(out, e))?;
+    })?;
     Ok((0..frames).map(|i| out.join(frame_name(i))).collect())
 }
 
@@ -232,8 +230,9 @@ pub fn export_sequence_zip(
 ) -> Result<u64, Error> {
     let times = frame_times(range, frames)?;
     check_zip_target(out)?;
+    sweep_dead_temps(out)?;
     maaf_io::write_atomic_with(out, |file| {
-        let mut zip = ZipWriter::new(BufWriter::new(file));
+        let mut zip = ZipWriter::new(FirstError::new(BufWriter::new(file)));
         let mut put = |name: &str, bytes: &[u8]| -> std::io::Result<()> {
             let options = SimpleFileOptions::default()
                 .compression_method(CompressionMethod::Deflated)
@@ -250,4 +249,74 @@ pub fn export_sequence_zip(
     })
     .map_err(|e| Error::io(out, e))?;
     Ok(std::fs::metadata(out).map_err(|e| Error::io(out, e))?.len())
+}
+
+/// The archive's writer, which stops at its first error (a full disk): later writes
+/// and seeks only move a virtual position. The zip writer finalises the archive when
+/// dropped after an error and prints its own error as a debug line when that fails
+/// too; here that clean-up writes into nothing (the temporary file is removed
+/// anyway) and the one error reported is the first.
+struct FirstError<W> {
+    inner: W,
+    failed: bool,
+    pos: u64,
+    end: u64,
+}
+
+impl<W> FirstError<W> {
+    fn new(inner: W) -> Self {
+        FirstError {
+            inner,
+            failed: false,
+            pos: 0,
+            end: 0,
+        }
+    }
+
+    fn moved_to(&mut self, pos: u64) -> u64 {
+        self.pos = pos;
+        self.end = self.end.max(pos);
+        pos
+    }
+}
+
+impl<W: Write> Write for FirstError<W> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        if !self.failed {
+            match self.inner.write(buf) {
+                Ok(n) => {
+                    self.moved_to(self.pos + n as u64);
+                    return Ok(n);
+                }
+                Err(e) => {
+                    self.failed = true;
+                    return Err(e);
+                }
+            }
+        }
+        self.moved_to(self.pos + buf.len() as u64);
+        Ok(buf.len())
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        if self.failed {
+            return Ok(());
+        }
+        self.inner.flush().inspect_err(|_| self.failed = true)
+    }
+}
+
+impl<W: Seek> Seek for FirstError<W> {
+    fn seek(&mut self, to: SeekFrom) -> std::io::Result<u64> {
+        if !self.failed {
+            let pos = self.inner.seek(to).inspect_err(|_| self.failed = true)?;
+            return Ok(self.moved_to(pos));
+        }
+        let pos = match to {
+            SeekFrom::Start(p) => p,
+            SeekFrom::Current(d) => self.pos.saturating_add_signed(d),
+            SeekFrom::End(d) => self.end.saturating_add_signed(d),
+        };
+        Ok(self.moved_to(pos))
+    }
 }

@@ -2,10 +2,11 @@
 //! colour-mapped error maps and animated GIFs. Metrics never see these 8-bit images;
 //! they are for looking at.
 
-use std::path::Path;
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
 
-use image::codecs::gif::{GifEncoder, Repeat};
-use image::{Delay, RgbImage, RgbaImage};
+use image::RgbImage;
 use maaf_autodiff::Tensor;
 
 use crate::{Error, write_atomic};
@@ -85,21 +86,76 @@ pub fn save_png(img: &RgbImage, path: &Path) -> Result<(), Error> {
     write_atomic(path, &bytes)
 }
 
-/// Writes `frames` as an infinitely looping animated GIF (`delay_ms` per frame),
-/// crash-safely. GIF has 256 colours per frame, so this is a preview; the PNG frames
-/// are the faithful output.
-pub fn save_gif(frames: &[RgbImage], delay_ms: u32, path: &Path) -> Result<(), Error> {
-    let mut bytes = Vec::new();
-    {
-        let mut enc = GifEncoder::new_with_speed(&mut bytes, 10);
-        enc.set_repeat(Repeat::Infinite)
-            .map_err(|e| Error::Input(format!("{}: {e}", path.display())))?;
-        let gif_frames = frames.iter().map(|f| {
-            let rgba: RgbaImage = image::DynamicImage::ImageRgb8(f.clone()).to_rgba8();
-            image::Frame::from_parts(rgba, 0, 0, Delay::from_numer_denom_ms(delay_ms, 1))
-        });
-        enc.encode_frames(gif_frames)
-            .map_err(|e| Error::Input(format!("{}: cannot encode GIF: {e}", path.display())))?;
+/// An infinitely looping animated GIF written frame by frame into a file, so a video
+/// of any length needs the memory of one frame. GIF has 256 colours per frame, so
+/// this is a preview; the PNG frames are the faithful output. The file is written in
+/// place: a caller that needs it crash-safe writes it into a folder swapped in whole
+/// ([`maaf_io::write_dir`]).
+pub struct GifWriter {
+    encoder: Option<gif::Encoder<BufWriter<File>>>,
+    writer: Option<BufWriter<File>>,
+    delay: u16,
+    path: PathBuf,
+}
+
+impl GifWriter {
+    /// Creates the file `path` for frames shown `delay_ms` each.
+    pub fn create(path: &Path, delay_ms: u32) -> Result<Self, Error> {
+        let file = File::create(path).map_err(|e| Error::io(path, e))?;
+        Ok(GifWriter {
+            encoder: None,
+            writer: Some(BufWriter::new(file)),
+            delay: u16::try_from(delay_ms / 10).unwrap_or(u16::MAX),
+            path: path.to_path_buf(),
+        })
     }
-    write_atomic(path, &bytes)
+
+    /// Appends a frame (every frame must have the first one's size).
+    pub fn push(&mut self, frame: &RgbImage) -> Result<(), Error> {
+        let bad = |e: gif::EncodingError| {
+            Error::Input(format!("{}: cannot encode GIF: {e}", self.path.display()))
+        };
+        let (w, h) = frame.dimensions();
+        let (Ok(w), Ok(h)) = (u16::try_from(w), u16::try_from(h)) else {
+            return Err(Error::Input(format!(
+                "{}: a GIF frame is at most 65535 px a side, not {w}x{h}",
+                self.path.display()
+            )));
+        };
+        if self.encoder.is_none()
+            && let Some(writer) = self.writer.take()
+        {
+            let mut encoder = gif::Encoder::new(writer, w, h, &[]).map_err(bad)?;
+            encoder.set_repeat(gif::Repeat::Infinite).map_err(bad)?;
+            self.encoder = Some(encoder);
+        }
+        let Some(encoder) = self.encoder.as_mut() else {
+            return Err(Error::Input(format!(
+                "{}: GIF already finished",
+                self.path.display()
+            )));
+        };
+        let mut gif_frame = gif::Frame::from_rgb_speed(w, h, frame.as_raw(), 10);
+        gif_frame.delay = self.delay;
+        gif_frame.dispose = gif::DisposalMethod::Background;
+        encoder.write_frame(&gif_frame).map_err(bad)
+    }
+
+    /// Writes the GIF's trailer and flushes the file; an error (a full disk) is
+    /// returned rather than lost.
+    pub fn finish(mut self) -> Result<(), Error> {
+        let Some(encoder) = self.encoder.take() else {
+            return Err(Error::Input(format!(
+                "{}: a GIF needs at least one frame",
+                self.path.display()
+            )));
+        };
+        let writer = encoder.into_inner().map_err(|e| {
+            Error::Input(format!("{}: cannot encode GIF: {e}", self.path.display()))
+        })?;
+        writer
+            .into_inner()
+            .map_err(|e| Error::io(&self.path, e.into_error()))?;
+        Ok(())
+    }
 }

@@ -50,7 +50,7 @@ pub use eval_json::{
 };
 pub use maaf_scene::{Error, write_atomic};
 pub use render::{load_scene_on, run_camera};
-pub use sequence::frame_times;
+pub use sequence::{MAX_SEQUENCE_FRAMES, check_frame_count, frame_times};
 
 /// The paper's evaluation scales relative to the training scale: 1/4x, 1/2x (zoom-out),
 /// 1x, 2x and 4x (zoom-in).
@@ -106,7 +106,7 @@ struct ResolvedScale {
 
 /// Checks every scale against the data before anything is rendered: positive,
 /// finite, not repeated, no more pixels than the source images, an integer
-/// downsampling factor of them.
+/// downsampling factor of them, images no smaller than the SSIM window.
 fn resolve_scales(
     data: &Dataset,
     split: Split,
@@ -150,6 +150,14 @@ fn resolve_scales(
                 trim_float(source)
             ))
         })?;
+        let window = crate::metrics::ssim_window::SSIM_WINDOW;
+        if (width as usize) < window || (height as usize) < window {
+            return Err(Error::Input(format!(
+                "scale {}x gives {width}x{height} images (training scale {}), smaller than the {window}x{window} SSIM window",
+                trim_float(s),
+                trim_float(train_scale)
+            )));
+        }
         out.push(ResolvedScale {
             relative: s,
             source,
@@ -158,6 +166,41 @@ fn resolve_scales(
         });
     }
     Ok(out)
+}
+
+/// Checks `options` against `data` for a run trained at `train_scale`, as an
+/// evaluation does before rendering anything: the split has views, `max_views` and
+/// `frame_stride` are at least 1, and every scale is possible ([`resolve_scales`]).
+/// A caller that plans evaluations (a suite, before training its runs) calls it to
+/// refuse an evaluation that could never run.
+pub fn check_eval_options(
+    data: &Dataset,
+    train_scale: f64,
+    options: &EvalOptions,
+) -> Result<(), Error> {
+    checked_scales(data, train_scale, options).map(|_| ())
+}
+
+/// [`check_eval_options`], returning the resolved scales.
+fn checked_scales(
+    data: &Dataset,
+    train_scale: f64,
+    options: &EvalOptions,
+) -> Result<Vec<ResolvedScale>, Error> {
+    let split = options.split;
+    if data.len(split) == 0 {
+        return Err(Error::Input(format!(
+            "{}: the {split:?} split has no views",
+            data.root().display()
+        )));
+    }
+    if options.max_views == Some(0) {
+        return Err(Error::Input("--max-views must be at least 1".into()));
+    }
+    if options.frame_stride == 0 {
+        return Err(Error::Input("--frame-stride must be at least 1".into()));
+    }
+    resolve_scales(data, split, train_scale, &options.scales)
 }
 
 /// The views of `split` at every `stride`-th distinct time (ranked in time order),
@@ -390,6 +433,9 @@ pub fn evaluate_run_with(
     // The evaluation writes into the run: it holds the run's lock exclusively (no
     // trainer replaces the model it reads, no other evaluation shares its outputs)
     // and so may sweep what a killed evaluation left behind.
+    // A folder without a model (a checkpoint folder, a run killed early) is refused
+    // before the lock, which would leave a lock file in it.
+    maaf_scene::model_dir(run)?;
     let _lock = if run.is_dir() {
         let doing = format!("evaluated (pid {})", std::process::id());
         let lock =
@@ -421,20 +467,8 @@ pub fn evaluate_scene(
     options: &EvalOptions,
 ) -> Result<EvalReport, Error> {
     let split = options.split;
-    if data.len(split) == 0 {
-        return Err(Error::Input(format!(
-            "{}: the {split:?} split has no views",
-            data.root().display()
-        )));
-    }
-    if options.max_views == Some(0) {
-        return Err(Error::Input("--max-views must be at least 1".into()));
-    }
-    if options.frame_stride == 0 {
-        return Err(Error::Input("--frame-stride must be at least 1".into()));
-    }
+    let scales = checked_scales(data, scene.config.train_scale, options)?;
     let indices = strided_views(data, split, options.frame_stride, options.max_views);
-    let scales = resolve_scales(data, split, scene.config.train_scale, &options.scales)?;
     let mut report = run_report(scene, data);
     report.frame_stride = options.frame_stride;
     // LPIPS is optional: without weights every scale gets `lpips: null` and the reason.

@@ -5,12 +5,12 @@
 use std::path::{Path, PathBuf};
 
 use maaf_data::{Dataset, Split, SplitMeta};
-use maaf_scene::{ModelRegistry, TrainedScene, model_dir};
+use maaf_scene::{ModelRegistry, Opened, TrainedScene, model_dir};
 use maaf_splat::Camera;
 use serde::{Deserialize, Serialize};
 
 use super::images;
-use super::sequence::check_own_folder;
+use super::sequence::{check_frame_count, check_own_folder};
 use crate::{Error, write_atomic};
 
 /// What a run was trained on, written as `RUN/data.json` by [`record_data`] when the
@@ -35,6 +35,46 @@ pub struct DataFingerprint {
     /// written before it existed, which are checked by the fields above only.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub frames: Option<String>,
+    /// [`pixels_fingerprint`] of the training images: 16 hex digits over every
+    /// training image file's size and CRC-32, so the same cameras over other images
+    /// are another data set. Absent in runs written before it existed, which are
+    /// checked without it and gain it on their next resume.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pixels: Option<String>,
+}
+
+/// FNV-1a 64 of the byte strings `feed` passes to its callback, as 16 hex digits.
+fn fnv1a(feed: impl FnOnce(&mut dyn FnMut(&[u8]))) -> String {
+    let mut hash: u64 = 0xcbf2_9ce4_8422_2325;
+    feed(&mut |bytes: &[u8]| {
+        for &b in bytes {
+            hash ^= u64::from(b);
+            hash = hash.wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    });
+    format!("{hash:016x}")
+}
+
+/// A fingerprint of a split's image files (FNV-1a 64 over, per frame in split order,
+/// the file's size and the CRC-32 of its bytes), as 16 hex digits: the pixels the
+/// frames fingerprint does not cover. Reads every file (in parallel); an unreadable
+/// one is an error naming it.
+pub fn pixels_fingerprint(meta: &SplitMeta) -> Result<String, Error> {
+    use rayon::prelude::*;
+    let sums = meta
+        .frames
+        .par_iter()
+        .map(|frame| {
+            let bytes = std::fs::read(&frame.file).map_err(|e| Error::io(&frame.file, e))?;
+            Ok((bytes.len() as u64, crc32fast::hash(&bytes)))
+        })
+        .collect::<Result<Vec<(u64, u32)>, Error>>()?;
+    Ok(fnv1a(|feed| {
+        for (len, crc) in sums {
+            feed(&len.to_le_bytes());
+            feed(&crc.to_le_bytes());
+        }
+    }))
 }
 
 /// A fingerprint of a split's frames and cameras (FNV-1a 64 over, per frame, the
@@ -43,29 +83,23 @@ pub struct DataFingerprint {
 /// Computed from the [`SplitMeta`] every loader produces, so any data format is
 /// covered; two folders with the same frames and cameras have the same fingerprint.
 pub fn frames_fingerprint(meta: &SplitMeta, root: &Path) -> String {
-    let mut hash: u64 = 0xcbf2_9ce4_8422_2325;
-    let mut feed = |bytes: &[u8]| {
-        for &b in bytes {
-            hash ^= u64::from(b);
-            hash = hash.wrapping_mul(0x0000_0100_0000_01b3);
+    fnv1a(|feed| {
+        feed(&meta.width.to_le_bytes());
+        feed(&meta.height.to_le_bytes());
+        for frame in &meta.frames {
+            let name = frame.file.strip_prefix(root).unwrap_or(&frame.file);
+            let name = name.to_string_lossy();
+            feed(&(name.len() as u64).to_le_bytes());
+            feed(name.as_bytes());
+            let c = &frame.camera;
+            feed(&c.width.to_le_bytes());
+            feed(&c.height.to_le_bytes());
+            let pose = c.world_to_camera.iter().flatten();
+            for v in [frame.time, c.fx, c.fy, c.cx, c.cy].iter().chain(pose) {
+                feed(&v.to_bits().to_le_bytes());
+            }
         }
-    };
-    feed(&meta.width.to_le_bytes());
-    feed(&meta.height.to_le_bytes());
-    for frame in &meta.frames {
-        let name = frame.file.strip_prefix(root).unwrap_or(&frame.file);
-        let name = name.to_string_lossy();
-        feed(&(name.len() as u64).to_le_bytes());
-        feed(name.as_bytes());
-        let c = &frame.camera;
-        feed(&c.width.to_le_bytes());
-        feed(&c.height.to_le_bytes());
-        let pose = c.world_to_camera.iter().flatten();
-        for v in [frame.time, c.fx, c.fy, c.cx, c.cy].iter().chain(pose) {
-            feed(&v.to_bits().to_le_bytes());
-        }
-    }
-    format!("{hash:016x}")
+    })
 }
 
 impl DataFingerprint {
@@ -84,6 +118,7 @@ impl DataFingerprint {
             height: meta.height,
             background: data.background(),
             frames: Some(frames_fingerprint(meta, data.root())),
+            pixels: Some(pixels_fingerprint(meta)?),
         })
     }
 
@@ -112,7 +147,12 @@ impl DataFingerprint {
             (Some(a), Some(b)) if a != b => Some(format!(
                 "its training frames and cameras differ (fingerprint {b}, the run's {a})"
             )),
-            (Some(_), Some(_)) => None,
+            (Some(_), Some(_)) => match (&self.pixels, &now.pixels) {
+                (Some(a), Some(b)) if a != b => Some(format!(
+                    "its training images differ in their bytes (pixels fingerprint {b}, the run's {a})"
+                )),
+                _ => None,
+            },
             _ if (self.train_views, self.width, self.height)
                 != (now.train_views, now.width, now.height) =>
             {
@@ -177,6 +217,49 @@ pub fn recorded_data(run: &Path) -> Result<Option<DataFingerprint>, Error> {
         .map_err(|e| Error::Input(format!("{}: {e}", path.display())))
 }
 
+/// The run folder holding the checkpoint folder `dir`: `RUN` of `RUN/model` or
+/// `RUN/checkpoints/iter_N`; `None` for a folder elsewhere.
+fn checkpoint_run(dir: &Path) -> Option<PathBuf> {
+    let parent = dir.parent()?;
+    if dir.file_name()? == "model" {
+        return Some(parent.to_path_buf());
+    }
+    (parent.file_name()? == "checkpoints").then(|| maaf_io::parent_of(parent).to_path_buf())
+}
+
+/// Refuses `data` unless it is the data set the checkpoint folder `dir` was trained
+/// on: by the `data.json` of the run holding it ([`DataFingerprint::check_frames`])
+/// when there is one, else by the checkpoint's scene record (every training view's
+/// camera at the training scale and its time), which every checkpoint written since
+/// the record exists holds. A checkpoint with neither is not checked. What a resume
+/// of a run without `data.json` and a branch (`--from`) onto another run's
+/// checkpoint check; the message names both data sets.
+pub fn check_checkpoint_data(dir: &Path, data: &Dataset) -> Result<(), Error> {
+    if let Some(run) = checkpoint_run(dir)
+        && let Some(rec) = recorded_data(&run)?
+    {
+        return rec.check_frames(&DataFingerprint::of(data)?, &run);
+    }
+    let opened = Opened::open(dir)?;
+    let Some(record) = opened.scene_record()? else {
+        return Ok(());
+    };
+    let input = |e: maaf_data::DataError| Error::Input(e.to_string());
+    let cameras = data
+        .cameras(Split::Train, opened.state.config.train_scale)
+        .map_err(input)?;
+    if cameras != record.cameras || data.times(Split::Train) != record.times {
+        return Err(Error::Input(format!(
+            "{}: is not the data set the checkpoint {} was trained on: its {} training views' cameras or times differ from the {} the checkpoint records",
+            data.root().display(),
+            dir.display(),
+            cameras.len(),
+            record.cameras.len()
+        )));
+    }
+    Ok(())
+}
+
 /// Loads the trained scene of `run` for evaluation on `data`: refuses a data set
 /// other than the one `RUN/data.json` records ([`DataFingerprint::check_frames`]: its
 /// background may differ, [`crate::EvalReport::name`]), then
@@ -224,10 +307,12 @@ pub fn run_camera(
 
 /// Renders one frame per `(camera, time)` of `frames` (a fixed camera over time, a
 /// camera path, or a data set's views) into `out` as `frame_NNNN.png` plus an
-/// animated `video.gif` (10 frames per second). Returns the PNG paths. The frames are
-/// built in a fresh temporary folder swapped in for `out` ([`maaf_io::replace_dir`]),
-/// so no frame of an earlier, longer video stays beside the new ones; an `out`
-/// holding anything but such frames is refused.
+/// animated `video.gif` (10 frames per second). Returns the PNG paths. Frames are
+/// rendered and written one at a time (the GIF streamed, [`images::GifWriter`]), so
+/// a video needs the memory of one frame. The frames are built in a fresh temporary
+/// folder swapped in for `out` ([`maaf_io::write_dir`]), so no frame of an earlier,
+/// longer video stays beside the new ones; an `out` holding anything but such frames
+/// is refused.
 pub fn render_video(
     scene: &TrainedScene,
     frames: &[(Camera, f64)],
@@ -236,31 +321,22 @@ pub fn render_video(
     if frames.is_empty() {
         return Err(Error::Input("a video needs at least one frame".into()));
     }
+    check_frame_count(frames.len())?;
     check_own_folder(out, "video", |name| {
         name == "video.gif" || (name.starts_with("frame_") && name.ends_with(".png"))
     })?;
-    let tmp = maaf_io::temp_sibling(out);
-    if tmp.exists() {
-        std::fs::remove_dir_all(&tmp).map_err(|e| Error::io(&tmp, e))?;
-    }
-    std::fs::create_dir_all(&tmp).map_err(|e| Error::io(&tmp, e))?;
     let settings = scene.render_settings();
     let names: Vec<String> = (0..frames.len())
         .map(|i| format!("frame_{i:04}.png"))
         .collect();
-    let written = (|| {
-        let mut rgb = Vec::with_capacity(frames.len());
+    maaf_io::write_dir(out, Error::io, |tmp| {
+        let mut gif = images::GifWriter::create(&tmp.join("video.gif"), 100)?;
         for (name, (camera, t)) in names.iter().zip(frames) {
             let img = images::to_rgb8(&scene.render_with(camera, *t, &settings))?;
             images::save_png(&img, &tmp.join(name))?;
-            rgb.push(img);
+            gif.push(&img)?;
         }
-        images::save_gif(&rgb, 100, &tmp.join("video.gif"))?;
-        maaf_io::replace_dir(&tmp, out).map_err(|e| Error::io(out, e))
-    })();
-    if let Err(e) = written {
-        let _ = std::fs::remove_dir_all(&tmp);
-        return Err(e);
-    }
+        gif.finish()
+    })?;
     Ok(names.iter().map(|name| out.join(name)).collect())
 }

@@ -49,6 +49,29 @@ pub fn replace_dir(new: &Path, target: &Path) -> io::Result<()> {
     fs::remove_dir_all(&old)
 }
 
+/// Writes the folder `out` whole or not at all: what killed writers of `out` left
+/// beside it goes first ([`crate::remove_dead_temps`]), `fill` writes the content into
+/// a fresh [`crate::temp_sibling`], which [`replace_dir`] then swaps in for `out`
+/// (replacing an existing one). On any failure the temporary is removed and `out` is
+/// left as it was. `io_err` turns an I/O error at a path into the caller's error.
+pub fn write_dir<E>(
+    out: &Path,
+    io_err: impl Fn(&Path, io::Error) -> E,
+    fill: impl FnOnce(&Path) -> Result<(), E>,
+) -> Result<(), E> {
+    crate::remove_dead_temps(out).map_err(|e| io_err(out, e))?;
+    let tmp = crate::temp_sibling(out);
+    if tmp.exists() {
+        fs::remove_dir_all(&tmp).map_err(|e| io_err(&tmp, e))?;
+    }
+    fs::create_dir_all(&tmp).map_err(|e| io_err(&tmp, e))?;
+    let result = fill(&tmp).and_then(|()| replace_dir(&tmp, out).map_err(|e| io_err(out, e)));
+    if result.is_err() {
+        let _ = fs::remove_dir_all(&tmp);
+    }
+    result
+}
+
 /// Atomically exchanges the names `a` and `b`; `Ok(false)` where the system or file
 /// system cannot.
 #[cfg(target_os = "linux")]

@@ -15,8 +15,12 @@
 //! [`readable_dir`] finds it and [`recover_dir`] restores it. Leftover temporaries of
 //! a killed process start with `.` and contain [`TEMP_MARK`]; [`remove_stale_temps`]
 //! sweeps them on the next start. [`fault`] injects kills and full disks for tests.
-//! [`lock`] keeps one writer per run folder; [`memory`] checks a user-sized
-//! allocation against the memory available before it is made.
+//! A command that writes outside a run folder (an export, a video, a generated data
+//! set) sweeps the temporaries of its target that a killed process left
+//! ([`remove_dead_temps`]). [`lock`] keeps one writer per run folder; [`memory`]
+//! checks a user-sized allocation against the memory available before it is made;
+//! [`process`] tells whether a temporary's owner still runs and ties child processes
+//! to their parent.
 
 use std::fs::{self, File};
 use std::io::{self, Write};
@@ -27,8 +31,9 @@ pub mod fault;
 pub mod lock;
 pub mod memory;
 mod name;
+pub mod process;
 
-pub use dir::{readable_dir, recover_dir, recover_parked_in, replace_dir};
+pub use dir::{readable_dir, recover_dir, recover_parked_in, replace_dir, write_dir};
 use fault::Step;
 pub use lock::{LockError, RunLock};
 pub use name::is_plugin_name;
@@ -141,16 +146,54 @@ pub fn remove_stale_temps(dir: &Path) -> io::Result<usize> {
     for entry in entries.flatten() {
         let name = entry.file_name().to_string_lossy().into_owned();
         if name.starts_with('.') && name.contains(TEMP_MARK) {
-            let path = entry.path();
-            if entry.file_type()?.is_dir() {
-                fs::remove_dir_all(&path)?;
-            } else {
-                fs::remove_file(&path)?;
-            }
+            remove_entry(&entry)?;
             removed += 1;
         }
     }
     Ok(removed)
+}
+
+/// Removes the temporaries of `path` that a process which has ended left beside it
+/// (`.NAME.maaf-tmp-PID`, [`temp_sibling`], files or folders; `PID` no longer
+/// running, [`process::alive`]); returns how many. A temporary of a running process
+/// (another command writing the same target) is kept, and so is the parked old
+/// version of a folder swap cut short (`.NAME.old.maaf-tmp-PID`), which
+/// [`recover_dir`] restores. Outputs that no lock guards (an export, a video, a
+/// generated data set) call it before writing, so a killed command's 30-50 MB
+/// leftover does not stay for good.
+pub fn remove_dead_temps(path: &Path) -> io::Result<usize> {
+    let Some(name) = path.file_name() else {
+        return Ok(0);
+    };
+    let prefix = format!(".{}{TEMP_MARK}", name.to_string_lossy());
+    let Ok(entries) = fs::read_dir(parent_of(path)) else {
+        return Ok(0);
+    };
+    let mut removed = 0;
+    for entry in entries.flatten() {
+        let file_name = entry.file_name().to_string_lossy().into_owned();
+        let Some(pid) = file_name
+            .strip_prefix(&prefix)
+            .and_then(|p| p.parse::<u32>().ok())
+        else {
+            continue;
+        };
+        if process::alive(pid) {
+            continue;
+        }
+        remove_entry(&entry)?;
+        removed += 1;
+    }
+    Ok(removed)
+}
+
+/// Removes a folder entry, a file or a whole folder.
+fn remove_entry(entry: &fs::DirEntry) -> io::Result<()> {
+    if entry.file_type()?.is_dir() {
+        fs::remove_dir_all(entry.path())
+    } else {
+        fs::remove_file(entry.path())
+    }
 }
 
 #[cfg(test)]
@@ -232,6 +275,24 @@ pub(crate) mod tests {
         assert!(status.success());
         assert_eq!(fs::read(&f).expect("read"), b"old");
         assert_eq!(fs::read_dir(&dir).expect("ls").count(), 1, "no temp left");
+    }
+
+    #[test]
+    fn the_dead_temps_of_a_target_go_and_a_running_process_keeps_its_own() {
+        let dir = scratch("dead");
+        let out = dir.join("video");
+        let dead = dir.join(format!(".video{TEMP_MARK}{}", 1 << 23));
+        fs::create_dir_all(dead.join("inner")).expect("mkdir");
+        let running = temp_sibling(&out);
+        fs::write(&running, b"being written").expect("write");
+        let parked = dir.join(format!(".video.old{TEMP_MARK}{}", 1 << 23));
+        fs::create_dir_all(&parked).expect("mkdir");
+        let other = dir.join(format!(".frames{TEMP_MARK}{}", 1 << 23));
+        fs::write(&other, b"another target's").expect("write");
+        let expected = usize::from(cfg!(target_os = "linux"));
+        assert_eq!(remove_dead_temps(&out).expect("sweep"), expected);
+        assert_eq!(dead.exists(), expected == 0);
+        assert!(running.exists() && parked.exists() && other.exists());
     }
 
     #[test]

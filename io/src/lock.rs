@@ -8,6 +8,13 @@
 //! and the library's run entry points take it again, which only counts up.
 //! The holder of an exclusive lock writes what it is doing into the file, so a
 //! refused process can say who holds it.
+//!
+//! A command refused after taking the lock leaves nothing: when the last guard
+//! drops and the folder holds nothing but the lock file this process created, the
+//! file goes, and the folder too when this process created it (a refused `maaf
+//! train --out NEW`). A process that locked a lock file just removed that way (it
+//! opened the file before the removal) sees that the file it holds is no longer the
+//! one at the path and takes the lock again on the new one.
 
 use std::collections::HashMap;
 use std::fs::{File, OpenOptions, TryLockError};
@@ -15,11 +22,27 @@ use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 use std::sync::{Mutex, MutexGuard};
 
+use crate::parent_of;
+
 /// Name of the lock file inside a run folder.
 pub const LOCK_FILE: &str = "run.lock";
 
-/// The locks this process holds: lock-file path -> (open file, exclusive, holders).
-type Held = HashMap<PathBuf, (File, bool, usize)>;
+/// A lock this process holds.
+struct Entry {
+    /// The open lock file.
+    file: File,
+    /// Held exclusively.
+    exclusive: bool,
+    /// Guards of this process holding it.
+    holders: usize,
+    /// This process created the lock file.
+    created_file: bool,
+    /// The run folder, when this process created it.
+    created_dir: Option<PathBuf>,
+}
+
+/// The locks this process holds, by lock-file path.
+type Held = HashMap<PathBuf, Entry>;
 
 static HELD: Mutex<Option<Held>> = Mutex::new(None);
 
@@ -59,7 +82,7 @@ impl std::fmt::Display for LockError {
             ),
             LockError::Busy { run, holder } => write!(
                 f,
-                "{}: is being {holder}; wait for it to finish (or use another run folder)",
+                "{}: is being {holder}; wait for it to finish (or use another folder)",
                 run.display()
             ),
             LockError::Io { path, source } => {
@@ -82,10 +105,6 @@ impl RunLock {
     /// fails with [`LockError::Busy`]. `doing` says what the holder does, as the past
     /// participle a refused process prints (`"trained (maaf train, pid 1234)"`).
     pub fn exclusive(run: &Path, doing: &str) -> Result<Self, LockError> {
-        std::fs::create_dir_all(run).map_err(|source| LockError::Io {
-            path: run.to_path_buf(),
-            source,
-        })?;
         Self::take(run, true, doing)
     }
 
@@ -111,63 +130,121 @@ impl RunLock {
 
     fn take(run: &Path, exclusive: bool, doing: &str) -> Result<Self, LockError> {
         let path = run.join(LOCK_FILE);
-        let key = std::fs::canonicalize(run)
-            .map(|r| r.join(LOCK_FILE))
-            .unwrap_or_else(|_| path.clone());
-        let mut registry = held();
-        let map = registry.get_or_insert_with(HashMap::new);
-        if let Some((_, is_exclusive, count)) = map.get_mut(&key) {
-            // Already held by this process: an exclusive holder may read and write;
-            // a shared holder cannot become the writer without letting go first.
-            if exclusive && !*is_exclusive {
-                return Err(LockError::Busy {
-                    run: run.to_path_buf(),
-                    holder: String::new(),
-                });
-            }
-            *count += 1;
-            return Ok(RunLock { path: key });
-        }
         let io_err = |source| LockError::Io {
             path: path.clone(),
             source,
         };
-        let file = OpenOptions::new()
-            .read(true)
-            .write(true)
-            .create(true)
-            .truncate(false)
-            .open(&path)
-            .map_err(io_err)?;
-        let taken = if exclusive {
-            file.try_lock()
-        } else {
-            file.try_lock_shared()
-        };
-        match taken {
-            Ok(()) => {}
-            Err(TryLockError::WouldBlock) => {
-                let holder = std::fs::read_to_string(&path).unwrap_or_default();
-                return Err(LockError::Busy {
-                    run: run.to_path_buf(),
-                    holder: holder.trim().to_string(),
-                });
+        let mut registry = held();
+        let map = registry.get_or_insert_with(HashMap::new);
+        // A lock file removed by a refused command between our open and our lock is
+        // no longer the run's; take the lock again on the new one (a few tries).
+        for _ in 0..8 {
+            let created_dir = exclusive && !run.exists();
+            if exclusive {
+                std::fs::create_dir_all(run).map_err(|source| LockError::Io {
+                    path: run.to_path_buf(),
+                    source,
+                })?;
             }
-            Err(TryLockError::Error(e)) => return Err(io_err(e)),
+            let key = std::fs::canonicalize(run)
+                .map(|r| r.join(LOCK_FILE))
+                .unwrap_or_else(|_| path.clone());
+            if let Some(entry) = map.get_mut(&key) {
+                // Already held by this process: an exclusive holder may read and
+                // write; a shared holder cannot become the writer without letting go.
+                if exclusive && !entry.exclusive {
+                    return Err(LockError::Busy {
+                        run: run.to_path_buf(),
+                        holder: String::new(),
+                    });
+                }
+                entry.holders += 1;
+                return Ok(RunLock { path: key });
+            }
+            let (file, created_file) = open_lock_file(&path).map_err(io_err)?;
+            let taken = if exclusive {
+                file.try_lock()
+            } else {
+                file.try_lock_shared()
+            };
+            match taken {
+                Ok(()) => {}
+                Err(TryLockError::WouldBlock) => {
+                    let holder = std::fs::read_to_string(&path).unwrap_or_default();
+                    return Err(LockError::Busy {
+                        run: run.to_path_buf(),
+                        holder: holder.trim().to_string(),
+                    });
+                }
+                Err(TryLockError::Error(e)) => return Err(io_err(e)),
+            }
+            if !same_file(&file, &path) {
+                continue;
+            }
+            if exclusive {
+                // Not crash-critical (the lock is the kernel's, the text only a label),
+                // so a plain rewrite in place rather than an atomic replace.
+                let label = (|| {
+                    file.set_len(0)?;
+                    (&file).write_all(doing.as_bytes())?;
+                    (&file).flush()
+                })();
+                label.map_err(io_err)?;
+            }
+            let entry = Entry {
+                file,
+                exclusive,
+                holders: 1,
+                created_file,
+                created_dir: created_dir.then(|| run.to_path_buf()),
+            };
+            map.insert(key.clone(), entry);
+            return Ok(RunLock { path: key });
         }
-        if exclusive {
-            // Not crash-critical (the lock is the kernel's, the text only a label),
-            // so a plain rewrite in place rather than an atomic replace.
-            let label = (|| {
-                file.set_len(0)?;
-                (&file).write_all(doing.as_bytes())?;
-                (&file).flush()
-            })();
-            label.map_err(io_err)?;
-        }
-        map.insert(key.clone(), (file, exclusive, 1));
-        Ok(RunLock { path: key })
+        Err(LockError::Busy {
+            run: run.to_path_buf(),
+            holder: String::new(),
+        })
     }
+}
+
+/// Opens (creating it if needed) the lock file at `path`; says whether it created it.
+fn open_lock_file(path: &Path) -> io::Result<(File, bool)> {
+    let mut options = OpenOptions::new();
+    options.read(true).write(true);
+    match options.clone().create_new(true).open(path) {
+        Ok(file) => Ok((file, true)),
+        Err(e) if e.kind() == io::ErrorKind::AlreadyExists => {
+            options.open(path).map(|file| (file, false))
+        }
+        Err(e) => Err(e),
+    }
+}
+
+/// Whether the open `file` is still the file at `path` (same device and inode).
+fn same_file(file: &File, path: &Path) -> bool {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        match (file.metadata(), std::fs::metadata(path)) {
+            (Ok(a), Ok(b)) => (a.dev(), a.ino()) == (b.dev(), b.ino()),
+            _ => false,
+        }
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = (file, path);
+        true
+    }
+}
+
+/// Whether `dir` holds nothing but its lock file.
+fn holds_only_lock(dir: &Path) -> bool {
+    std::fs::read_dir(dir).is_ok_and(|entries| {
+        entries
+            .flatten()
+            .all(|e| e.file_name() == std::ffi::OsStr::new(LOCK_FILE))
+    })
 }
 
 impl Drop for RunLock {
@@ -177,19 +254,28 @@ impl Drop for RunLock {
             return;
         };
         let last = match map.get_mut(&self.path) {
-            Some((_, _, count)) => {
-                *count -= 1;
-                *count == 0
+            Some(entry) => {
+                entry.holders -= 1;
+                entry.holders == 0
             }
             None => false,
         };
-        if last && let Some((file, exclusive, _)) = map.remove(&self.path) {
-            if exclusive {
-                // The label goes with the lock; the file stays (removing it would
-                // let a waiting process lock a file nobody else can see).
-                let _ = file.set_len(0);
+        if last && let Some(entry) = map.remove(&self.path) {
+            if entry.exclusive {
+                // The label goes with the lock; the file stays while the folder
+                // holds anything else (another process may be opening it).
+                let _ = entry.file.set_len(0);
             }
-            let _ = file.unlock();
+            // Removed while still locked: a process that opened it meanwhile sees
+            // the removal after taking the lock (`same_file`) and starts over.
+            let dir = parent_of(&self.path);
+            if entry.created_file && holds_only_lock(dir) {
+                let _ = std::fs::remove_file(&self.path);
+                if let Some(created) = &entry.created_dir {
+                    let _ = std::fs::remove_dir(created);
+                }
+            }
+            let _ = entry.file.unlock();
         }
     }
 }
@@ -202,6 +288,7 @@ mod tests {
     #[test]
     fn the_lock_is_reentrant_in_a_process_and_released_by_the_last_guard() {
         let run = scratch("lock");
+        std::fs::write(run.join("config.json"), b"{}").expect("a run's file");
         let a = RunLock::exclusive(&run, "trained (test)").expect("first");
         let b = RunLock::exclusive(&run, "trained (test)").expect("re-entrant");
         let c = RunLock::shared(&run).expect("shared under exclusive");
@@ -223,5 +310,25 @@ mod tests {
         assert!(busy.to_string().contains("is in use"), "{busy}");
         other.unlock().expect("unlock");
         let _ = std::fs::remove_dir_all(&run);
+    }
+
+    #[test]
+    fn a_refused_command_leaves_no_lock_file_and_no_folder_it_created() {
+        let root = scratch("lock_litter");
+        let new = root.join("new_run");
+        drop(RunLock::exclusive(&new, "trained (test)").expect("lock"));
+        assert!(!new.exists(), "the folder it created goes with the lock");
+        std::fs::create_dir_all(&new).expect("mkdir");
+        drop(RunLock::exclusive(&new, "trained (test)").expect("lock"));
+        assert!(new.is_dir(), "a folder it did not create stays");
+        assert_eq!(std::fs::read_dir(&new).expect("ls").count(), 0);
+        // A second process that opened the file before the first removed it takes
+        // the lock on the new file instead of the removed one.
+        let first = RunLock::exclusive(&new, "trained (test)").expect("lock");
+        let stale = File::open(new.join(LOCK_FILE)).expect("open");
+        drop(first);
+        stale.try_lock().expect("the removed file is free");
+        assert!(!same_file(&stale, &new.join(LOCK_FILE)));
+        let _ = std::fs::remove_dir_all(&root);
     }
 }

@@ -64,6 +64,9 @@ pub fn model_init(data: &Dataset, config: &TrainConfig) -> Result<ModelInit, Err
     {
         Some(init) => {
             eprintln!("maaf: initial points: {}", init.description);
+            if let Some(warning) = &init.warning {
+                eprintln!("maaf: warning: {warning}");
+            }
             init.cloud
         }
         None => random_cloud(data, config),

@@ -114,11 +114,20 @@ pub fn model_dir(run: &Path) -> Result<PathBuf, Error> {
     }
     let model = maaf_io::readable_dir(&run.join("model")).unwrap_or_else(|| run.join("model"));
     if !model.join("state.json").is_file() || !model.join("tensors.safetensors").is_file() {
+        let how = if run.join("state.json").is_file() {
+            "it is a checkpoint folder; give the run folder that holds it".to_string()
+        } else if run.join("config.json").is_file() {
+            format!(
+                "the run has no model yet (it is being trained, or stopped before writing one: continue it with `maaf train --resume {}`)",
+                run.display()
+            )
+        } else {
+            format!("train one with `maaf train --out {}`", run.display())
+        };
         return Err(Error::Input(format!(
-            "{}: no trained model (expected {}/state.json and tensors.safetensors; train with `maaf train --out {}`)",
+            "{}: no trained model (expected {}/state.json and tensors.safetensors); {how}",
             run.display(),
             model.display(),
-            run.display()
         )));
     }
     Ok(model)

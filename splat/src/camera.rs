@@ -75,6 +75,57 @@ pub const MAX_FOV_DEGREES: f64 = 179.0;
 /// poses that are broken (1e30), where f32 centres would lose every digit.
 pub const MAX_TRANSLATION: f64 = 1e6;
 
+impl CameraError {
+    /// The offending field of an [`CameraError::Invalid`] (`fx`, `cx`,
+    /// `world_to_camera`, `width/height`, ...), so a loader can name its own field.
+    pub fn field(&self) -> Option<&'static str> {
+        match self {
+            CameraError::Invalid { field, .. } => Some(field),
+            _ => None,
+        }
+    }
+
+    /// What is wrong, without the file name: `field: message` for an invalid value.
+    pub fn reason(&self) -> String {
+        match self {
+            CameraError::Invalid { field, message, .. } => format!("{field}: {message}"),
+            other => other.to_string(),
+        }
+    }
+}
+
+/// Largest deviation of a pose's rotation block from a rotation (`|R^T R - I|`
+/// entrywise) and of its last row from `[0, 0, 0, 1]` that a camera accepts: far
+/// above the rounding of poses stored in `f32`, far below any scale or shear.
+pub const RIGID_TOLERANCE: f64 = 1e-3;
+
+/// Why the 4x4 pose `m` (world-to-camera or camera-to-world) is not a rigid
+/// transform, or `None` when it is: last row `[0, 0, 0, 1]` and a rotation block
+/// (`|R^T R - I| <` [`RIGID_TOLERANCE`] entrywise, `det R > 0`).
+pub fn rigid_problem(m: &DMat4) -> Option<String> {
+    let last = m.row(3);
+    if (last - DVec4::new(0.0, 0.0, 0.0, 1.0)).abs().max_element() > RIGID_TOLERANCE {
+        return Some(format!(
+            "last row is [{}, {}, {}, {}], expected [0, 0, 0, 1]",
+            last.x, last.y, last.z, last.w
+        ));
+    }
+    let r = DMat3::from_mat4(*m);
+    let rtr = r.transpose() * r;
+    let err = (rtr.x_axis - DVec3::X)
+        .abs()
+        .max_element()
+        .max((rtr.y_axis - DVec3::Y).abs().max_element())
+        .max((rtr.z_axis - DVec3::Z).abs().max_element());
+    if err > RIGID_TOLERANCE || r.determinant() <= 0.0 {
+        return Some(format!(
+            "rotation block is not a rotation (|R^T R - I| = {err:.2e}, det {:.3})",
+            r.determinant()
+        ));
+    }
+    None
+}
+
 impl Camera {
     /// Builds a camera from a world-to-camera matrix and intrinsics, validating it.
     pub fn new(
@@ -149,8 +200,10 @@ impl Camera {
 
     /// Checks the camera (`origin` names it in errors): a non-empty size within
     /// [`MAX_SIDE`] and [`MAX_PIXELS`], finite positive focal lengths giving a field
-    /// of view below [`MAX_FOV_DEGREES`], a finite principal point, and a finite,
-    /// invertible pose with a translation within [`MAX_TRANSLATION`]. Every
+    /// of view below [`MAX_FOV_DEGREES`], a finite principal point that keeps every
+    /// pixel within half of it of the optical axis (an off-centre crop of a larger
+    /// image is fine, a principal point at 10^12 px is not), and a finite, rigid pose
+    /// ([`rigid_problem`]) with a translation within [`MAX_TRANSLATION`]. Every
     /// constructor runs it; data loaders that build a camera field by field call it.
     pub fn validate(&self, origin: &str) -> Result<(), CameraError> {
         let bad = |field: &'static str, message: String| CameraError::Invalid {
@@ -192,9 +245,25 @@ impl Camera {
                 ));
             }
         }
-        for (field, v) in [("cx", self.cx), ("cy", self.cy)] {
+        let limit = (0.5 * MAX_FOV_DEGREES).to_radians().tan();
+        for (field, v, side, f) in [
+            ("cx", self.cx, self.width, self.fx),
+            ("cy", self.cy, self.height, self.fy),
+        ] {
             if !v.is_finite() {
                 return Err(bad(field, format!("{v} is not finite")));
+            }
+            // The pixel farthest from the principal point, as an angle off the axis.
+            let reach = v.abs().max((f64::from(side) - v).abs());
+            if reach > f * limit {
+                return Err(bad(
+                    field,
+                    format!(
+                        "{v} px puts pixels {:.3} degrees off the optical axis (focal length {f} px, {side} px image); a pinhole camera sees less than {} degrees either side",
+                        (reach / f).atan().to_degrees(),
+                        0.5 * MAX_FOV_DEGREES
+                    ),
+                ));
             }
         }
         let m = self.world_to_camera_mat();
@@ -212,6 +281,9 @@ impl Camera {
         }
         if m.determinant().abs() < 1e-12 {
             return Err(bad("world_to_camera", "matrix is singular".into()));
+        }
+        if let Some(problem) = rigid_problem(&m) {
+            return Err(bad("world_to_camera", problem));
         }
         Ok(())
     }

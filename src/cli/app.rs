@@ -151,6 +151,11 @@ impl Maaf {
     pub fn run(self) {
         alloc::keep_freed_pages();
         quiet_on_closed_pipe();
+        // A child of `maaf bench-suite` ends with the suite, however the suite ends.
+        if let Err(e) = maaf_io::process::end_with_parent() {
+            eprintln!("maaf: error: {e}");
+            std::process::exit(1);
+        }
         if let Err(e) = self.execute(Cli::parse()) {
             eprintln!("maaf: error: {e:#}");
             std::process::exit(1);

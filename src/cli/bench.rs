@@ -7,6 +7,10 @@ use maaf_train::bench::{StepBenchOptions, bench_step, format_table, measure_peak
 use maaf_train::trainer::MAX_BATCH;
 use maaf_train::{Plugins, load_run};
 
+/// Most timed or warm-up iterations per count: a benchmark, not a training (the
+/// timing settles within tens).
+const MAX_BENCH_ITERS: usize = 10_000;
+
 /// Arguments of `maaf bench`.
 #[derive(clap::Args, Debug)]
 pub struct BenchArgs {
@@ -20,10 +24,10 @@ pub struct BenchArgs {
     /// Gaussian counts to time, comma-separated.
     #[arg(long, value_delimiter = ',', default_value = "10000,30000,60000")]
     pub gaussians: Vec<usize>,
-    /// Timed iterations per count.
+    /// Timed iterations per count (at most 10000).
     #[arg(long, default_value_t = 20)]
     pub iters: usize,
-    /// Untimed iterations before timing.
+    /// Untimed iterations before timing (at most 10000).
     #[arg(long, default_value_t = 5)]
     pub warmup: usize,
     /// Views per iteration [default: the run's `batch`].
@@ -38,7 +42,20 @@ pub struct BenchArgs {
 /// strategy and terms must be among `plugins` (a program's own through
 /// `maaf::cli::Maaf`).
 pub fn run(args: &BenchArgs, plugins: &Plugins) -> anyhow::Result<()> {
-    anyhow::ensure!(args.iters > 0, "--iters must be at least 1");
+    anyhow::ensure!(
+        (1..=MAX_BENCH_ITERS).contains(&args.iters),
+        "--iters {}: must be in 1..={MAX_BENCH_ITERS}",
+        args.iters
+    );
+    anyhow::ensure!(
+        args.warmup <= MAX_BENCH_ITERS,
+        "--warmup {}: must be in 0..={MAX_BENCH_ITERS}",
+        args.warmup
+    );
+    anyhow::ensure!(
+        args.gaussians.iter().all(|&n| n > 0),
+        "--gaussians: counts must be positive"
+    );
     anyhow::ensure!(
         args.batch.is_none_or(|b| (1..=MAX_BATCH).contains(&b)),
         "--batch must be in 1..={MAX_BATCH}"
@@ -54,7 +71,6 @@ pub fn run(args: &BenchArgs, plugins: &Plugins) -> anyhow::Result<()> {
     let peak = measure_peak();
     let mut runs = Vec::new();
     for &n in &args.gaussians {
-        anyhow::ensure!(n > 0, "--gaussians: counts must be positive");
         let trainer = load_run(&args.run, &data, plugins)?;
         let (bench, profile) = bench_step(trainer, n, &opts)?;
         if args.ops {

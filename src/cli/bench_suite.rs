@@ -10,7 +10,6 @@
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use anyhow::{Context, bail};
 use maaf_eval::eval_json::other_background_name;
@@ -18,11 +17,13 @@ use maaf_eval::report::suite::{SuiteRun, write_suite_report};
 use maaf_filter::FilterKind;
 use maaf_scene::TrainConfig;
 use maaf_scene::write_atomic;
+use maaf_train::Plugins;
 use maaf_train::sweep::shell_quote;
 use serde::{Deserialize, Serialize};
 
 use super::train::{FilterArg, SettingsArgs, config_from};
 
+mod eval_plan;
 mod record;
 
 /// Arguments of `maaf bench-suite`.
@@ -286,7 +287,16 @@ fn split_of(data: &Path, scene: &str, overrides: &[String]) -> anyhow::Result<St
 
 /// The suite the options describe: configs resolved and validated, one run per scene x
 /// preset x filter x background (scene-major, so a scene's lines are together).
-fn plan(args: &BenchSuiteArgs, out: &Path) -> anyhow::Result<SuiteSpec> {
+fn plan(args: &BenchSuiteArgs, out: &Path, plugins: &Plugins) -> anyhow::Result<SuiteSpec> {
+    refuse_repeats("--scenes", &args.scenes, |s| format!("scene {s}"))?;
+    refuse_repeats("--filters", &args.filters, |&f| {
+        format!("filter {}", FilterKind::from(f).name())
+    })?;
+    refuse_repeats("--backgrounds", &args.backgrounds, |b| {
+        format!("background {}", b.name())
+    })?;
+    refuse_repeats("--seeds", &args.seeds, |s| format!("seed {s}"))?;
+    let (eval_args, eval_options) = eval_plan::parse_eval_args(&args.eval_args)?;
     let data_arg = args
         .data
         .as_deref()
@@ -325,6 +335,7 @@ fn plan(args: &BenchSuiteArgs, out: &Path) -> anyhow::Result<SuiteSpec> {
             // The preset's config, and a second one with `random_background` for the
             // random background's runs (one file per config_suffix).
             let config = config_from(&settings)?;
+            plugins.check(&config, &file.display().to_string())?;
             let filter = FilterKind::from(f).name().to_string();
             let mut kinds = args.backgrounds.clone();
             kinds.sort_by_key(|b| b.config_suffix());
@@ -347,11 +358,6 @@ fn plan(args: &BenchSuiteArgs, out: &Path) -> anyhow::Result<SuiteSpec> {
         }
         if !also_eval_on.contains(&bg.name().to_string()) {
             also_eval_on.push(bg.name().to_string());
-        }
-    }
-    for (i, seed) in args.seeds.iter().enumerate() {
-        if args.seeds[..i].contains(seed) {
-            bail!("--seeds: seed {seed} is given twice");
         }
     }
     let seeds: Vec<Option<u64>> = if args.seeds.is_empty() {
@@ -385,14 +391,30 @@ fn plan(args: &BenchSuiteArgs, out: &Path) -> anyhow::Result<SuiteSpec> {
             }
         }
     }
+    eval_plan::check_scenes(&data, &runs, &configs, &eval_options, &eval_args)?;
     Ok(SuiteSpec {
         data,
         configs,
-        eval_args: args.eval_args.clone(),
+        eval_args,
         also_eval_on,
         runs,
         record: false,
     })
+}
+
+/// Refuses a list option naming a value twice (`--filters none,none` would plan the
+/// same runs twice), naming the option and the value as `name` spells it.
+fn refuse_repeats<T: PartialEq>(
+    option: &str,
+    values: &[T],
+    name: impl Fn(&T) -> String,
+) -> anyhow::Result<()> {
+    for (i, v) in values.iter().enumerate() {
+        if values[..i].contains(v) {
+            bail!("{option}: {} is given twice", name(v));
+        }
+    }
+    Ok(())
 }
 
 /// Name of the config file of a preset, filter and background in `OUT/configs/`.
@@ -460,21 +482,22 @@ fn other_evaluations<'a>(spec: &'a SuiteSpec, run: &SuiteRun) -> anyhow::Result<
 }
 
 /// Writes `suite.json` (or checks that the one there is this suite), the configs and
-/// `jobs.txt`. A suite there that differs only in `--also-eval-on` is this suite with
-/// other evaluations added: its runs are kept and the new list replaces the old.
+/// `jobs.txt`. A suite there that differs only in how its runs are evaluated
+/// (`--eval-args`, `--split`, `--also-eval-on`) is this suite evaluated otherwise: its
+/// trained runs are kept, the evaluations the change makes stale are removed (so the
+/// suite does them again), and the new plan replaces the old.
 fn write_suite(spec: &SuiteSpec, out: &Path, exe: &Path) -> anyhow::Result<()> {
     let spec_path = out.join(SPEC_FILE);
     if spec_path.is_file() {
         let old = read_spec(out)?;
         old.refuse_record(out)?;
-        let same_runs = SuiteSpec {
-            also_eval_on: spec.also_eval_on.clone(),
-            ..old
-        };
-        if same_runs != *spec {
-            bail!(
-                "{}: holds a suite written with other options (scenes, presets, filters, backgrounds, splits, seeds, --iters or --eval-args; only --also-eval-on may change); give the same options or another --out",
-                spec_path.display()
+        let mut removed = 0;
+        for run in eval_plan::reevaluated(&old, spec, &spec_path)? {
+            removed += eval_plan::remove_evaluations(&run.dir)?;
+        }
+        if removed > 0 {
+            println!(
+                "suite: --eval-args or --split changed: {removed} evaluations removed, to be done again (the trained runs are kept)"
             );
         }
     } else if holds_files(out)? {
@@ -522,9 +545,11 @@ fn read_spec(out: &Path) -> anyhow::Result<SuiteSpec> {
     serde_json::from_str(&text).with_context(|| format!("{}: not a suite", path.display()))
 }
 
-/// Runs `exe args`, inheriting the terminal; an error names the command.
+/// Runs `exe args`, inheriting the terminal, as a child that ends with this process
+/// ([`maaf_io::process::child_command`]: a suite killed, even by `kill -9`, leaves
+/// no training or evaluation running); an error names the command.
 fn spawn(exe: &Path, args: &[String]) -> anyhow::Result<()> {
-    let status = Command::new(exe)
+    let status = maaf_io::process::child_command(exe)
         .args(args)
         .status()
         .with_context(|| format!("cannot start {}", exe.display()))?;
@@ -555,15 +580,38 @@ fn run_one(spec: &SuiteSpec, out: &Path, exe: &Path, run: &SuiteRun) -> anyhow::
     }
     .to_string();
     if !evaluated {
-        spawn(exe, &eval_args(spec, run, None))?;
+        evaluate(exe, spec, run, None)?;
     }
     for bg in &others {
-        spawn(exe, &eval_args(spec, run, Some(bg)))?;
+        evaluate(exe, spec, run, Some(bg))?;
     }
     if !others.is_empty() {
         let _ = write!(what, ", also on {}", others.join(", "));
     }
     Ok(what)
+}
+
+/// Evaluates `run` (on `background` when it is another than the run's) and checks
+/// that the evaluation wrote its file: `maaf eval` exiting 0 without it (arguments
+/// that printed something else) is a failed evaluation, not a done one.
+fn evaluate(
+    exe: &Path,
+    spec: &SuiteSpec,
+    run: &SuiteRun,
+    background: Option<&str>,
+) -> anyhow::Result<()> {
+    let args = eval_args(spec, run, background);
+    spawn(exe, &args)?;
+    let name = background.map_or_else(|| "eval".to_string(), other_background_name);
+    let file = run.dir.join(format!("{name}.json"));
+    if !file.is_file() {
+        bail!(
+            "maaf {} exited 0 but wrote no {}",
+            args.join(" "),
+            file.display()
+        );
+    }
+    Ok(())
 }
 
 /// `scene method` of a run, with its seed when the suite gives seeds.
@@ -609,7 +657,7 @@ fn run_job(out: &Path, n: usize) -> anyhow::Result<()> {
 }
 
 /// Runs `maaf bench-suite`.
-pub fn run(args: &BenchSuiteArgs) -> anyhow::Result<()> {
+pub fn run(args: &BenchSuiteArgs, plugins: &Plugins) -> anyhow::Result<()> {
     let out = std::path::absolute(&args.out)
         .with_context(|| format!("{}: cannot resolve", args.out.display()))?;
     if let Some(n) = args.job {
@@ -621,7 +669,7 @@ pub fn run(args: &BenchSuiteArgs) -> anyhow::Result<()> {
     let spec = if args.report_only {
         read_spec(&out)?
     } else {
-        let spec = plan(args, &out)?;
+        let spec = plan(args, &out, plugins)?;
         let exe = maaf_exe()?;
         write_suite(&spec, &out, &exe)?;
         println!(

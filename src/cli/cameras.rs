@@ -2,7 +2,7 @@
 //! `maaf render --camera` and `maaf render-ply --camera` can be driven without
 //! hand-made JSON.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use maaf_scene::write_atomic;
@@ -22,7 +22,8 @@ pub struct CamerasArgs {
     #[arg(long, default_value_t = 1.0)]
     pub scale: f64,
     /// Output folder: NNNN.json per view (the camera format of `render --camera`) and
-    /// cameras.json listing each file with its view's time.
+    /// cameras.json listing each file with its view's time; a folder written earlier
+    /// is replaced whole.
     #[arg(long)]
     pub out: PathBuf,
 }
@@ -51,6 +52,38 @@ impl From<CameraSplitArg> for Split {
     }
 }
 
+/// The listing of the camera files and their times.
+const LISTING: &str = "cameras.json";
+
+/// Name of the camera file of view `i`, `NNNN.json`.
+fn camera_file(i: usize) -> String {
+    format!("{i:04}.json")
+}
+
+/// Refuses an existing `out` holding anything but an earlier `maaf cameras`'s files
+/// (`NNNN.json`, `cameras.json`), which replacing it would lose.
+fn refuse_foreign_files(out: &Path) -> anyhow::Result<()> {
+    if !out.exists() {
+        return Ok(());
+    }
+    let entries =
+        std::fs::read_dir(out).with_context(|| format!("{}: cannot read", out.display()))?;
+    for entry in entries.flatten() {
+        let name = entry.file_name().to_string_lossy().into_owned();
+        let ours = name == LISTING
+            || name
+                .strip_suffix(".json")
+                .is_some_and(|n| !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()));
+        if !ours {
+            bail!(
+                "{}: holds `{name}`, which is not a camera file of an earlier `maaf cameras`; give a new or empty folder",
+                out.display()
+            );
+        }
+    }
+    Ok(())
+}
+
 /// Runs `maaf cameras`.
 pub fn run(args: &CamerasArgs) -> anyhow::Result<()> {
     if !(args.scale.is_finite() && args.scale > 0.0 && args.scale <= 1.0) {
@@ -63,16 +96,23 @@ pub fn run(args: &CamerasArgs) -> anyhow::Result<()> {
         bail!("{}: the split has no views", args.data.display());
     }
     let times = data.times(split);
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("{}: cannot create", args.out.display()))?;
-    let mut index = Vec::with_capacity(cameras.len());
-    for (i, (camera, time)) in cameras.iter().zip(&times).enumerate() {
-        let name = format!("{i:04}.json");
-        write_atomic(&args.out.join(&name), camera.to_json_string().as_bytes())?;
-        index.push(serde_json::json!({ "file": name, "time": time }));
-    }
-    let listing = serde_json::to_string_pretty(&serde_json::json!({ "cameras": index }))?;
-    write_atomic(&args.out.join("cameras.json"), listing.as_bytes())?;
+    refuse_foreign_files(&args.out)?;
+    // Built aside and swapped in whole: no camera of an earlier, longer split stays.
+    maaf_io::write_dir(
+        &args.out,
+        |p, e| anyhow::anyhow!("{}: {e}", p.display()),
+        |tmp| {
+            let mut index = Vec::with_capacity(cameras.len());
+            for (i, (camera, time)) in cameras.iter().zip(&times).enumerate() {
+                let name = camera_file(i);
+                write_atomic(&tmp.join(&name), camera.to_json_string().as_bytes())?;
+                index.push(serde_json::json!({ "file": name, "time": time }));
+            }
+            let listing = serde_json::to_string_pretty(&serde_json::json!({ "cameras": index }))?;
+            write_atomic(&tmp.join(LISTING), listing.as_bytes())?;
+            Ok(())
+        },
+    )?;
     let (w, h) = (cameras[0].width, cameras[0].height);
     println!(
         "wrote {} cameras ({w}x{h}) to {} (NNNN.json, cameras.json)",

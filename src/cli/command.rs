@@ -76,7 +76,7 @@ pub(super) fn run(cli: Cli, plugins: &Plugins) -> anyhow::Result<()> {
         Command::Bench(args) => cli::bench::run(&args, plugins)?,
         Command::ExportPly(args) => cli::export_ply::run(&args, models)?,
         Command::Sweep(args) => cli::sweep::run(&args)?,
-        Command::BenchSuite(args) => cli::bench_suite::run(&args)?,
+        Command::BenchSuite(args) => cli::bench_suite::run(&args, plugins)?,
         Command::Info => {
             println!("maaf {}", env!("CARGO_PKG_VERSION"));
             // The pool the commands run on (RAYON_NUM_THREADS, default one per core).

@@ -60,6 +60,21 @@ pub struct EvalArgs {
     pub lpips_net: Net,
 }
 
+impl EvalArgs {
+    /// The evaluation these arguments ask for.
+    pub fn options(&self) -> EvalOptions {
+        EvalOptions {
+            scales: self.scales.clone(),
+            split: self.split.into(),
+            max_views: self.max_views,
+            frame_stride: self.frame_stride,
+            save_images: !self.no_images,
+            temporal: self.temporal,
+            lpips_net: self.lpips_net,
+        }
+    }
+}
+
 /// `--split` values.
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
 pub enum SplitArg {
@@ -139,27 +154,19 @@ pub fn load_scene(
 /// The shared lock of `run` for a command that reads it and writes elsewhere (render,
 /// export, bench): refused while a trainer or an evaluation holds it, so the model
 /// read is never one being replaced; `None` for a run folder that cannot hold a lock
-/// file (read-only) or does not exist (the load reports that).
+/// file (read-only). A folder without a trained model (a checkpoint folder, a run
+/// killed before its model) is refused before a lock file is put into it.
 pub fn read_lock(run: &Path) -> anyhow::Result<Option<maaf_io::RunLock>> {
-    if !run.is_dir() {
-        return Ok(None);
-    }
+    maaf_scene::model_dir(run)?;
     Ok(maaf_io::RunLock::shared(run)?)
 }
 
 /// Runs `maaf eval`.
 pub fn run(args: &EvalArgs, models: &ModelRegistry) -> anyhow::Result<()> {
+    // A folder without a model is named as such before its data set is looked for.
+    maaf_scene::model_dir(&args.run)?;
     let data = open_run_data(&args.run, args.data.as_deref(), args.background)?;
-    let options = EvalOptions {
-        scales: args.scales.clone(),
-        split: args.split.into(),
-        max_views: args.max_views,
-        frame_stride: args.frame_stride,
-        save_images: !args.no_images,
-        temporal: args.temporal,
-        lpips_net: args.lpips_net,
-    };
-    let report = evaluate_run_with(&args.run, &data, &options, models)?;
+    let report = evaluate_run_with(&args.run, &data, &args.options(), models)?;
     println!(
         "{} / {} at training scale {}: {} Gaussians, {:.1} MB (+{:.1} MB filter)",
         report.model,

@@ -7,6 +7,7 @@
 use std::path::PathBuf;
 
 use anyhow::bail;
+use maaf_eval::check_frame_count;
 use maaf_eval::export::{
     check_sequence_target, export_frame, export_sequence, export_sequence_zip, is_zip_path,
 };
@@ -29,8 +30,8 @@ pub struct ExportPlyArgs {
     /// Time of the single frame to export (writes the PLY file --out).
     #[arg(long, conflicts_with = "frames", required_unless_present = "frames")]
     pub time: Option<f64>,
-    /// Export N frames evenly spaced over the data set's time range into the folder
-    /// --out, or into one zip archive when --out ends in .zip.
+    /// Export N frames (at most 10000) evenly spaced over the data set's time range
+    /// into the folder --out, or into one zip archive when --out ends in .zip.
     #[arg(long)]
     pub frames: Option<usize>,
     /// Output PLY file (--time), or folder or .zip file (--frames).
@@ -44,7 +45,8 @@ pub struct ExportPlyArgs {
 
 /// Runs `maaf export-ply`.
 pub fn run(args: &ExportPlyArgs, models: &ModelRegistry) -> anyhow::Result<()> {
-    if args.frames.is_some() {
+    if let Some(n) = args.frames {
+        check_frame_count(n)?;
         check_sequence_target(&args.out)?;
     }
     let _lock = read_lock(&args.run)?;

@@ -135,7 +135,11 @@ fn run_multiview(
     let opts = MultiviewOptions {
         scene: args.scene.clone().unwrap_or(defaults.scene),
         width,
-        height: args.height.unwrap_or((width * 3 / 4).div_ceil(16) * 16),
+        height: args.height.unwrap_or(
+            (width.saturating_mul(3) / 4)
+                .div_ceil(16)
+                .saturating_mul(16),
+        ),
         cameras: args.cameras.unwrap_or(defaults.cameras),
         frames: args.frames.unwrap_or(defaults.frames),
         samples: args.samples,

@@ -7,7 +7,7 @@ use anyhow::{Context, bail};
 use maaf_eval::camera_path::Rig;
 use maaf_eval::images::{save_png, to_rgb8};
 use maaf_eval::render::render_video;
-use maaf_eval::{frame_times, run_camera};
+use maaf_eval::{check_frame_count, frame_times, run_camera};
 use maaf_scene::TrainedScene;
 use maaf_splat::Camera;
 use maaf_train::data::{Dataset, Split};
@@ -84,7 +84,7 @@ pub struct RenderVideoArgs {
     #[arg(long, value_enum, default_value_t = PathArg::Fixed)]
     pub path: PathArg,
     /// Number of frames, evenly spaced over the data set's time range (all test views
-    /// with --path test).
+    /// with --path test); at most 10000.
     #[arg(long, default_value_t = 30)]
     pub frames: usize,
     /// Output folder (frame_NNNN.png and video.gif).
@@ -205,6 +205,24 @@ fn setup(args: &CameraArgs, need_data: bool, models: &ModelRegistry) -> anyhow::
     })
 }
 
+/// Bytes one render needs per pixel, about: the float image, alpha and depth, the
+/// rasteriser's per-pixel state and the 8-bit copy written out.
+const RENDER_BYTES_PER_PIXEL: u64 = 64;
+
+/// Refuses a render of `camera` larger than the memory available
+/// ([`maaf_io::memory::check`]), naming its size.
+fn check_render_memory(camera: &Camera) -> anyhow::Result<()> {
+    let pixels = u64::from(camera.width) * u64::from(camera.height);
+    maaf_io::memory::check(
+        pixels * RENDER_BYTES_PER_PIXEL,
+        &format!(
+            "a {}x{} render (--size, --scale or the camera file)",
+            camera.width, camera.height
+        ),
+    )
+    .map_err(anyhow::Error::msg)
+}
+
 /// Runs `maaf render`.
 pub fn run(args: &RenderArgs, models: &ModelRegistry) -> anyhow::Result<()> {
     if let Some(t) = args.time
@@ -232,6 +250,7 @@ pub fn run(args: &RenderArgs, models: &ModelRegistry) -> anyhow::Result<()> {
     let Some(camera) = camera else {
         bail!("give --view SPLIT:INDEX or --camera CAM.json");
     };
+    check_render_memory(&camera)?;
     let time = args.time.or(view_time).unwrap_or(0.0);
     let (t0, t1) = scene.record.time_range;
     if !(t0..=t1).contains(&time) {
@@ -252,9 +271,7 @@ pub fn run(args: &RenderArgs, models: &ModelRegistry) -> anyhow::Result<()> {
 
 /// Runs `maaf render-video`.
 pub fn run_video(args: &RenderVideoArgs, models: &ModelRegistry) -> anyhow::Result<()> {
-    if args.frames == 0 {
-        bail!("--frames must be at least 1");
-    }
+    check_frame_count(args.frames)?;
     let _lock = read_lock(&args.camera.run)?;
     // The test views' cameras come from the data set: the path of them, and the
     // default start of an orbit or spiral.
@@ -327,6 +344,9 @@ pub fn run_video(args: &RenderVideoArgs, models: &ModelRegistry) -> anyhow::Resu
             frames
         }
     };
+    if let Some((camera, _)) = frames.first() {
+        check_render_memory(camera)?;
+    }
     let paths = render_video(&scene, &frames, &args.out)?;
     let (first, last) = (&frames[0], &frames[frames.len() - 1]);
     println!(

@@ -32,6 +32,10 @@ pub struct TrainArgs {
     /// The filter kind and training scale must be the checkpoint's.
     #[arg(long, conflicts_with = "resume")]
     pub from: Option<PathBuf>,
+    /// With --from: branch onto a data set other than the one the checkpoint was
+    /// trained on, on purpose (without it another data set is refused, naming both).
+    #[arg(long, requires = "from")]
+    pub other_data: bool,
     /// What to train on and with which settings.
     #[command(flatten)]
     pub settings: SettingsArgs,
@@ -97,7 +101,7 @@ impl SettingsArgs {
 }
 
 /// The built-in filters, as `maaf bench-suite --filters` takes them.
-#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq)]
 pub enum FilterArg {
     /// No 3D filter (classic 0.3 px^2 2D dilation).
     None,
@@ -319,7 +323,7 @@ pub fn run(args: &TrainArgs, plugins: &Plugins) -> anyhow::Result<()> {
         );
     }
     let mut summary = match &args.from {
-        Some(from) => branch_run_with_plugins(&data, config, &out, from, plugins)?,
+        Some(from) => branch_run_with_plugins(&data, config, &out, from, plugins, args.other_data)?,
         None => train_run_with_plugins(&data, config, &out, args.resume.is_some(), plugins)?,
     };
     let since = summary

@@ -4,7 +4,7 @@
 
 use std::process::{Command, Output};
 
-use crate::support::{TempDir, s};
+use crate::support::{TempDir, panoptic, s};
 
 fn maaf(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_maaf"))
@@ -26,26 +26,7 @@ fn ok(out: &Output) -> (String, String) {
 fn generate_inspect_train_and_eval_a_panoptic_layout_scene() {
     let t = TempDir::fresh("panoptic_cli");
     let (data, run) = (t.0.join("scene"), t.0.join("run"));
-    let generate = [
-        "generate",
-        "--rig",
-        "multiview",
-        "--layout",
-        "dynamic3dgs",
-        "--out",
-        s(&data),
-        "--size",
-        "64",
-        "--height",
-        "48",
-        "--cameras",
-        "6",
-        "--frames",
-        "4",
-        "--samples",
-        "1",
-    ];
-    let (o, _) = ok(&maaf(&generate));
+    let o = panoptic(&data, "64", "48", "6", "4");
     assert!(o.contains("Dynamic 3D Gaussians layout"), "{o}");
     let (o, _) = ok(&maaf(&["inspect", "--data", s(&data)]));
     for words in [

@@ -4,30 +4,11 @@
 //! allocation, degenerate cameras and non-finite output, typos under `model`, resume
 //! settings that cannot be honoured, damaged checkpoints, and the smaller items.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use super::support::{BASE, Fixture, copy_dir, fixture, maaf, refused, s, succeeded};
-
-impl Fixture {
-    /// A copy of the data set under `name` with `edit` applied to its `split` json.
-    fn edited_copy(
-        &self,
-        name: &str,
-        split: &str,
-        edit: impl Fn(&mut serde_json::Value),
-    ) -> PathBuf {
-        let copy = self.root.join(name);
-        copy_dir(&self.data, &copy);
-        let json = copy.join(format!("transforms_{split}.json"));
-        let mut v: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(&json).expect("read")).expect("parse");
-        edit(&mut v);
-        std::fs::write(&json, v.to_string()).expect("write");
-        copy
-    }
-}
+use super::support::{BASE, copy_dir, fixture, maaf, refused, s, succeeded};
 
 fn checkpoint_names(run: &Path) -> Vec<String> {
     let mut names: Vec<String> = std::fs::read_dir(run.join("checkpoints"))
@@ -49,9 +30,7 @@ fn case_1_a_run_remembers_its_data_set_and_refuses_another() {
     let fewer = fx.edited_copy("fewer", "train", |v| {
         v["frames"].as_array_mut().expect("frames").pop();
     });
-    let moved = fx.edited_copy("moved", "train", |v| {
-        v["frames"][0]["transform_matrix"][0][3] = serde_json::json!(0.125);
-    });
+    let moved = fx.moved_copy();
     let model = std::fs::read(run.join("model/state.json")).expect("model");
     let checkpoints = checkpoint_names(&run);
     for other in [&fewer, &moved] {

@@ -168,6 +168,31 @@ impl Fixture {
         ])
     }
 
+    /// A copy of the data set under `name` with `edit` applied to its `split` json.
+    pub fn edited_copy(
+        &self,
+        name: &str,
+        split: &str,
+        edit: impl Fn(&mut serde_json::Value),
+    ) -> PathBuf {
+        let copy = self.root.join(name);
+        copy_dir(&self.data, &copy);
+        let json = copy.join(format!("transforms_{split}.json"));
+        let mut v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&json).expect("read")).expect("parse");
+        edit(&mut v);
+        std::fs::write(&json, v.to_string()).expect("write");
+        copy
+    }
+
+    /// A copy of the data set with the first training camera moved: another data set
+    /// with the same view count.
+    pub fn moved_copy(&self) -> PathBuf {
+        self.edited_copy("moved", "train", |v| {
+            v["frames"][0]["transform_matrix"][0][3] = serde_json::json!(0.125);
+        })
+    }
+
     /// The path of run `run`, trained with [`BASE`] alone; the training must succeed.
     pub fn trained(&self, run: &str) -> PathBuf {
         succeeded(self.train(run, ""));
@@ -200,4 +225,32 @@ pub fn copy_dir(from: &Path, to: &Path) {
             std::fs::copy(e.path(), target).expect("copy");
         }
     }
+}
+
+/// A Panoptic-layout scene (`generate --rig multiview --layout dynamic3dgs`, one
+/// sample per pixel) of `cameras` cameras x `frames` frames at `width` x `height` in
+/// `dir`; returns what `generate` printed.
+pub fn panoptic(dir: &Path, width: &str, height: &str, cameras: &str, frames: &str) -> String {
+    let out = maaf(&[
+        "generate",
+        "--rig",
+        "multiview",
+        "--layout",
+        "dynamic3dgs",
+        "--out",
+        s(dir),
+        "--size",
+        width,
+        "--height",
+        height,
+        "--cameras",
+        cameras,
+        "--frames",
+        frames,
+        "--samples",
+        "1",
+    ]);
+    let printed = String::from_utf8_lossy(&out.stdout).into_owned();
+    succeeded(out);
+    printed
 }

@@ -256,14 +256,14 @@ fn writes_atomically_and_refuses_bad_options() {
                 cameras: 1,
                 ..tiny()
             },
-            "2..=100 cameras",
+            "--cameras 1: must be in 2..=100",
         ),
         (
             MultiviewOptions {
                 frames: 1,
                 ..tiny()
             },
-            "2..=10000 frames",
+            "--frames 1: must be in 2..=10000",
         ),
         (
             MultiviewOptions {

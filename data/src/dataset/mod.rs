@@ -112,6 +112,8 @@ pub struct InitialCloud {
     pub hull_points: usize,
     /// One line saying where the points come from.
     pub description: String,
+    /// One line to print as a warning: the visual hull put no point into the cloud.
+    pub warning: Option<String>,
 }
 
 /// Where the moving-pixel masks of the `test` views come from.
@@ -302,6 +304,7 @@ impl Dataset {
                 cloud,
                 hull_points: 0,
                 description,
+                warning: None,
             }));
         }
         if self.train_masks.is_empty() {
@@ -353,10 +356,17 @@ impl Dataset {
             },
             start.elapsed().as_secs_f64()
         );
+        let warning = (dynamic == 0 && hull_fraction > 0.0 && budget > 0).then(|| {
+            format!(
+                "the visual hull of the foreground masks put no point into the initial cloud (no region is seen in the foreground of {} cameras at once: small or coarse masks?); training starts from random static points only",
+                options.min_views
+            )
+        });
         Ok(Some(InitialCloud {
             cloud,
             hull_points: dynamic,
             description,
+            warning,
         }))
     }
 

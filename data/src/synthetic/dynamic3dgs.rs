@@ -70,7 +70,9 @@ pub fn generate_dynamic3dgs(
     let scene = build_scene(&opts.scene)?;
     super::multiview::check_options(out, opts)?;
     let cams = rig_cameras(opts.cameras, opts.width, opts.height)?;
-    write_folder(out, |tmp| write_all(tmp, &scene, &cams, opts, progress))?;
+    write_folder(out, opts.force, |tmp| {
+        write_all(tmp, &scene, &cams, opts, progress)
+    })?;
     let f = opts.frames;
     Ok(GenerateSummary {
         out: out.to_path_buf(),

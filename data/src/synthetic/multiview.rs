@@ -26,13 +26,17 @@ use serde_json::json;
 
 use super::render::{forward_flow, render_layers, render_rgba};
 use super::rig::{arc_positions, camera_wh};
-use super::write::{GenerateSummary, image_salt, write_folder, write_points};
+use super::write::{
+    GenerateSummary, MAX_CAMERAS, MAX_FRAMES, check_image_memory, image_salt, in_range,
+    write_folder, write_points,
+};
 use super::{build_scene, scene::Scene, scene_bounds};
 use crate::bounds::Aabb;
 use crate::error::DataError;
 use crate::flow::write_flow;
 use crate::image::{Image, encode_rgba_png, write_quantised_png};
 use crate::n3dv::{POSES_BOUNDS, PoseRow, SCENE_JSON, encode_poses_bounds};
+use maaf_splat::camera::MAX_SIDE;
 
 /// What [`generate_multiview`] writes (see the module doc for the defaults).
 #[derive(Clone, Debug)]
@@ -85,7 +89,9 @@ pub fn generate_multiview(
         .into_iter()
         .map(|p| camera_wh(p, opts.width, opts.height))
         .collect::<Result<Vec<_>, _>>()?;
-    write_folder(out, |tmp| write_all(tmp, &scene, &cams, opts, progress))?;
+    write_folder(out, opts.force, |tmp| {
+        write_all(tmp, &scene, &cams, opts, progress)
+    })?;
     let f = opts.frames;
     Ok(GenerateSummary {
         out: out.to_path_buf(),
@@ -94,42 +100,25 @@ pub fn generate_multiview(
     })
 }
 
-/// Checks the options and the output folder of a multi-view generation (either
-/// layout): sizes multiples of 16, 1..=16 samples, 2..=100 cameras, 2..=10000 frames,
-/// `out` absent (unless `force`) with an existing parent.
+/// Checks the options of a multi-view generation (either layout; `out` names the
+/// folder in errors, which [`write_folder`] checks): sizes multiples of 16 up to
+/// [`maaf_splat::camera::MAX_SIDE`], 1..=16 samples, 2..=100 cameras, 2..=10000
+/// frames, and the memory one image's rendering needs ([`check_image_memory`]).
 pub(crate) fn check_options(out: &Path, opts: &MultiviewOptions) -> Result<(), DataError> {
     let bad = |m: String| DataError::request(out, m);
-    for (name, v) in [("width", opts.width), ("height", opts.height)] {
-        if v < 16 || !v.is_multiple_of(16) {
+    for (name, v) in [("--size", opts.width), ("--height", opts.height)] {
+        if v < 16 || !v.is_multiple_of(16) || v > MAX_SIDE {
             return Err(bad(format!(
-                "{name} {v} must be a multiple of 16 (exact 1/4-of-1/4 scales)"
+                "{name} {v} must be a multiple of 16 (exact 1/4-of-1/4 scales) in 16..={MAX_SIDE}"
             )));
         }
     }
+    check_image_memory(out, opts.width, opts.height)?;
     if !(1..=16).contains(&opts.samples) {
         return Err(bad(format!("--samples {} must be in 1..=16", opts.samples)));
     }
-    if !(2..=100).contains(&opts.cameras) || !(2..=10_000).contains(&opts.frames) {
-        return Err(bad(format!(
-            "{} cameras x {} frames: need 2..=100 cameras and 2..=10000 frames",
-            opts.cameras, opts.frames
-        )));
-    }
-    if out.exists() && !opts.force {
-        return Err(bad(
-            "already exists; choose another --out or pass --force".into()
-        ));
-    }
-    if out.file_name().is_none() {
-        return Err(bad("--out must name a folder".into()));
-    }
-    let parent = maaf_io::parent_of(out);
-    if !parent.is_dir() {
-        return Err(DataError::request(
-            parent,
-            "parent folder of --out does not exist",
-        ));
-    }
+    in_range(out, "--cameras", opts.cameras, 2, MAX_CAMERAS)?;
+    in_range(out, "--frames", opts.frames, 2, MAX_FRAMES)?;
     Ok(())
 }
 

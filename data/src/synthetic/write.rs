@@ -12,6 +12,7 @@ use std::time::Instant;
 
 use glam::DVec3;
 use maaf_splat::Camera;
+use maaf_splat::camera::MAX_SIDE;
 use serde_json::json;
 
 use super::points::{GENERATED_POINTS, visible_points};
@@ -99,6 +100,46 @@ impl Default for GenerateOptions {
     }
 }
 
+/// Most training times, test, validation or video views of a generated split
+/// (four-digit frame numbers; a count sizes the plan of every view before any is
+/// rendered).
+pub const MAX_FRAMES: usize = 10_000;
+
+/// Most cameras of a generated rig.
+pub const MAX_CAMERAS: usize = 100;
+
+/// Bytes the generator needs per pixel of one image, about: the supersampled RGBA
+/// and coverage layers in `f32`, the flow and the encoded copy.
+const GENERATE_BYTES_PER_PIXEL: u64 = 48;
+
+/// Refuses a count option `flag` outside `min..=max`, naming it and the range.
+pub(crate) fn in_range(
+    out: &Path,
+    flag: &str,
+    value: usize,
+    min: usize,
+    max: usize,
+) -> Result<(), DataError> {
+    if !(min..=max).contains(&value) {
+        return Err(DataError::request(
+            out,
+            format!("{flag} {value}: must be in {min}..={max}"),
+        ));
+    }
+    Ok(())
+}
+
+/// Refuses images of `width` x `height` whose rendering needs more memory than the
+/// machine has available ([`maaf_io::memory::check`]).
+pub(crate) fn check_image_memory(out: &Path, width: u32, height: u32) -> Result<(), DataError> {
+    let bytes = u64::from(width) * u64::from(height) * GENERATE_BYTES_PER_PIXEL;
+    maaf_io::memory::check(
+        bytes,
+        &format!("a {width}x{height} image (--size, --height)"),
+    )
+    .map_err(|m| DataError::request(out, m))
+}
+
 /// What [`generate`] wrote.
 #[derive(Clone, Debug)]
 pub struct GenerateSummary {
@@ -126,9 +167,9 @@ pub fn generate(
     let start = Instant::now();
     let scene = build_scene(&opts.scene)?;
     let bad = |m: String| DataError::request(out, m);
-    if opts.size < 8 || !opts.size.is_multiple_of(4) {
+    if opts.size < 8 || !opts.size.is_multiple_of(4) || opts.size > MAX_SIDE {
         return Err(bad(format!(
-            "--size {} must be a multiple of 4 and at least 8",
+            "--size {} must be a multiple of 4 in 8..={MAX_SIDE}",
             opts.size
         )));
     }
@@ -139,29 +180,14 @@ pub fn generate(
         Rig::Monocular => 100,
         Rig::Ring => 30,
     });
-    if frames < 2 || opts.test_frames < 1 || opts.video_frames < 2 {
-        return Err(bad(
-            "need at least 2 training times, 1 test view and 2 video frames".into(),
-        ));
+    in_range(out, "--frames", frames, 2, MAX_FRAMES)?;
+    in_range(out, "--test-frames", opts.test_frames, 1, MAX_FRAMES)?;
+    in_range(out, "--val-frames", opts.val_frames, 0, MAX_FRAMES)?;
+    in_range(out, "--video-frames", opts.video_frames, 2, MAX_FRAMES)?;
+    if opts.rig == Rig::Ring {
+        in_range(out, "--cameras", opts.ring_cameras, 2, MAX_CAMERAS)?;
     }
-    if opts.rig == Rig::Ring && opts.ring_cameras < 2 {
-        return Err(bad("the ring rig needs at least 2 cameras".into()));
-    }
-    if out.exists() && !opts.force {
-        return Err(bad(
-            "already exists; choose another --out or pass --force".into()
-        ));
-    }
-    if out.file_name().is_none() {
-        return Err(bad("--out must name a folder".into()));
-    }
-    let parent = maaf_io::parent_of(out);
-    if !parent.is_dir() {
-        return Err(DataError::request(
-            parent,
-            "parent folder of --out does not exist",
-        ));
-    }
+    check_image_memory(out, opts.size, opts.size)?;
 
     // Plan every split before rendering anything.
     let times = rig::even_times(frames);
@@ -218,7 +244,7 @@ pub fn generate(
         })
         .collect();
 
-    write_folder(out, |tmp| {
+    write_folder(out, opts.force, |tmp| {
         write_all(
             tmp,
             &scene,
@@ -235,22 +261,52 @@ pub fn generate(
     })
 }
 
-/// Writes a folder crash-safely: `write` fills a fresh [`maaf_io::temp_sibling`] of
-/// `out`, which [`maaf_io::replace_dir`] then swaps in for `out` (replacing an existing
-/// one); on any failure the temporary folder is removed and `out` is left as it was.
+/// Writes the generated data set `out` crash-safely ([`maaf_io::write_dir`]): `write`
+/// fills a temporary sibling of `out` that then replaces `out` whole; on any failure
+/// `out` is left as it was. `out` must name a folder in an existing one. The
+/// generation holds `out`'s lock throughout ([`maaf_io::RunLock`], as a trainer holds
+/// its run's: a second generation into the same folder fails at once, naming the
+/// first), and an `out` holding anything (an earlier data set) is refused unless
+/// `force`.
 pub(crate) fn write_folder(
     out: &Path,
+    force: bool,
     write: impl FnOnce(&Path) -> Result<(), DataError>,
 ) -> Result<(), DataError> {
-    let tmp = maaf_io::temp_sibling(out);
-    let _ = std::fs::remove_dir_all(&tmp);
-    let result = write(&tmp).and_then(|()| {
-        maaf_io::replace_dir(&tmp, out).map_err(|e| DataError::io(out, "cannot move into place", e))
-    });
-    if result.is_err() {
-        let _ = std::fs::remove_dir_all(&tmp);
+    if out.file_name().is_none() {
+        return Err(DataError::request(out, "--out must name a folder"));
     }
-    result
+    let parent = maaf_io::parent_of(out);
+    if !parent.is_dir() {
+        return Err(DataError::request(
+            parent,
+            "parent folder of --out does not exist",
+        ));
+    }
+    // Refused before the lock too, which would otherwise put its file into the data.
+    refuse_data(out, force)?;
+    let doing = format!("generated (maaf generate, pid {})", std::process::id());
+    let _lock = maaf_io::RunLock::exclusive(out, &doing)?;
+    refuse_data(out, force)?;
+    maaf_io::write_dir(out, |p, e| DataError::io(p, "cannot write", e), write)
+}
+
+/// Refuses an `out` holding anything but a lock file (an earlier data set) unless
+/// `force`.
+fn refuse_data(out: &Path, force: bool) -> Result<(), DataError> {
+    let Ok(entries) = std::fs::read_dir(out) else {
+        return Ok(());
+    };
+    let holds_data = entries
+        .flatten()
+        .any(|e| e.file_name() != std::ffi::OsStr::new(maaf_io::lock::LOCK_FILE));
+    if holds_data && !force {
+        return Err(DataError::request(
+            out,
+            "already exists; choose another --out or pass --force",
+        ));
+    }
+    Ok(())
 }
 
 fn write_all(

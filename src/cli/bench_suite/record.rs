@@ -18,6 +18,7 @@ use maaf_eval::eval_json::OTHER_BACKGROUND_PREFIX;
 use maaf_eval::report::suite::SuiteRun;
 use maaf_scene::write_atomic;
 
+use super::eval_plan::words;
 use super::{SPEC_FILE, SuiteSpec, holds_files, read_spec};
 
 /// What [`record`] did: runs copied, and runs left out because not evaluated yet.
@@ -83,7 +84,7 @@ fn existing_record(dir: &Path) -> anyhow::Result<Option<SuiteSpec>> {
 /// The spec of `old` with `new`'s configs and runs added: a config of the same name must
 /// be the same, the `maaf eval` arguments too; a run of the same folder is replaced.
 fn merge(old: SuiteSpec, new: SuiteSpec, dir: &Path) -> anyhow::Result<SuiteSpec> {
-    if old.eval_args != new.eval_args {
+    if words(&old.eval_args) != words(&new.eval_args) {
         bail!(
             "{}: its runs were evaluated with --eval-args `{}`, these with `{}`; record them into another folder",
             dir.join(SPEC_FILE).display(),
@@ -118,8 +119,9 @@ fn merge(old: SuiteSpec, new: SuiteSpec, dir: &Path) -> anyhow::Result<SuiteSpec
 
 /// Copies the measurements of every evaluated run of the suite in `out` (its runs'
 /// folders resolved) into the record `dir` (module docs). The record is checked before
-/// anything is copied, and its `suite.json` is written last, so a refused or
-/// interrupted recording leaves the record's listed runs as they were.
+/// anything is copied; a new record is built in a temporary sibling and moved into
+/// place whole, and into an earlier one `suite.json` is written last, so a refused or
+/// failed recording (a full disk) leaves the record as it was, or none.
 pub(super) fn record(spec: &SuiteSpec, out: &Path, dir: &Path) -> anyhow::Result<Recorded> {
     if dir == out {
         bail!(
@@ -143,17 +145,42 @@ pub(super) fn record(spec: &SuiteSpec, out: &Path, dir: &Path) -> anyhow::Result
         ..spec.clone()
     };
     let copied: Vec<PathBuf> = new.runs.iter().map(|r| r.dir.clone()).collect();
-    let merged = match existing_record(dir)? {
-        Some(old) => merge(old, new, dir)?,
-        None => new,
+    let recorded = Recorded {
+        copied: copied.clone(),
+        not_evaluated: not_evaluated.iter().map(|r| r.dir.clone()).collect(),
     };
-    for (run, rel) in evaluated.iter().zip(&copied) {
+    let runs: Vec<(&Path, &Path)> = evaluated
+        .iter()
+        .zip(&copied)
+        .map(|(r, rel)| (r.dir.as_path(), rel.as_path()))
+        .collect();
+    if let Some(old) = existing_record(dir)? {
+        write_record(dir, &merge(old, new, dir)?, &runs)?;
+        return Ok(recorded);
+    }
+    maaf_io::remove_dead_temps(dir).with_context(|| format!("{}: cannot clean", dir.display()))?;
+    let tmp = maaf_io::temp_sibling(dir);
+    let built = write_record(&tmp, &new, &runs).and_then(|()| {
+        maaf_io::replace_dir(&tmp, dir).with_context(|| format!("{}: cannot write", dir.display()))
+    });
+    if built.is_err() {
+        let _ = std::fs::remove_dir_all(&tmp);
+    }
+    built
+        .with_context(|| format!("{}: not recorded, nothing written", dir.display()))
+        .map(|()| recorded)
+}
+
+/// Copies the measured files of `runs` (each a run folder and its folder relative to
+/// the record) into the record `dir`, then writes its `suite.json`.
+fn write_record(dir: &Path, spec: &SuiteSpec, runs: &[(&Path, &Path)]) -> anyhow::Result<()> {
+    for &(run, rel) in runs {
         let target = dir.join(rel);
         std::fs::create_dir_all(&target)
             .with_context(|| format!("{}: cannot create", target.display()))?;
-        let names = measured_files(&run.dir)?;
+        let names = measured_files(run)?;
         for name in &names {
-            let from = run.dir.join(name);
+            let from = run.join(name);
             let bytes =
                 std::fs::read(&from).with_context(|| format!("{}: cannot read", from.display()))?;
             write_atomic(&target.join(name), &bytes)?;
@@ -168,10 +195,7 @@ pub(super) fn record(spec: &SuiteSpec, out: &Path, dir: &Path) -> anyhow::Result
                 .with_context(|| format!("{}: cannot remove", path.display()))?;
         }
     }
-    let json = serde_json::to_string_pretty(&merged)?;
+    let json = serde_json::to_string_pretty(spec)?;
     write_atomic(&dir.join(SPEC_FILE), json.as_bytes())?;
-    Ok(Recorded {
-        copied,
-        not_evaluated: not_evaluated.iter().map(|r| r.dir.clone()).collect(),
-    })
+    Ok(())
 }

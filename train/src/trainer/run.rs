@@ -10,8 +10,8 @@ use serde::{Deserialize, Serialize};
 
 use super::log::{LogLayout, RowStats};
 use super::{
-    Timings, TrainConfig, Trainer, load_checkpoint_with_plugins, load_newest, log_line,
-    repair_run_dir, save_checkpoint, truncate_log,
+    Timings, TrainConfig, Trainer, checkpoints_newest_first, load_checkpoint_with_plugins,
+    load_newest, log_line, repair_run_dir, save_checkpoint, truncate_log,
 };
 use crate::data::Dataset;
 use crate::scene::TrainedScene;
@@ -67,7 +67,8 @@ impl RunSummary {
 /// Prints a progress bar on a terminal and a line every 10% otherwise.
 ///
 /// The run folder is locked for the whole call ([`maaf_io::RunLock`]: a second
-/// trainer of `out` fails at once). `RUN/data.json` records `data` first; a resume
+/// trainer of `out` fails at once). `RUN/data.json` records `data` (a new run: once
+/// the trainer is built and its memory checked, before its first file); a resume
 /// refuses a data set that differs from the recorded one, a `config` (the run's
 /// `config.json`) that differs from the checkpoint's settings other than the budget,
 /// and a budget below the checkpoint's iteration, each before anything changes.
@@ -100,9 +101,8 @@ pub fn train_run_with_plugins(
     };
     plugins.check(&config, &what)?;
     if resume {
+        check_unrecorded_data(out, data)?;
         crate::eval::render::check_and_record_data(out, data)?;
-    } else {
-        crate::eval::render::record_data(out, data)?;
     }
     repair_run_dir(out)?;
     let budget = config.iterations;
@@ -122,7 +122,25 @@ pub fn train_run_with_plugins(
         None => Trainer::with_plugins(data, config, plugins)?,
     };
     attach_backdrop(&mut trainer, data, out, plugins)?;
-    run_trainer(trainer, out, resume)
+    run_trainer(trainer, out, resume, (!resume).then_some(data))
+}
+
+/// A run without `data.json` (an older run, or the file removed) is checked against
+/// what its newest readable checkpoint records
+/// ([`crate::eval::render::check_checkpoint_data`]), so other data with the same view
+/// count is refused rather than resumed, and other data with another view count is
+/// refused rather than started over on top of the checkpoints.
+fn check_unrecorded_data(out: &Path, data: &Dataset) -> Result<(), Error> {
+    if crate::eval::render::recorded_data(out)?.is_some() {
+        return Ok(());
+    }
+    let newest = checkpoints_newest_first(out)
+        .into_iter()
+        .find(|(dir, _)| crate::scene::Opened::open(dir).is_ok());
+    match newest {
+        Some((dir, _)) => crate::eval::render::check_checkpoint_data(&dir, data),
+        None => Ok(()),
+    }
 }
 
 /// With a background layer in the run's config ([`super::BackdropConfig`]): trains
@@ -243,18 +261,30 @@ pub fn branch_run(
     out: &Path,
     from: &Path,
 ) -> Result<RunSummary, Error> {
-    branch_run_with_plugins(data, config, out, from, &Plugins::builtin())
+    branch_run_with_plugins(data, config, out, from, &Plugins::builtin(), false)
 }
 
 /// [`branch_run`] with the registries of `plugins` ([`train_run_with_plugins`]).
+/// Unless `other_data`, `data` must be the data set the checkpoint was trained on
+/// ([`crate::eval::render::check_checkpoint_data`]: its run's `data.json`, else its
+/// scene record); `other_data` branches onto another data set on purpose.
 pub fn branch_run_with_plugins(
     data: &Dataset,
     config: TrainConfig,
     out: &Path,
     from: &Path,
     plugins: &Plugins,
+    other_data: bool,
 ) -> Result<RunSummary, Error> {
     let _lock = lock_run(out)?;
+    if !other_data {
+        crate::eval::render::check_checkpoint_data(from, data).map_err(|e| match e {
+            Error::Input(m) => {
+                Error::Input(format!("{m} (to branch onto it on purpose: --other-data)"))
+            }
+            other => other,
+        })?;
+    }
     let mut trainer = Trainer::with_plugins(data, config, plugins)?;
     let fresh = trainer.branch_from(from)?;
     attach_backdrop(&mut trainer, data, out, plugins)?;
@@ -267,7 +297,6 @@ pub fn branch_run_with_plugins(
             trainer.config.iterations
         )));
     }
-    crate::eval::render::record_data(out, data)?;
     log_line(&format!(
         "branching from {} at iteration {} of {}{}",
         from.display(),
@@ -279,7 +308,7 @@ pub fn branch_run_with_plugins(
             format!(" (starting fresh: {})", fresh.join(", "))
         }
     ));
-    run_trainer(trainer, out, false)
+    run_trainer(trainer, out, false, Some(data))
 }
 
 /// [`train_run`] for a trainer the caller built ([`Trainer::with_model`] for a
@@ -308,7 +337,7 @@ pub fn train_run_with(mut trainer: Trainer, out: &Path, resume: bool) -> Result<
             say_resumed(&trainer, &dir);
         }
     }
-    run_trainer(trainer, out, resume)
+    run_trainer(trainer, out, resume, None)
 }
 
 fn say_resumed(trainer: &Trainer, dir: &Path) {
@@ -320,7 +349,15 @@ fn say_resumed(trainer: &Trainer, dir: &Path) {
     ));
 }
 
-fn run_trainer(mut trainer: Trainer, out: &Path, resume: bool) -> Result<RunSummary, Error> {
+/// Trains `trainer` into `out` to its budget. `record` is the data set of a new run
+/// (or branch), recorded as `RUN/data.json` once every check has passed, so a
+/// refused start writes nothing into the run folder.
+fn run_trainer(
+    mut trainer: Trainer,
+    out: &Path,
+    resume: bool,
+    record: Option<&Dataset>,
+) -> Result<RunSummary, Error> {
     if trainer.config.backdrop.enabled() && trainer.backdrop().is_none() {
         return Err(Error::Input(format!(
             "{}: the config has a background layer but the trainer none (train_run and branch_run train it; with train_run_with call Trainer::set_backdrop first)",
@@ -329,6 +366,9 @@ fn run_trainer(mut trainer: Trainer, out: &Path, resume: bool) -> Result<RunSumm
     }
     trainer.check_memory(trainer.num_gaussians())?;
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    if let Some(data) = record {
+        crate::eval::render::record_data(out, data)?;
+    }
     let model_dir = out.join("model");
     let config_json =
         serde_json::to_vec_pretty(&trainer.config).map_err(|e| Error::Input(e.to_string()))?;
