@@ -220,7 +220,7 @@ pub struct EvalReport {
     pub train_scale: f64,
     /// Iterations trained.
     pub iterations: usize,
-    /// Training wall time, seconds (all phases, summed over resumed sessions).
+    /// Training wall time, seconds (all phases, summed over every resume).
     pub train_seconds: f64,
     /// Number of Gaussians.
     pub num_gaussians: usize,

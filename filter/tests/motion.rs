@@ -1,5 +1,4 @@
-//! The motion-aware filter against brute-force Algorithm 1, and its properties
-//! (issue 5 "Must show").
+//! The motion-aware filter against brute-force Algorithm 1, and its properties.
 
 use maaf_autodiff::PerGaussian;
 use maaf_filter::reference::{algorithm1, window_max};

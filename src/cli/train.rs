@@ -176,7 +176,7 @@ fn json_kind(v: &serde_json::Value) -> &'static str {
 /// The configuration of the run being resumed: its `config.json`, with the budget of
 /// `--iters` if given (said on stderr when it changes). Any other setting flag that
 /// differs from the run's is refused: a resumed run keeps its settings, so that it
-/// continues exactly as the first session would have.
+/// continues exactly as an uninterrupted run would have.
 fn resumed_config(args: &SettingsArgs, run: &Path) -> anyhow::Result<TrainConfig> {
     let path = run.join("config.json");
     let text = std::fs::read_to_string(&path).map_err(|e| {

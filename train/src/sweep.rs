@@ -1,4 +1,4 @@
-//! Ablation sweeps as plain job lists (issue 14 item 4): a small grid of config values
+//! Ablation sweeps as plain job lists: a small grid of config values
 //! becomes one run folder per point, each with its resolved `config.json`, and one shell
 //! line per point that trains and evaluates it. The lines are independent, so
 //! `bash jobs.txt` runs them one after another, `parallel -j2 < jobs.txt` (GNU

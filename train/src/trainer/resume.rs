@@ -78,7 +78,7 @@ pub fn truncate_log(path: &Path, headers: &[String], iteration: usize) -> Result
         None => 0,
         Some(first) => headers.iter().position(|h| h == first).ok_or_else(|| {
             Error::Input(format!(
-                "{}: its columns `{first}` differ from this run's objective `{}` (on resume, add the same custom terms as in the first session)",
+                "{}: its columns `{first}` differ from this run's objective `{}` (on resume, add the same custom terms as when the run started)",
                 path.display(),
                 headers.first().map_or("", String::as_str)
             ))

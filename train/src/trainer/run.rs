@@ -249,8 +249,8 @@ pub fn branch_run_with_plugins(
 /// representation of its own, custom terms pushed onto [`Trainer::objective`]): the
 /// library's run entry point for research code. With `resume`, the newest complete
 /// checkpoint of `out` is restored into `trainer` ([`Trainer::restore`]), which keeps
-/// its objective and its iteration budget: build the trainer exactly as for the first
-/// session, so custom terms are re-supplied. Refuses a resume whose objective differs
+/// its objective and its iteration budget: build the trainer exactly as when the run
+/// started, so custom terms are re-supplied. Refuses a resume whose objective differs
 /// from the one `log.csv` was written with, and a trainer whose objective lacks terms
 /// its config names ([`crate::loss::Objective::unregistered`]: one loaded by
 /// [`super::load_checkpoint`] for rendering).

@@ -1,7 +1,7 @@
 //! Validation during training: a few held-back views rendered every `val_every`
 //! iterations, their mean PSNR logged as `val_psnr` in `log.csv`, so quality can be
-//! drawn against training time without a separate evaluation (issue: speed against
-//! accuracy as curves). Outside the tape and the optimiser: the run is unchanged.
+//! drawn against training time without a separate evaluation (speed against accuracy
+//! as curves). Outside the tape and the optimiser: the run is unchanged.
 
 use maaf_autodiff::{Tape, Tensor};
 use maaf_splat::Camera;
