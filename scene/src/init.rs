@@ -57,7 +57,7 @@ pub fn model_init(data: &Dataset, config: &TrainConfig) -> Result<ModelInit, Err
         .map_err(|e| Error::Input(e.to_string()))?
     {
         Some(init) => {
-            eprintln!("maaf: initial points: {}", init.description);
+            log::info!("initial points: {}", init.description);
             init.cloud
         }
         None => random_cloud(data, config),

@@ -20,17 +20,20 @@ pub fn validation_curve(run: &Path) -> Result<Vec<(f64, f64)>, Error> {
     if !path.is_file() {
         return Ok(Vec::new());
     }
-    let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
-    let mut lines = text.lines();
-    let header: Vec<&str> = lines.next().unwrap_or("").split(',').collect();
-    let column = |name: &str| header.iter().position(|h| *h == name);
+    let bad = |e: csv::Error| Error::Input(format!("{}: {e}", path.display()));
+    let mut reader = csv::ReaderBuilder::new()
+        .flexible(true)
+        .from_path(&path)
+        .map_err(bad)?;
+    let header = reader.headers().map_err(bad)?.clone();
+    let column = |name: &str| header.iter().position(|h| h == name);
     let (Some(t), Some(v)) = (column("elapsed_seconds"), column("val_psnr")) else {
         return Ok(Vec::new());
     };
     let mut points = Vec::new();
-    for (k, line) in lines.enumerate() {
-        let cells: Vec<&str> = line.split(',').collect();
-        let cell = |i: usize| cells.get(i).copied().unwrap_or("");
+    for (k, row) in reader.records().enumerate() {
+        let row = row.map_err(bad)?;
+        let cell = |i: usize| row.get(i).unwrap_or("");
         if cell(v).is_empty() {
             continue;
         }

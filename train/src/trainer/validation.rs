@@ -9,8 +9,8 @@ use maaf_splat::Camera;
 use super::Trainer;
 use crate::Error;
 use crate::data::{Dataset, Split};
-use crate::forward::forward;
-use crate::metrics::psnr;
+use maaf_eval::metrics::psnr;
+use maaf_scene::forward::forward;
 
 /// A held-back view at the training scale.
 pub(super) struct HeldOut {
