@@ -309,12 +309,12 @@ fn case_4_degenerate_cameras_and_non_finite_output_fail() {
     assert!(!png.exists());
     // Export refuses non-finite Gaussians (a model made degenerate in memory: a
     // saved one with a NaN parameter is already refused on load).
-    let registry = maaf::train::scene::ModelRegistry::builtin();
-    let mut t = maaf::train::scene::TrainedScene::load(&nan, &registry).expect("model");
+    let registry = maaf::scene::ModelRegistry::builtin();
+    let mut t = maaf::scene::TrainedScene::load(&nan, &registry).expect("model");
     let p = t.model.params_mut().iter_mut().next().expect("a parameter");
     p.value.data_mut()[0] = f32::NAN;
     let ply = fx.root.join("x.ply");
-    let err = maaf::train::eval::export::export_frame(&t, 0.5, &ply).expect_err("NaN");
+    let err = maaf::eval::export::export_frame(&t, 0.5, &ply).expect_err("NaN");
     assert!(err.to_string().contains("nothing written"), "{err}");
     assert!(!ply.exists());
 }
@@ -359,10 +359,10 @@ fn case_6_settings_a_resume_cannot_honour_are_refused() {
     let fx = fixture("integrity_settings");
     let run = fx.trained("run");
     refused(
-        maaf(&["train", "--resume", s(&run), "--background", "black"]),
+        maaf(&["train", "--resume", s(&run), "--background", "white"]),
         &[
-            "--background black: the run",
-            "was trained on background [1.0, 1.0, 1.0]",
+            "--background white (the run's is black)",
+            "a resumed run keeps its settings",
         ],
     );
     refused(

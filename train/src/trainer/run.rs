@@ -2,16 +2,15 @@
 //! under `checkpoints/`, the final model in `model/`, and `summary.json`; resumable
 //! from the newest complete checkpoint (`resume.rs`).
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 
-use super::log::{LogLayout, RowStats};
+use super::log::{LogLayout, RowStats, csv_line};
 use super::{
-    Timings, TrainConfig, Trainer, load_checkpoint_with_plugins, load_newest, log_line,
-    repair_run_dir, save_checkpoint, truncate_log,
+    Timings, TrainConfig, Trainer, load_checkpoint_with_plugins, load_newest, repair_run_dir,
+    save_checkpoint, truncate_log,
 };
 use crate::data::Dataset;
 use crate::{Error, Plugins, write_atomic};
@@ -98,9 +97,9 @@ pub fn train_run_with_plugins(
     };
     plugins.check(&config, &what)?;
     if resume {
-        crate::eval::render::check_and_record_data(out, data)?;
+        maaf_eval::render::check_and_record_data(out, data)?;
     } else {
-        crate::eval::render::record_data(out, data)?;
+        maaf_eval::render::record_data(out, data)?;
     }
     repair_run_dir(out)?;
     let budget = config.iterations;
@@ -230,8 +229,8 @@ pub fn branch_run_with_plugins(
             trainer.config.iterations
         )));
     }
-    crate::eval::render::record_data(out, data)?;
-    log_line(&format!(
+    maaf_eval::render::record_data(out, data)?;
+    log::info!(
         "branching from {} at iteration {} of {}{}",
         from.display(),
         trainer.iteration,
@@ -241,7 +240,7 @@ pub fn branch_run_with_plugins(
         } else {
             format!(" (starting fresh: {})", fresh.join(", "))
         }
-    ));
+    );
     run_trainer(trainer, out, false)
 }
 
@@ -275,16 +274,19 @@ pub fn train_run_with(mut trainer: Trainer, out: &Path, resume: bool) -> Result<
 }
 
 fn say_resumed(trainer: &Trainer, dir: &Path) {
-    log_line(&format!(
+    log::info!(
         "resuming from {} (iteration {} of {})",
         dir.display(),
         trainer.iteration,
         trainer.config.iterations
-    ));
+    );
 }
 
 fn run_trainer(mut trainer: Trainer, out: &Path, resume: bool) -> Result<RunSummary, Error> {
     trainer.check_memory(trainer.num_gaussians())?;
+    for warning in trainer.config.schedule_warnings() {
+        log::warn!("{}: {warning}", out.display());
+    }
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let model_dir = out.join("model");
     let config_json =
@@ -298,23 +300,33 @@ fn run_trainer(mut trainer: Trainer, out: &Path, resume: bool) -> Result<RunSumm
         if truncate_log(&log_path, &headers, trainer.iteration)? == 0 {
             current
         } else {
-            log_line("log.csv predates the weighted-term columns: appending in its layout");
+            log::info!("log.csv predates the weighted-term columns: appending in its layout");
             old
         }
     } else {
-        write_atomic(&log_path, format!("{}\n", current.header()).as_bytes())?;
+        write_atomic(&log_path, &csv_line(&current.header())?)?;
         current
     };
-    let mut log = std::fs::OpenOptions::new()
+    let file = std::fs::OpenOptions::new()
         .append(true)
         .open(&log_path)
         .map_err(|e| Error::io(&log_path, e))?;
+    let mut log = csv::Writer::from_writer(file);
+    let log_error = |e: csv::Error| Error::Input(format!("{}: {e}", log_path.display()));
     let total = trainer.config.iterations;
-    let bar = indicatif::ProgressBar::new(total as u64);
+    // The bar names the run, so a sequence of trainings (the demo, a suite) says which
+    // one is running; progress is info, hidden by `maaf -q`.
+    let name = run_name(out);
+    let bar = if log::log_enabled!(log::Level::Info) {
+        indicatif::ProgressBar::new(total as u64)
+    } else {
+        indicatif::ProgressBar::hidden()
+    };
     bar.set_position(trainer.iteration as u64);
+    bar.set_prefix(name.clone());
     bar.set_style(
         indicatif::ProgressStyle::with_template(
-            "{bar:30} {pos}/{len} [{elapsed_precise}<{eta_precise}] {msg}",
+            "{prefix} {bar:30} {pos}/{len} [{elapsed_precise}<{eta_precise}] {msg}",
         )
         .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
@@ -354,9 +366,9 @@ fn run_trainer(mut trainer: Trainer, out: &Path, resume: bool) -> Result<RunSumm
                 skipped: trainer.skipped_steps,
                 val: &val,
             };
-            let row = layout.row(&trainer.last_terms, &stats);
-            log.write_all(row.as_bytes())
-                .map_err(|e| Error::io(&log_path, e))?;
+            log.write_record(layout.row(&trainer.last_terms, &stats))
+                .and_then(|()| log.flush().map_err(csv::Error::from))
+                .map_err(log_error)?;
             bar.set_message(format!(
                 "loss {loss:.4}  gaussians {}",
                 trainer.num_gaussians()
@@ -364,8 +376,8 @@ fn run_trainer(mut trainer: Trainer, out: &Path, resume: bool) -> Result<RunSumm
         }
         bar.set_position(it as u64);
         if bar.is_hidden() && (it * 10 / total.max(1)) != ((it - 1) * 10 / total.max(1)) {
-            eprintln!(
-                "maaf: iteration {it}/{total}  loss {loss:.4}  gaussians {}",
+            log::info!(
+                "{name}: iteration {it}/{total}  loss {loss:.4}  gaussians {}",
                 trainer.num_gaussians()
             );
         }
@@ -389,6 +401,21 @@ fn run_trainer(mut trainer: Trainer, out: &Path, resume: bool) -> Result<RunSumm
     };
     summary.write(out)?;
     Ok(summary)
+}
+
+/// How progress lines name the run in `out`: its folder and the folder above it
+/// (`runs/motion`), as a sequence of runs tells them apart.
+fn run_name(out: &Path) -> String {
+    let parts: Vec<String> = out
+        .components()
+        .rev()
+        .filter_map(|c| match c {
+            std::path::Component::Normal(p) => Some(p.to_string_lossy().into_owned()),
+            _ => None,
+        })
+        .take(2)
+        .collect();
+    parts.into_iter().rev().collect::<Vec<_>>().join("/")
 }
 
 /// `RUN/checkpoints/iter_NNNNNN`.
