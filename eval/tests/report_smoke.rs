@@ -36,6 +36,7 @@ fn fake_run(dir: &Path, filter: &str, psnr_at: impl Fn(f64) -> f64, seconds: f64
         frame_stride: 1,
         lpips_net: "alex".into(),
         scales,
+        skipped_scales: Vec::new(),
     };
     write_atomic(
         &dir.join("eval.json"),

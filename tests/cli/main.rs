@@ -10,6 +10,7 @@ mod config_doc;
 mod custom_plugins;
 mod custom_terms;
 mod e2e_gradcheck;
+mod eval_scales;
 mod export_eval;
 mod log_columns;
 mod moved_data;
