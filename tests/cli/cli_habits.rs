@@ -174,15 +174,9 @@ fn cameras_render_sizes_paths_backgrounds_and_report() {
         s(&by_view),
     ]);
     // The camera file carries its view's time, which render uses without --time.
-    let said = ok(&[
-        "render",
-        "--run",
-        s(&run_dir),
-        "--camera",
-        s(&cams.join("0001.json")),
-        "--out",
-        s(&by_file),
-    ]);
+    let cam1 = cams.join("0001.json");
+    let by_camera = ["render", "--run", s(&run_dir), "--camera", s(&cam1)];
+    let said = ok(&[&by_camera[..], &["--out", s(&by_file)]].concat());
     assert!(
         times[1] > 0.0 && said.contains(&format!("t = {}", times[1])),
         "{said}"
@@ -191,18 +185,12 @@ fn cameras_render_sizes_paths_backgrounds_and_report() {
         std::fs::read(&by_view).expect("view png"),
         std::fs::read(&by_file).expect("file png")
     );
-    let said = ok(&[
-        "render",
-        "--run",
-        s(&run_dir),
-        "--camera",
-        s(&cams.join("0001.json")),
-        "--time",
-        "0.75",
-        "--out",
-        s(&tmp.0.join("t.png")),
-    ]);
-    assert!(said.contains("t = 0.75"), "--time overrides the file's time: {said}");
+    let at_t = tmp.0.join("t.png");
+    let said = ok(&[&by_camera[..], &["--time", "0.75", "--out", s(&at_t)]].concat());
+    assert!(
+        said.contains("t = 0.75"),
+        "--time overrides the file's time: {said}"
+    );
 
     // --size instead of --scale, on a view and on a camera file (32x32): the camera's
     // aspect, or a refusal naming both sizes rather than a stretched image.

@@ -234,13 +234,16 @@ fn eval_writes_the_contract_and_refuses_bad_input() {
         &run,
         &data,
         &EvalOptions {
-            scales: vec![1.0, 16.0],
+            scales: vec![16.0],
             ..EvalOptions::default()
         },
     )
     .expect_err("16x");
     let m = one_line(&e);
-    assert!(m.contains("1600x1600") && m.contains("800x800"), "{m}");
+    assert!(
+        m.contains("none of the scales") && m.contains("1600x1600") && m.contains("800x800"),
+        "{m}"
+    );
     // Not an integer factor of the source.
     let e = evaluate_run(
         &run,

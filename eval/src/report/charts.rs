@@ -12,7 +12,7 @@ use plotters::prelude::*;
 use plotters::style::{FontStyle, register_font};
 
 use super::gap::{dodge, gap_panel};
-use super::style::{line, marker, method, method_colour, series_style, with_legend};
+use super::style::{SeriesStyle, line, marker, method, method_colour, series_style, with_legend};
 use super::{ReportRun, scale_header};
 use crate::Error;
 use crate::images::save_png;
@@ -227,14 +227,23 @@ fn scale_panel(
     let mut chart = new_chart(area, title, 24, 70, (x0, x1), (y0, y1))?;
     draw_scale_axes(&mut chart, keys.len(), y_desc, decimals)?;
     for (i, pts) in series.iter().enumerate() {
-        let style = series_style(runs, i);
-        chart
-            .draw_series(std::iter::once(line(pts.clone(), style)))
-            .map_err(e2s)?;
-        chart
-            .draw_series(pts.iter().map(|&q| marker(q, style)))
-            .map_err(e2s)?;
+        draw_run(&mut chart, pts, series_style(runs, i))?;
     }
+    Ok(())
+}
+
+/// Draws one run's line through `pts` with its marker at each point.
+pub(super) fn draw_run(
+    chart: &mut Chart<'_, '_>,
+    pts: &[(f64, f64)],
+    style: SeriesStyle,
+) -> Result<(), String> {
+    chart
+        .draw_series(std::iter::once(line(pts.to_vec(), style)))
+        .map_err(e2s)?;
+    chart
+        .draw_series(pts.iter().map(|&q| marker(q, style)))
+        .map_err(e2s)?;
     Ok(())
 }
 

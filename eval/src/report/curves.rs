@@ -8,8 +8,8 @@ use std::path::Path;
 use plotters::prelude::*;
 
 use super::ReportRun;
-use super::charts::{e2s, new_chart, padded_range, save_chart, text};
-use super::style::{line, marker, series_style, with_legend};
+use super::charts::{draw_run, e2s, new_chart, padded_range, save_chart, text};
+use super::style::{series_style, with_legend};
 use crate::Error;
 
 /// `(elapsed_seconds, val_psnr)` of every `log.csv` row of `run` that has a
@@ -85,13 +85,7 @@ pub fn validation_psnr_vs_time(runs: &[ReportRun], path: &Path) -> Result<bool, 
             .draw()
             .map_err(e2s)?;
         for (i, curve) in curves.iter().enumerate() {
-            let style = series_style(runs, i);
-            chart
-                .draw_series(std::iter::once(line(curve.clone(), style)))
-                .map_err(e2s)?;
-            chart
-                .draw_series(curve.iter().map(|&p| marker(p, style)))
-                .map_err(e2s)?;
+            draw_run(&mut chart, curve, series_style(runs, i))?;
         }
         Ok(())
     })?;

@@ -6,8 +6,8 @@
 //! PSNR panel's 10-dB range hides.
 
 use super::ReportRun;
-use super::charts::{Area, draw_scale_axes, e2s, new_chart, padded_range};
-use super::style::{line, marker, series_style};
+use super::charts::{Area, draw_run, draw_scale_axes, new_chart, padded_range};
+use super::style::series_style;
 
 /// Runs further than this below the best at a scale (dB) are left out of the gap panel.
 pub(super) const GAP_WINDOW: f64 = 1.0;
@@ -70,14 +70,8 @@ pub(super) fn gap_panel(area: &Area<'_>, runs: &[ReportRun]) -> Result<(), Strin
         2,
     )?;
     for (i, stretches) in series.iter().enumerate() {
-        let style = series_style(runs, i);
         for pts in stretches {
-            chart
-                .draw_series(std::iter::once(line(pts.clone(), style)))
-                .map_err(e2s)?;
-            chart
-                .draw_series(pts.iter().map(|&q| marker(q, style)))
-                .map_err(e2s)?;
+            draw_run(&mut chart, pts, series_style(runs, i))?;
         }
     }
     Ok(())
