@@ -145,8 +145,9 @@ impl FrameHeader {
         lines
     }
 
-    /// Reads the fields back from a PLY's comment lines; other comments, and values it
-    /// cannot read, are refused with a line naming `origin` and the comment.
+    /// Reads the fields back from a PLY's comment lines (comments not starting with
+    /// `maaf `, and keys it does not know, are skipped); a value it cannot read is
+    /// refused with a line naming `origin` and the comment.
     pub fn parse(comments: &[String], origin: &str) -> Result<Self, Error> {
         let mut header = FrameHeader::default();
         for line in comments {
@@ -327,4 +328,35 @@ pub fn export_sequence_zip(
     })
     .map_err(|e| Error::io(out, e))?;
     Ok(std::fs::metadata(out).map_err(|e| Error::io(out, e))?.len())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_frame_header_reads_back_what_it_writes_and_refuses_a_bad_value() {
+        let header = FrameHeader {
+            time: Some(0.25),
+            background: Some(Background([0.5, 0.25, 1.0])),
+            filter2d: Some(Filter2d::Classic),
+        };
+        let mut comments = header.comments();
+        comments.insert(0, "written by another tool".into());
+        assert_eq!(
+            FrameHeader::parse(&comments, "f.ply").expect("reads"),
+            header
+        );
+        assert_eq!(
+            FrameHeader::parse(&[], "f.ply").expect("none"),
+            FrameHeader::default()
+        );
+        let err = FrameHeader::parse(&["maaf background grey".into()], "f.ply")
+            .expect_err("refused")
+            .to_string();
+        assert!(
+            err.contains("f.ply") && err.contains("maaf background grey"),
+            "{err}"
+        );
+    }
 }
