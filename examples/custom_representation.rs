@@ -22,12 +22,12 @@ use maaf::autodiff::ops::concat;
 use maaf::autodiff::optim::LrSchedule;
 use maaf::autodiff::scalar::logit;
 use maaf::autodiff::{Tensor, Var};
+use maaf::scene::TrainConfig;
 use maaf::splat::GaussianVars;
+use maaf::train::models::params::{BoundParams, MlpParams, ParamId, ParamStore, Rows};
 use maaf::train::models::{
     Bound, CanonicalIds, ModelInit, Representation, knn_mean_sq_dist, rgb_to_sh_dc,
 };
-use maaf::train::params::{BoundParams, MlpParams, ParamId, ParamStore, Rows};
-use maaf::train::trainer::TrainConfig;
 use serde_json::{Map, Value};
 
 // ---- the user's representation: about 120 lines ----

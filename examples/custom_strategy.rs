@@ -20,7 +20,8 @@
 //! `tests/cli/custom_plugins.rs` runs it: trains, is killed, resumes bit-identical,
 //! evaluates.
 
-use maaf::train::trainer::{DensifyPlan, DensifyStats, StepInfo, Strategy, TrainConfig, Trainer};
+use maaf::scene::TrainConfig;
+use maaf::train::trainer::{DensifyPlan, DensifyStats, StepInfo, Strategy, Trainer};
 use serde_json::{Value, json};
 
 /// Most Gaussians cloned at one refinement.

@@ -1,6 +1,8 @@
-//! The global allocator and its one setting: every program linking `maaf` allocates
-//! through mimalloc ([`crate::cli::Maaf::run`] makes the setting; a program that
-//! trains through the library directly calls [`keep_freed_pages`] first).
+//! mimalloc's one setting for a training process. The `maaf` binary allocates through
+//! mimalloc (its `#[global_allocator]` is in `src/main.rs`, not in this library, so a
+//! program linking `maaf` keeps the allocator it chooses) and calls
+//! [`keep_freed_pages`] first; a program of one's own that trains does the same to get
+//! the same memory behaviour.
 //!
 //! A training step allocates and frees tens of megabytes of tensors (activations,
 //! cotangents, images). glibc's malloc hands the freed top of the heap back to the
@@ -13,17 +15,15 @@
 //! with purging off. With purging off the process keeps its high-water mark of memory
 //! mapped and reuses it, which is what a trainer that repeats one step wants.
 
-/// The process-wide allocator.
-#[global_allocator]
-static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
-
 /// `mi_option_purge_delay` of `mimalloc.h` (v2 and v3: the 16th entry of
 /// `mi_option_e`), which the Rust bindings do not name: the delay in milliseconds
 /// before freed memory is returned to the OS, -1 for never.
 const MI_OPTION_PURGE_DELAY: libmimalloc_sys::mi_option_t = 15;
 
 /// Turns mimalloc's purging of freed memory off (see the module docs); call first in
-/// `main` ([`crate::cli::Maaf::run`] does). An explicit `MIMALLOC_PURGE_DELAY` in the environment wins.
+/// `main` (the `maaf` binary does). Without mimalloc as the global allocator it only
+/// sets an option nothing reads. An explicit `MIMALLOC_PURGE_DELAY` in the environment
+/// wins.
 #[allow(unsafe_code)]
 pub fn keep_freed_pages() {
     if std::env::var_os("MIMALLOC_PURGE_DELAY").is_some() {

@@ -8,7 +8,8 @@
 //! holds the whole `maaf` command line as a library ([`cli::Maaf`]): a program of a
 //! few lines gets every command plus loss terms of its own.
 //!
-//! Linking this crate makes mimalloc the process's global allocator ([`alloc`]).
+//! The library leaves the global allocator to the program; the `maaf` binary uses
+//! mimalloc ([`alloc`]).
 
 pub mod alloc;
 pub mod cli;

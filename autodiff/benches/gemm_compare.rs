@@ -1,7 +1,7 @@
 //! Which f32 GEMM to use at the trainer's skinny shapes: `matrixmultiply` (its own
 //! threads), the `gemm` crate with its rayon threading, and the `gemm` crate
 //! single-threaded per fixed block of rows (or of the reduction, for `x^T g`) spread
-//! over rayon by us. Shapes are the three products of a dense layer with N rows,
+//! over rayon by maaf. Shapes are the three products of a dense layer with N rows,
 //! `in` inputs and 64 outputs: forward `x W` (N x in x 64), input gradient `g W^T`
 //! (N x 64 x in, B transposed) and weight gradient `x^T g` (in x N x 64, A transposed).
 //! Throughput "elem/s" is FLOP/s.

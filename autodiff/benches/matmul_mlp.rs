@@ -8,7 +8,7 @@
 //!   layer: FLOPs = 3 x 2 N sum(in x out).
 //! - `gemm_peak`: the best rate of the GEMM behind `Float::gemm` at 2048^3, the
 //!   number to quote fractions of peak against.
-//! - `matmul`: one product and its backward at 50000 x 64 x 64 (the issue-17 reference).
+//! - `matmul`: one product and its backward at 50000 x 64 x 64 (the MLP layer shape of a 50k-Gaussian step).
 //!
 //! Throughput is reported as "elem/s" where one element is one FLOP, so
 //! `Gelem/s` reads as GFLOP/s.

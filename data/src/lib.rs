@@ -9,12 +9,14 @@
 //! - [`visual_hull`]: initial points carved from foreground masks when none ship.
 //! - [`median_mask`]: moving pixels by background subtraction against a temporal median.
 //! - [`downsample`]: integer box downsampling of premultiplied RGBA, then compositing.
-//! - [`dataset`]: [`Dataset`], views at any integer-ratio scale, cached per scale.
+//! - [`dataset`]: [`Dataset`], views at any integer-ratio scale, cached per scale,
+//!   composited on a [`Background`].
 //! - [`synthetic`]: the procedural alias-prone scene behind `maaf generate`.
 //! - [`inspect`]: the summary behind `maaf inspect`.
 //! - [`points`]: the initial point cloud a data set may ship (`points3d.ply`).
 //! - [`PointCloud`]: the coloured points a representation starts from.
 
+mod background;
 pub mod bounds;
 pub mod dataset;
 pub mod dnerf;
@@ -32,10 +34,9 @@ pub mod shell;
 pub mod synthetic;
 pub mod visual_hull;
 
+pub use background::{BLACK, Background, WHITE};
 pub use bounds::Aabb;
-pub use dataset::{
-    BLACK, Dataset, DatasetOptions, Format, InitialCloud, MaskSource, View, WHITE, background_name,
-};
+pub use dataset::{Dataset, DatasetOptions, Format, InitialCloud, MaskSource, View};
 pub use dnerf::{Frame, Split, SplitMeta};
 pub use error::DataError;
 pub use image::Image;

@@ -8,7 +8,7 @@
 //! Frame `j`'s mask is `1` where `max_c |I_j(p, c) - B(p, c)| > tau` and `0`
 //! elsewhere, with `tau` = [`MEDIAN_THRESHOLD`] (25 of 255). The evaluation then
 //! box-averages the mask to its scale, the same coverage the generator's exact masks
-//! give (`maaf_train::metrics::regions`).
+//! give (`maaf_eval::metrics::regions`).
 //!
 //! Limits: a mover that stays in place for half of the sequence or longer becomes
 //! background; a mover coloured like the background behind it within `tau` is missed

@@ -220,7 +220,7 @@ pub struct EvalReport {
     pub train_scale: f64,
     /// Iterations trained.
     pub iterations: usize,
-    /// Training wall time, seconds (all phases, summed over resumed sessions).
+    /// Training wall time, seconds (all phases, summed over every resume).
     pub train_seconds: f64,
     /// Number of Gaussians.
     pub num_gaussians: usize,
@@ -245,8 +245,21 @@ pub struct EvalReport {
     /// `eval.json`, as files written before VGG was offered) or `vgg`.
     #[serde(default = "alex", skip_serializing_if = "is_alex")]
     pub lpips_net: String,
-    /// One entry per evaluation scale, in the order asked.
+    /// One entry per evaluated scale, in the order asked.
     pub scales: Vec<ScaleResult>,
+    /// The scales asked for that the data cannot give ground truth for, with the
+    /// reason (left out of the file when every scale was evaluated).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub skipped_scales: Vec<SkippedScale>,
+}
+
+/// A scale `maaf eval` was asked for and skipped.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SkippedScale {
+    /// The scale, relative to the training scale.
+    pub scale: f64,
+    /// Why no ground truth of that size can be made.
+    pub reason: String,
 }
 
 fn one() -> usize {
@@ -285,7 +298,7 @@ impl EvalReport {
     pub fn name(&self) -> String {
         match self.trained_background {
             None => "eval".into(),
-            Some(_) => other_background_name(&maaf_data::background_name(self.background)),
+            Some(_) => other_background_name(&maaf_data::Background(self.background).to_string()),
         }
     }
 
@@ -371,6 +384,7 @@ mod tests {
             frame_stride: 1,
             lpips_net: "alex".into(),
             scales: vec![ScaleResult::new(4.0, (8, 8), 30.0, 0.9)],
+            skipped_scales: Vec::new(),
         };
         assert_eq!(r.name(), "eval");
         let v: serde_json::Value =

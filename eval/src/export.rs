@@ -10,8 +10,12 @@
 //! one) are left out: the renderer culls them ([`maaf_splat::compositing::ALPHA_MIN`]),
 //! so the frame renders the same and the file is smaller.
 //!
-//! A sequence is a folder holding only `frame_0000.ply`, `frame_0001.ply`, ..., each
-//! with its time in a header comment (`comment maaf time T`), swapped into place whole,
+//! Every frame's header records how maaf draws it ([`FrameHeader`]: `comment maaf time
+//! T`, `comment maaf background B`, `comment maaf filter2d mip|classic`), so that `maaf
+//! render-ply` of an exported frame draws what `maaf render` does at that time.
+//!
+//! A sequence is a folder holding only `frame_0000.ply`, `frame_0001.ply`, ..., swapped
+//! into place whole,
 //! or the same files as one zip archive (`--out X.zip`). Only PLY files, because brush
 //! plays a folder or zip as a sequence only when every file in it is a PLY (in natural
 //! file-name order) and SuperSplat takes dropped files as a sequence only when all share
@@ -22,8 +26,9 @@ use std::path::{Path, PathBuf};
 
 use maaf_autodiff::Tensor;
 use maaf_autodiff::scalar::logit;
-use maaf_splat::Gaussians;
+use maaf_data::Background;
 use maaf_splat::ply::ply_bytes_with_comments;
+use maaf_splat::{Filter2d, Gaussians};
 
 use super::sequence::{check_own_folder, frame_times};
 use maaf_splat::sh::num_coeffs;
@@ -97,13 +102,88 @@ pub fn finite_frame_gaussians(scene: &TrainedScene, time: f64) -> Result<Gaussia
     Ok(g)
 }
 
-/// Writes the frame at `time` to `out` as a binary 3DGS PLY (atomically), its time
-/// in a header comment; refuses non-finite Gaussians ([`finite_frame_gaussians`]).
-/// Returns how many Gaussians it holds (those drawn at `time`).
+/// What an exported frame's header records besides the Gaussians: its time and how
+/// the run draws it (background, screen-space filter), as `comment maaf KEY VALUE`
+/// lines that 3DGS readers skip.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FrameHeader {
+    /// The frame's time.
+    pub time: Option<f64>,
+    /// The run's background.
+    pub background: Option<Background>,
+    /// The run's screen-space filter.
+    pub filter2d: Option<Filter2d>,
+}
+
+impl FrameHeader {
+    /// The header of `scene`'s frame at `time`.
+    pub fn of(scene: &TrainedScene, time: f64) -> Self {
+        let settings = scene.render_settings();
+        FrameHeader {
+            time: Some(time),
+            background: Some(Background(scene.record.background)),
+            filter2d: Some(settings.filter2d),
+        }
+    }
+
+    /// The `comment` lines (without the keyword) of the fields present.
+    pub fn comments(&self) -> Vec<String> {
+        let mut lines = Vec::new();
+        if let Some(t) = self.time {
+            lines.push(format!("maaf time {t}"));
+        }
+        if let Some(b) = self.background {
+            lines.push(format!("maaf background {b}"));
+        }
+        if let Some(f) = self.filter2d {
+            let name = match f {
+                Filter2d::Classic => "classic",
+                Filter2d::Mip => "mip",
+            };
+            lines.push(format!("maaf filter2d {name}"));
+        }
+        lines
+    }
+
+    /// Reads the fields back from a PLY's comment lines (comments not starting with
+    /// `maaf `, and keys it does not know, are skipped); a value it cannot read is
+    /// refused with a line naming `origin` and the comment.
+    pub fn parse(comments: &[String], origin: &str) -> Result<Self, Error> {
+        let mut header = FrameHeader::default();
+        for line in comments {
+            let Some(rest) = line.strip_prefix("maaf ") else {
+                continue;
+            };
+            let bad = || Error::Input(format!("{origin}: header comment `{line}` cannot be read"));
+            let (key, value) = rest.split_once(' ').ok_or_else(bad)?;
+            match key {
+                "time" => header.time = Some(value.parse().map_err(|_| bad())?),
+                "background" => {
+                    header.background = Some(Background::parse(value).map_err(|_| bad())?)
+                }
+                "filter2d" => {
+                    header.filter2d = Some(match value {
+                        "classic" => Filter2d::Classic,
+                        "mip" => Filter2d::Mip,
+                        _ => return Err(bad()),
+                    })
+                }
+                _ => {}
+            }
+        }
+        Ok(header)
+    }
+}
+
+/// Writes the frame at `time` to `out` as a binary 3DGS PLY (atomically), its
+/// [`FrameHeader`] in header comments; refuses non-finite Gaussians
+/// ([`finite_frame_gaussians`]). Returns how many Gaussians it holds (those drawn at
+/// `time`).
 pub fn export_frame(scene: &TrainedScene, time: f64, out: &Path) -> Result<usize, Error> {
     let g = finite_frame_gaussians(scene, time)?;
+    let header = FrameHeader::of(scene, time).comments();
     sweep_dead_temps(out)?;
-    write_atomic(out, &ply_bytes_with_comments(&g, &[time_comment(time)]))?;
+    write_atomic(out, &ply_bytes_with_comments(&g, &header))?;
     Ok(g.len())
 }
 
@@ -114,21 +194,19 @@ pub(crate) fn sweep_dead_temps(out: &Path) -> Result<(), Error> {
         .map_err(|e| Error::io(out, e))
 }
 
-/// The header comment that records a frame's time.
-fn time_comment(time: f64) -> String {
-    format!("maaf time {time}")
-}
-
 /// Name of frame `i` of a sequence, `frame_NNNN.ply`.
 fn frame_name(i: usize) -> String {
     format!("frame_{i:04}.ply")
 }
 
-/// Frame `time` as PLY bytes with its time in a header comment (`comment maaf time
-/// T`), refused when non-finite ([`finite_frame_gaussians`]).
+/// Frame `time` as PLY bytes with its [`FrameHeader`], refused when non-finite
+/// ([`finite_frame_gaussians`]).
 fn frame_bytes(scene: &TrainedScene, time: f64) -> Result<Vec<u8>, Error> {
     let g = finite_frame_gaussians(scene, time)?;
-    Ok(ply_bytes_with_comments(&g, &[time_comment(time)]))
+    Ok(ply_bytes_with_comments(
+        &g,
+        &FrameHeader::of(scene, time).comments(),
+    ))
 }
 
 /// Whether `out` names a zip archive (its extension is `zip`, any case): then
@@ -318,5 +396,36 @@ impl<W: Seek> Seek for FirstError<W> {
             SeekFrom::End(d) => self.end.saturating_add_signed(d),
         };
         Ok(self.moved_to(pos))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_frame_header_reads_back_what_it_writes_and_refuses_a_bad_value() {
+        let header = FrameHeader {
+            time: Some(0.25),
+            background: Some(Background([0.5, 0.25, 1.0])),
+            filter2d: Some(Filter2d::Classic),
+        };
+        let mut comments = header.comments();
+        comments.insert(0, "written by another tool".into());
+        assert_eq!(
+            FrameHeader::parse(&comments, "f.ply").expect("reads"),
+            header
+        );
+        assert_eq!(
+            FrameHeader::parse(&[], "f.ply").expect("none"),
+            FrameHeader::default()
+        );
+        let err = FrameHeader::parse(&["maaf background grey".into()], "f.ply")
+            .expect_err("refused")
+            .to_string();
+        assert!(
+            err.contains("f.ply") && err.contains("maaf background grey"),
+            "{err}"
+        );
     }
 }

@@ -6,7 +6,7 @@
 //! `mip3d` filter uses). A ratio of 1 means the same filter; below 1 the
 //! motion-aware filter is wider (`s / nu^2` grows as `1 / ratio^2`).
 //!
-//! Both estimators (the paper's KDE and our windowed maximum) are recomputed from
+//! Both estimators (the paper's KDE and maaf's windowed maximum) are recomputed from
 //! the run's observation table, whichever the run trained with, so one run shows
 //! how far either could move the filter away from the static one. The same
 //! distribution is also given for the *moving* Gaussians alone: those whose drawn
@@ -36,7 +36,7 @@ pub const MOVING: f64 = 0.05;
 /// Distribution of `nu(t) / nu_static` over the drawn (Gaussian, time bin) pairs.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct RatioSummary {
-    /// `"kde"` (the paper's) or `"window_max"` (ours).
+    /// `"kde"` (the paper's) or `"window_max"` (maaf's).
     pub estimator: String,
     /// 5th, 50th and 95th percentiles of the ratio.
     pub p05: f64,
@@ -85,7 +85,7 @@ pub struct FilterStudy<'a> {
     drawn: DrawnPairs,
 }
 
-/// The estimators both outputs compare: the paper's and ours.
+/// The estimators both outputs compare: the paper's and maaf's.
 const ESTIMATORS: [MotionEstimator; 2] = [MotionEstimator::Kde, MotionEstimator::WindowMax];
 
 impl<'a> FilterStudy<'a> {

@@ -40,21 +40,11 @@ pub fn to_rgb8(image: &Tensor<f32>) -> Result<RgbImage, Error> {
         .ok_or_else(|| Error::Input("image buffer does not match its shape".into()))
 }
 
-/// The error maps' colour ramp (black, purple, red, orange, pale yellow) for `v` on
-/// [0, 1] (clamped): perceptually ordered from dark to light like inferno.
+/// The error maps' colour for `v` on [0, 1] (clamped): matplotlib's inferno (black,
+/// purple, red, orange, pale yellow), perceptually ordered from dark to light.
 pub fn ramp(v: f32) -> [u8; 3] {
-    const STOPS: [[f32; 3]; 5] = [
-        [0.0, 0.0, 0.0],
-        [0.35, 0.05, 0.45],
-        [0.80, 0.15, 0.25],
-        [0.98, 0.55, 0.05],
-        [1.0, 1.0, 0.75],
-    ];
-    let x = v.clamp(0.0, 1.0) * (STOPS.len() - 1) as f32;
-    let i = (x.floor() as usize).min(STOPS.len() - 2);
-    let f = x - i as f32;
-    let c = |k: usize| STOPS[i][k] + (STOPS[i + 1][k] - STOPS[i][k]) * f;
-    [0, 1, 2].map(|k| (c(k) * 255.0).round() as u8)
+    let c = colorous::INFERNO.eval_continuous(f64::from(v.clamp(0.0, 1.0)));
+    [c.r, c.g, c.b]
 }
 
 /// Colour-maps an `[H, W]` error map: 0 is black, [`ERROR_MAP_MAX`] and above pale yellow.

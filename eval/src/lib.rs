@@ -46,7 +46,8 @@ use crate::metrics::rings::RingErrors;
 use crate::metrics::{ImageMetrics, error_map, image_metrics, mean_metrics};
 
 pub use eval_json::{
-    EvalReport, PoppingResult, RegionSummary, ScaleResult, TemporalResult, scale_label, trim_float,
+    EvalReport, PoppingResult, RegionSummary, ScaleResult, SkippedScale, TemporalResult,
+    scale_label, trim_float,
 };
 pub use maaf_scene::{Error, write_atomic};
 pub use render::{load_scene_on, run_camera};
@@ -105,72 +106,83 @@ struct ResolvedScale {
 }
 
 /// Checks every scale against the data before anything is rendered: positive,
-/// finite, not repeated, no more pixels than the source images, an integer
-/// downsampling factor of them, images no smaller than the SSIM window.
+/// finite and not repeated, else an error. A scale whose ground truth cannot be made
+/// (more pixels than the source images, or a downsampling factor that does not divide
+/// them) or cannot be scored (images smaller than the SSIM window) is skipped with its
+/// reason; an error only when every scale is.
 fn resolve_scales(
     data: &Dataset,
     split: Split,
     train_scale: f64,
     scales: &[f64],
-) -> Result<Vec<ResolvedScale>, Error> {
+) -> Result<(Vec<ResolvedScale>, Vec<SkippedScale>), Error> {
     if scales.is_empty() {
         return Err(Error::Input("no evaluation scale given".into()));
     }
     let meta = data.split(split).map_err(|e| Error::Input(e.to_string()))?;
     let (sw, sh) = (meta.width, meta.height);
     let mut out: Vec<ResolvedScale> = Vec::new();
-    for &s in scales {
+    let mut skipped = Vec::new();
+    for (i, &s) in scales.iter().enumerate() {
         if !(s.is_finite() && s > 0.0) {
             return Err(Error::Input(format!(
                 "scale {s}: must be a positive number (relative to the training scale, e.g. 0.25,0.5,1,2,4)"
             )));
         }
-        if out.iter().any(|r| (r.relative - s).abs() < 1e-9) {
+        if scales[..i].iter().any(|r| (r - s).abs() < 1e-9) {
             return Err(Error::Input(format!("scale {s} is given twice")));
         }
         let source = train_scale * s;
-        let want = (
-            (sw as f64 * source).round() as u64,
-            (sh as f64 * source).round() as u64,
-        );
-        if source > 1.0 + 1e-9 {
-            return Err(Error::Input(format!(
-                "scale {}x needs {}x{} ground truth but the source images are {sw}x{sh} (training scale {}: at most {}x)",
-                trim_float(s),
-                want.0,
-                want.1,
+        let size = if source > 1.0 + 1e-9 {
+            Err(format!(
+                "needs {}x{} ground truth but the source images are {sw}x{sh} (training scale {}: at most {}x)",
+                (sw as f64 * source).round(),
+                (sh as f64 * source).round(),
                 trim_float(train_scale),
                 trim_float(1.0 / train_scale)
-            )));
-        }
-        let (width, height) = data.size(split, source).map_err(|e| {
-            Error::Input(format!(
-                "scale {}x (source scale {}): {e}",
-                trim_float(s),
-                trim_float(source)
             ))
-        })?;
-        let window = crate::metrics::ssim_window::SSIM_WINDOW;
-        if (width as usize) < window || (height as usize) < window {
-            return Err(Error::Input(format!(
-                "scale {}x gives {width}x{height} images (training scale {}), smaller than the {window}x{window} SSIM window",
-                trim_float(s),
-                trim_float(train_scale)
-            )));
+        } else {
+            data.size(split, source)
+                .map_err(|e| format!("source scale {}: {e}", trim_float(source)))
+                .and_then(|(w, h)| {
+                    let window = metrics::ssim_window::SSIM_WINDOW as u32;
+                    if w < window || h < window {
+                        Err(format!(
+                            "its {w}x{h} images are smaller than the {window}x{window} SSIM window"
+                        ))
+                    } else {
+                        Ok((w, h))
+                    }
+                })
+        };
+        match size {
+            Ok((width, height)) => out.push(ResolvedScale {
+                relative: s,
+                source,
+                width,
+                height,
+            }),
+            Err(reason) => skipped.push(SkippedScale { scale: s, reason }),
         }
-        out.push(ResolvedScale {
-            relative: s,
-            source,
-            width,
-            height,
-        });
     }
-    Ok(out)
+    if out.is_empty() {
+        let why: Vec<String> = skipped
+            .iter()
+            .map(|k| format!("{}x {}", trim_float(k.scale), k.reason))
+            .collect();
+        return Err(Error::Input(format!(
+            "{}: none of the scales can be evaluated: {}",
+            data.root().display(),
+            why.join("; ")
+        )));
+    }
+    Ok((out, skipped))
 }
 
 /// Checks `options` against `data` for a run trained at `train_scale`, as an
 /// evaluation does before rendering anything: the split has views, `max_views` and
-/// `frame_stride` are at least 1, and every scale is possible ([`resolve_scales`]).
+/// `frame_stride` are at least 1, and every scale is valid and at least one can be
+/// evaluated ([`resolve_scales`]; the others are skipped).
 /// A caller that plans evaluations (a suite, before training its runs) calls it to
 /// refuse an evaluation that could never run.
 pub fn check_eval_options(
@@ -181,12 +193,12 @@ pub fn check_eval_options(
     checked_scales(data, train_scale, options).map(|_| ())
 }
 
-/// [`check_eval_options`], returning the resolved scales.
+/// [`check_eval_options`], returning the resolved scales and the skipped ones.
 fn checked_scales(
     data: &Dataset,
     train_scale: f64,
     options: &EvalOptions,
-) -> Result<Vec<ResolvedScale>, Error> {
+) -> Result<(Vec<ResolvedScale>, Vec<SkippedScale>), Error> {
     let split = options.split;
     if data.len(split) == 0 {
         return Err(Error::Input(format!(
@@ -238,6 +250,30 @@ struct ViewResult {
     /// Squared error by distance from the silhouette, when the view has an alpha
     /// coverage.
     rings: Option<RingErrors>,
+}
+
+/// `metrics.csv` of one scale: `view,time,psnr,ssim,lpips`, one row per view (LPIPS
+/// empty where it was not computed).
+fn metrics_csv(views: &[ViewResult]) -> Result<Vec<u8>, Error> {
+    let bad = |e: String| Error::Input(format!("metrics.csv: {e}"));
+    let mut w = csv::Writer::from_writer(Vec::new());
+    w.write_record(["view", "time", "psnr", "ssim", "lpips"])
+        .map_err(|e| bad(e.to_string()))?;
+    for v in views {
+        let lpips = v
+            .lpips
+            .as_ref()
+            .map_or(String::new(), |l| format!("{l:.6}"));
+        w.write_record([
+            v.index.to_string(),
+            v.time.to_string(),
+            format!("{:.6}", v.metrics.psnr),
+            format!("{:.6}", v.metrics.ssim),
+            lpips,
+        ])
+        .map_err(|e| bad(e.to_string()))?;
+    }
+    w.into_inner().map_err(|e| bad(e.to_string()))
 }
 
 /// Renders, measures and (optionally) saves the views `indices` at one scale into `dir`.
@@ -383,6 +419,7 @@ pub fn run_report(scene: &TrainedScene, data: &Dataset) -> EvalReport {
         frame_stride: 1,
         lpips_net: Net::Alex.name().to_string(),
         scales: Vec::new(),
+        skipped_scales: Vec::new(),
     }
 }
 
@@ -467,9 +504,13 @@ pub fn evaluate_scene(
     options: &EvalOptions,
 ) -> Result<EvalReport, Error> {
     let split = options.split;
-    let scales = checked_scales(data, scene.config.train_scale, options)?;
+    let (scales, skipped) = checked_scales(data, scene.config.train_scale, options)?;
     let indices = strided_views(data, split, options.frame_stride, options.max_views);
+    for k in &skipped {
+        log::warn!("eval: scale {}x skipped: {}", trim_float(k.scale), k.reason);
+    }
     let mut report = run_report(scene, data);
+    report.skipped_scales = skipped;
     report.frame_stride = options.frame_stride;
     // LPIPS is optional: without weights every scale gets `lpips: null` and the reason.
     let lpips = Lpips::load_default(options.lpips_net).map_err(|e| e.to_string());
@@ -502,18 +543,7 @@ pub fn evaluate_scene(
                     m.ssim
                 )));
             }
-            let mut csv = String::from("view,time,psnr,ssim,lpips\n");
-            for v in &views {
-                let l = v
-                    .lpips
-                    .as_ref()
-                    .map_or(String::new(), |l| format!("{l:.6}"));
-                csv.push_str(&format!(
-                    "{},{},{:.6},{:.6},{l}\n",
-                    v.index, v.time, v.metrics.psnr, v.metrics.ssim
-                ));
-            }
-            write_atomic(&dir.join("metrics.csv"), csv.as_bytes())?;
+            write_atomic(&dir.join("metrics.csv"), &metrics_csv(&views)?)?;
             let mut result = ScaleResult::new(s.relative, (s.width, s.height), m.psnr, m.ssim);
             match views
                 .iter()
@@ -526,11 +556,11 @@ pub fn evaluate_scene(
             result.regions = RegionSummary::of(views.iter().filter_map(|v| v.regions));
             result.rings = RingErrors::total(views.iter().filter_map(|v| v.rings));
             if let Some(r) = &result.regions {
-                eprintln!("maaf: eval {:>5} by region: {}", scale_label(s.relative), r);
+                log::info!("eval {:>5} by region: {}", scale_label(s.relative), r);
             }
             let lpips_seconds: f64 = views.iter().map(|v| v.lpips_seconds).sum();
-            eprintln!(
-                "maaf: eval {:>5} {}x{}: PSNR {:.2} dB  SSIM {:.4}  LPIPS {}  ({} views, {:.1} s; LPIPS {:.2} s per view)",
+            log::info!(
+                "eval {:>5} {}x{}: PSNR {:.2} dB  SSIM {:.4}  LPIPS {}  ({} views, {:.1} s; LPIPS {:.2} s per view)",
                 scale_label(s.relative),
                 s.width,
                 s.height,
@@ -547,8 +577,8 @@ pub fn evaluate_scene(
                 let (flows, popping) = temporal::evaluate_temporal(scene, data, s.source, model)?;
                 result.temporal = flows;
                 temporal::set_primary(&mut result);
-                eprintln!(
-                    "maaf: temporal {:>5}: {}; popping {:.1} Gaussians per step, mass {:.3} % ({:.1} s)",
+                log::info!(
+                    "temporal {:>5}: {}; popping {:.1} Gaussians per step, mass {:.3} % ({:.1} s)",
                     scale_label(s.relative),
                     result
                         .temporal
@@ -575,7 +605,7 @@ pub fn evaluate_scene(
             )?;
         }
         if let Some(agreement) = study.as_ref().and_then(|s| s.agreement()) {
-            eprintln!("maaf: filter agreement: {}", agreement.summary());
+            log::info!("filter agreement: {}", agreement.summary());
             let json = serde_json::to_string_pretty(&agreement)
                 .map_err(|e| Error::Input(format!("filter agreement: {e}")))?;
             write_atomic(

@@ -1,4 +1,4 @@
-//! Criterion bench of the motion-aware filter refresh (issue 5): N = 50k Gaussians
+//! Criterion bench of the motion-aware filter refresh: N = 50k Gaussians
 //! with J = 150 observations (D-NeRF: 150 training frames, one camera per time) and
 //! J = 300 x 20 (multi-view video: 300 times x 20 cameras). The video case is run
 //! at N = 5k (its observation table alone is 24 kB per Gaussian, 1.2 GB at 50k, and

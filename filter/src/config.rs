@@ -97,7 +97,7 @@ pub enum MotionEstimator {
     /// density with a Weibull kernel in f/d and a Gaussian kernel in t.
     #[default]
     Kde,
-    /// Ours, not the paper's: Mip-Splatting's Eq. 2 restricted to a time window,
+    /// maaf's, not the paper's: Mip-Splatting's Eq. 2 restricted to a time window,
     /// `nu(t) = max { x_j : |t_j - t| <= h_t }` (normalised times), so nu(t) is the
     /// highest sampling rate any training view has at times near t. It follows f/d
     /// wherever it moves, without the KDE's upward bias of about `lambda h_x x_max`.
@@ -187,10 +187,10 @@ pub struct FilterConfig {
     /// Which filter the trainer applies.
     pub kind: FilterKind,
     /// How the motion-aware filter estimates nu(t): the paper's KDE (default) or
-    /// our windowed maximum.
+    /// maaf's windowed maximum.
     pub estimator: MotionEstimator,
     /// Filter size `s` of the variance `s / nu^2` (Mip-Splatting code: 0.2; the
-    /// paper's Eq. 4 writes `s / nu`, we follow the code's squared form).
+    /// paper's Eq. 4 writes `s / nu`, maaf follows the code's squared form).
     pub s3d: f32,
     /// Near plane: a centre is visible only if its camera depth `z > near` (0.2,
     /// Mip-Splatting `compute_3D_filter` and the rasterizer's frustum test).
@@ -228,7 +228,7 @@ pub struct FilterConfig {
     /// Most training views whose f/d the motion filter keeps per Gaussian, 2048:
     /// the observation table holds `4 * min(views, max_views)` bytes per Gaussian
     /// (8 kB, 246 MB at 30 000 Gaussians). With more views it observes every camera
-    /// of an even stride of the times ([`crate::observed_frames`]). A bound of ours:
+    /// of an even stride of the times ([`crate::observed_frames`]). A bound of maaf's:
     /// the paper observes every training view (D-NeRF's 150-200 are far below it;
     /// Panoptic's 4 050 are not).
     pub max_views: usize,

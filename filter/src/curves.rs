@@ -1,6 +1,6 @@
 //! Storage of the motion-aware sampling rate nu_k(t) (paper Sec. 4): per Gaussian
 //! one code per time bin plus `x_max` and a fallback nu, whatever estimator filled
-//! the codes (the paper's KDE, `kde.rs`, or our windowed maximum, `window_max.rs`).
+//! the codes (the paper's KDE, `kde.rs`, or maaf's windowed maximum, `window_max.rs`).
 //!
 //! Fallback: a bin where the estimator found no support (the KDE's density at
 //! most `density_floor`, no observation in the window maximum's window) holds

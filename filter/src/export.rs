@@ -2,7 +2,6 @@
 //! JSON and CSV, to draw the paper's Fig. 3 (f/d over time for static vs moving
 //! primitives). Files are written atomically (temporary file, then rename).
 
-use std::fmt::Write as _;
 use std::path::Path;
 
 use maaf_autodiff::PerGaussian;
@@ -144,25 +143,42 @@ impl AnalysisExport {
     /// `observation` (value f/d), `nu` (the run's motion-aware nu at the bin time),
     /// `nu_<estimator>` (a compared curve) and `static_nu` (one row, t empty).
     pub fn to_csv(&self) -> String {
-        let mut out = String::from("gaussian,label,series,t,value\n");
+        let mut rows: Vec<[String; 5]> =
+            vec![["gaussian", "label", "series", "t", "value"].map(String::from)];
         for g in &self.gaussians {
-            let label = g.label.replace([',', '\n', '"'], "_");
+            let mut row = |series: &str, t: String, value: f32| {
+                rows.push([
+                    g.index.to_string(),
+                    g.label.clone(),
+                    series.into(),
+                    t,
+                    value.to_string(),
+                ]);
+            };
             for [t, x] in &g.observations {
-                let _ = writeln!(out, "{},{label},observation,{t},{x}", g.index);
+                row("observation", t.to_string(), *x);
             }
             for [t, nu] in &g.nu {
-                let _ = writeln!(out, "{},{label},nu,{t},{nu}", g.index);
+                row("nu", t.to_string(), *nu);
             }
             for c in &g.compared {
                 for [t, nu] in &c.nu {
-                    let _ = writeln!(out, "{},{label},nu_{},{t},{nu}", g.index, c.estimator);
+                    row(&format!("nu_{}", c.estimator), t.to_string(), *nu);
                 }
             }
             if let Some(v) = g.static_nu {
-                let _ = writeln!(out, "{},{label},static_nu,,{v}", g.index);
+                row("static_nu", String::new(), v);
             }
         }
-        out
+        let mut w = csv::Writer::from_writer(Vec::new());
+        for r in &rows {
+            // Writing strings into memory cannot fail.
+            let _ = w.write_record(r);
+        }
+        w.into_inner()
+            .ok()
+            .and_then(|bytes| String::from_utf8(bytes).ok())
+            .unwrap_or_default()
     }
 
     /// Writes [`Self::to_json`] atomically.

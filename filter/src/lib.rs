@@ -5,7 +5,7 @@
 //! * [`MotionCurves`]: the paper's motion-aware sampling rate nu_k(t) (Sec. 4,
 //!   Algorithm 1) from per-Gaussian observations ([`ObservationTable`]), computed
 //!   without the `D x T` density and stored as `T + 8` bytes per Gaussian; or, with
-//!   [`MotionEstimator::WindowMax`] (ours), the windowed maximum of f/d in the same
+//!   [`MotionEstimator::WindowMax`] (maaf's), the windowed maximum of f/d in the same
 //!   storage.
 //! * [`SamplingFilter`]: the filter as a trait (what computes a [`FilterState`]);
 //!   built in: [`NoFilter`], [`StaticFilter`], [`MotionKdeFilter`],

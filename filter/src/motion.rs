@@ -1,5 +1,5 @@
 //! The motion-aware filter's refresh: nu_k(t) from the recorded observations by the
-//! configured estimator, the paper's KDE (`kde.rs`) or our windowed maximum
+//! configured estimator, the paper's KDE (`kde.rs`) or maaf's windowed maximum
 //! (`window_max.rs`), stored as [`MotionCurves`] (`curves.rs`); and the two
 //! [`SamplingFilter`]s that use it.
 
@@ -12,7 +12,7 @@ use crate::{kde, window_max};
 
 impl MotionCurves {
     /// Recomputes every Gaussian's curve from `table` with `cfg.estimator`: the
-    /// fast path of Algorithm 1 (the paper's KDE) or our windowed maximum
+    /// fast path of Algorithm 1 (the paper's KDE) or maaf's windowed maximum
     /// (`window_max.rs`), parallel over Gaussians. Errors with the config error if `cfg` is invalid
     /// (re-checked here, it costs nothing) and with [`FilterError::NothingVisible`]
     /// if the table has Gaussians but no observation.
@@ -31,7 +31,7 @@ impl MotionCurves {
 #[derive(Clone, Copy, Debug, Default)]
 pub struct MotionKdeFilter;
 
-/// Our windowed maximum (`filter.kind = "motion"`, `estimator = "window_max"`):
+/// maaf's windowed maximum (`filter.kind = "motion"`, `estimator = "window_max"`):
 /// nu_k(t) = the largest f/d observed within `h_t` of t (`window_max.rs`).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct WindowMaxFilter;

@@ -6,7 +6,7 @@
 //! It evaluates the same (truncated) kernels as the fast path ([`Kernels`]); the
 //! truncation itself is measured against untruncated kernels in the tests.
 //!
-//! [`window_max`] is the same kind of oracle for our windowed-maximum estimator.
+//! [`window_max`] is the same kind of oracle for maaf's windowed-maximum estimator.
 
 use crate::config::FilterConfig;
 use crate::curves::FALLBACK;
@@ -91,7 +91,7 @@ impl Algorithm1 {
     }
 }
 
-/// Our windowed maximum ([`crate::MotionEstimator::WindowMax`]), literally: for
+/// maaf's windowed maximum ([`crate::MotionEstimator::WindowMax`]), literally: for
 /// each time bin `g_t[s] = s / (T - 1)`, the largest `x_j` of a valid slot with
 /// `|g_t[s] - t_j| <= h_t`, or `None` when the window holds no observation.
 /// `times` are normalised, empty slots flagged by `t_j < 0` (as [`algorithm1`]).

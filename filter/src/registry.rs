@@ -12,7 +12,7 @@ use crate::sampling::{NoFilter, SamplingFilter, StaticFilter};
 pub type FilterConstructor = dyn Fn(&FilterConfig) -> Box<dyn SamplingFilter> + Send + Sync;
 
 /// Filter constructors by name. [`FilterRegistry::builtin`] holds `none`, `mip3d`,
-/// `motion` (the paper's KDE) and `window_max` (ours). Cloning shares the
+/// `motion` (the paper's KDE) and `window_max` (maaf's). Cloning shares the
 /// constructors.
 #[derive(Clone)]
 pub struct FilterRegistry {

@@ -1,4 +1,4 @@
-//! Our windowed-maximum estimator of nu(t) ([`crate::MotionEstimator::WindowMax`];
+//! maaf's windowed-maximum estimator of nu(t) ([`crate::MotionEstimator::WindowMax`];
 //! not the paper's): Mip-Splatting's Eq. 2 restricted to the views near t,
 //!
 //! `nu(t) = max { x_j : |t_j - t| <= h_t }`, `x_j = f_j / d_j`, normalised times,

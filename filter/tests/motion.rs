@@ -1,5 +1,4 @@
-//! The motion-aware filter against brute-force Algorithm 1, and its properties
-//! (issue 5 "Must show").
+//! The motion-aware filter against brute-force Algorithm 1, and its properties.
 
 use maaf_autodiff::PerGaussian;
 use maaf_filter::reference::{algorithm1, window_max};
@@ -521,7 +520,7 @@ fn nothing_visible_is_an_error_not_a_zero_nu() {
     );
 }
 
-/// Our windowed-maximum estimator: the fast path against the literal oracle
+/// maaf's windowed-maximum estimator: the fast path against the literal oracle
 /// ([`window_max`]) on the same random tables and layouts as the KDE, including a
 /// time range other than [0, 1], a narrow and a wide window and a coarse grid.
 #[test]

@@ -29,7 +29,7 @@ pub fn replace_dir(new: &Path, target: &Path) -> io::Result<()> {
     }
     fault::step(Step::Meta, "exchange folders")?;
     if !fault::exchange_disabled() && exchange(new, target)? {
-        // `new` now names the old version: a hidden temporary, swept if we die here.
+        // `new` now names the old version: a hidden temporary, swept if the process dies here.
         fault::step(Step::Meta, "fsync folder")?;
         sync_dir(parent)?;
         fault::step(Step::Meta, "remove old folder")?;

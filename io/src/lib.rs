@@ -36,7 +36,7 @@ pub mod process;
 pub use dir::{readable_dir, recover_dir, recover_parked_in, replace_dir, write_dir};
 use fault::Step;
 pub use lock::{LockError, RunLock};
-pub use name::is_plugin_name;
+pub use name::{is_plugin_name, unknown_name};
 
 /// Marker every temporary name contains (`.NAME.maaf-tmp-PID`).
 pub const TEMP_MARK: &str = ".maaf-tmp-";

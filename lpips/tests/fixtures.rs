@@ -76,7 +76,7 @@ fn check_against_reference(net: Net, tol: f64) {
 
 #[test]
 fn alex_matches_the_reference_implementation_within_1e_5() {
-    // The issue asked for 1e-3; the port agrees to float rounding, so pinned tighter.
+    // 1e-3 would do for a metric; the port agrees to float rounding, so pinned tighter.
     check_against_reference(Net::Alex, 1e-5);
 }
 

@@ -92,11 +92,26 @@ pub fn first_non_finite(model: &dyn Representation<f32>) -> Option<(String, usiz
 }
 
 impl Opened {
-    /// `DIR/state.json`, or an error naming the file.
+    /// `DIR/state.json`, or an error naming the file. A checkpoint written before the
+    /// config had `background` takes it from its scene record (the colour the run
+    /// trained on), where it has one.
     pub fn read_state(dir: &Path) -> Result<State, Error> {
         let path = dir.join("state.json");
+        let bad = |e: serde_json::Error| Error::Input(format!("{}: {e}", path.display()));
         let text = std::fs::read(&path).map_err(|e| Error::io(&path, e))?;
-        serde_json::from_slice(&text).map_err(|e| Error::Input(format!("{}: {e}", path.display())))
+        let value: serde_json::Value = serde_json::from_slice(&text).map_err(bad)?;
+        let has_background = value.pointer("/config/background").is_some();
+        let mut state: State = serde_json::from_value(value).map_err(bad)?;
+        if !has_background {
+            let blob_path = dir.join("tensors.safetensors");
+            let blob = std::fs::read(&blob_path).map_err(|e| Error::io(&blob_path, e))?;
+            let st = SafeTensors::deserialize(&blob)
+                .map_err(|e| Error::Input(format!("{}: {e}", blob_path.display())))?;
+            if let Some(record) = SceneRecord::from_tensors(&st, &blob_path)? {
+                state.config.background = maaf_data::Background(record.background);
+            }
+        }
+        Ok(state)
     }
 
     /// Opens `dir` with its state already read: reads the tensors file and refuses it

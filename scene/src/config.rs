@@ -3,6 +3,7 @@
 
 use std::collections::BTreeMap;
 
+use maaf_data::Background;
 use maaf_filter::FilterConfig;
 use serde::{Deserialize, Serialize};
 
@@ -274,6 +275,12 @@ pub struct TrainConfig {
     pub hull_fraction: f64,
     /// D-SSIM weight lambda in `(1 - lambda) L1 + lambda D-SSIM`.
     pub lambda_dssim: f64,
+    /// The colour the data's transparent pixels are composited on for training,
+    /// validation and evaluation, and the model is rendered on (`"black"`, `"white"`
+    /// or `"r,g,b"`). Black by default, the paper's D-NeRF protocol
+    /// ([`Background::default`]); `maaf train --background` overrides it. A trainer
+    /// refuses a data set opened on another background.
+    pub background: Background,
     /// Render each training view on a uniformly random background colour and
     /// composite its ground truth on the same colour from the images' alpha
     /// (nerfstudio's `background_color = "random"`), so empty space is learnt as
@@ -337,6 +344,7 @@ impl Default for TrainConfig {
             init_points: 10_000,
             hull_fraction: 0.5,
             lambda_dssim: 0.2,
+            background: Background::default(),
             random_background: false,
             static_points: StaticPoints::Box,
             camera_colour: CameraColourConfig::default(),
@@ -429,6 +437,32 @@ impl TrainConfig {
             prune: PruneConfig::default(),
             ..self.clone()
         }
+    }
+
+    /// What this config's schedule leaves out because the run is shorter than it (a
+    /// short run of a 20 000-iteration schedule): densification that never starts, a
+    /// 3D filter never refreshed after the first iteration. One line each, for a
+    /// warning; empty when the schedule fits.
+    pub fn schedule_warnings(&self) -> Vec<String> {
+        let n = self.iterations;
+        let d = &self.densify;
+        let densifies = d.from < n && d.from < d.until;
+        let mut warnings = Vec::new();
+        if !densifies && d.from < d.until {
+            warnings.push(format!(
+                "densification starts at iteration {} (densify.from), not before this run's end at {n}: the run keeps its {} initial Gaussians; scale densify.from / until to the run",
+                d.from, self.init_points
+            ));
+        }
+        let refresh = &self.filter.refresh;
+        let refreshes = refresh.start < n as u64 || (refresh.after_densify && densifies);
+        if self.filter.kind != maaf_filter::FilterKind::None && !refreshes {
+            warnings.push(format!(
+                "the 3D filter is refreshed from iteration {} (filter.refresh.start), not before this run's end at {n}: it stays as computed before the first iteration",
+                refresh.start
+            ));
+        }
+        warnings
     }
 
     /// Checks every setting before any work starts; the error is one line naming the
@@ -583,6 +617,28 @@ impl TrainConfig {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A run shorter than its schedule is told what it skips; the full schedule and a
+    /// filterless run's refreshes are not.
+    #[test]
+    fn short_runs_are_told_what_their_schedule_skips() {
+        assert!(TrainConfig::default().schedule_warnings().is_empty());
+        let short = TrainConfig {
+            iterations: 20,
+            ..TrainConfig::default()
+        };
+        let warnings = short.schedule_warnings();
+        assert_eq!(warnings.len(), 2, "{warnings:?}");
+        assert!(warnings[0].contains("densify.from") && warnings[0].contains("at 20"));
+        assert!(warnings[1].contains("filter.refresh.start"));
+        let mut unfiltered = short.clone();
+        unfiltered.filter.kind = maaf_filter::FilterKind::None;
+        assert_eq!(unfiltered.schedule_warnings().len(), 1);
+        // Densification inside the run refreshes the filter after it.
+        let mut densifying = short;
+        densifying.densify.from = 5;
+        assert!(densifying.schedule_warnings().is_empty());
+    }
 
     /// Each bad value is refused with its field's name; the defaults pass.
     #[test]

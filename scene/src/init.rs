@@ -63,9 +63,9 @@ pub fn model_init(data: &Dataset, config: &TrainConfig) -> Result<ModelInit, Err
         .map_err(|e| Error::Input(e.to_string()))?
     {
         Some(init) => {
-            eprintln!("maaf: initial points: {}", init.description);
+            log::info!("initial points: {}", init.description);
             if let Some(warning) = &init.warning {
-                eprintln!("maaf: warning: {warning}");
+                log::warn!("{warning}");
             }
             init.cloud
         }

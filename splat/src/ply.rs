@@ -200,6 +200,8 @@ pub struct VertexTable {
     pub integer: Vec<bool>,
     /// One entry per vertex, one value per property.
     pub rows: Vec<Vec<f32>>,
+    /// The header's `comment` lines, without the keyword, in order.
+    pub comments: Vec<String>,
 }
 
 impl VertexTable {
@@ -224,6 +226,7 @@ pub fn read_vertex_table(path: &Path) -> Result<VertexTable, PlyError> {
     };
     let mut reader = serde_ply::PlyReader::from_reader(BufReader::new(file))
         .map_err(|e| format(format!("header: {e}")))?;
+    let comments = reader.header().comments.clone();
     let elements: Vec<String> = reader
         .header()
         .elem_defs
@@ -284,12 +287,19 @@ pub fn read_vertex_table(path: &Path) -> Result<VertexTable, PlyError> {
         names,
         integer,
         rows: rows.into_iter().map(|r| r.0).collect(),
+        comments,
     })
 }
 
 /// Reads a 3DGS PLY file (ascii or binary) into [`Gaussians`]. The SH degree is
 /// inferred from the number of `f_rest_*` properties (0, 9, 24 or 45).
 pub fn read_ply(path: &Path) -> Result<Gaussians, PlyError> {
+    read_ply_with_comments(path).map(|(g, _)| g)
+}
+
+/// [`read_ply`] with the header's `comment` lines (without the keyword), where a
+/// writer may have recorded how the scene is to be drawn.
+pub fn read_ply_with_comments(path: &Path) -> Result<(Gaussians, Vec<String>), PlyError> {
     let shown = path.display().to_string();
     let format = |message: String| PlyError::Format {
         path: shown.clone(),
@@ -347,14 +357,15 @@ pub fn read_ply(path: &Path) -> Result<Gaussians, PlyError> {
         }
         layout.unpack(&values, &mut cols);
     }
-    Ok(Gaussians {
+    let gaussians = Gaussians {
         means: Tensor::from_vec(cols.means, &[n, 3]),
         log_scales: Tensor::from_vec(cols.log_scales, &[n, 3]),
         quats: Tensor::from_vec(cols.quats, &[n, 4]),
         raw_opacity: Tensor::from_vec(cols.raw_opacity, &[n]),
         sh: Tensor::from_vec(cols.sh, &[n, layout.k, 3]),
         sh_degree: degree,
-    })
+    };
+    Ok((gaussians, table.comments))
 }
 
 /// Encodes `g` as a `binary_little_endian` 3DGS PLY.

@@ -6,7 +6,7 @@
 //! truncation error is ~eps^2 |f'''| and the rounding error ~1e-16 |f| / eps. The
 //! chain maps world units to pixels (fx/z ~ 15-60) and goes through exp(-power), so
 //! |f'''| can reach ~1e5 and |f| ~1e2 (depth-weighted sums): both errors stay below
-//! ~1e-7 absolute. We use atol 1e-6 and rtol 1e-5: a wrong factor, sign or missing
+//! ~1e-7 absolute. The tolerances are atol 1e-6 and rtol 1e-5: a wrong factor, sign or missing
 //! term (the negative control) is off by >= 1e-2.
 #![allow(clippy::unwrap_used)]
 

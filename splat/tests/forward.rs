@@ -39,7 +39,7 @@ fn check_scene(scene: &common::Scene<f32>, w: u32, h: u32, s: &RenderSettings, w
     );
     // Both run in f32 with differently ordered arithmetic (different covariance,
     // projection and power formulas); colours and alphas are O(1), so 1e-5 absolute
-    // (the bound, ~100 f32 ulps at 1.0) leaves room only for rounding. Depth
+    // (~100 f32 ulps at 1.0) leaves room only for rounding. Depth
     // is O(5) world units, so it gets 5x the bound.
     for (name, a, b, tol) in [
         ("image", &fast.image, &img, 1e-5),

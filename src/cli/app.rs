@@ -12,7 +12,6 @@ use maaf_train::models::{ModelInit, Representation};
 use maaf_train::trainer::Strategy;
 
 use super::command::{self, Cli};
-use crate::alloc;
 
 /// Stack size of the worker threads, which run the whole command (as the main
 /// thread's default would be).
@@ -138,7 +137,7 @@ impl Maaf {
     }
 
     /// Parses the process's arguments and runs the command, as the `maaf` binary
-    /// does: mimalloc keeps freed pages ([`alloc::keep_freed_pages`]), the command
+    /// does: messages go to stderr at the level `-q` / `-v` choose, the command
     /// runs on a worker of the rayon pool (`RAYON_NUM_THREADS` threads, default one
     /// per core), and an error prints as one line (`maaf: error: ...`) and exits with
     /// code 1. `--help` and argument errors print and exit as clap does.
@@ -149,14 +148,15 @@ impl Maaf {
     /// inside the pool, the calling worker starts on the work at once and the others
     /// join when they wake.
     pub fn run(self) {
-        alloc::keep_freed_pages();
         quiet_on_closed_pipe();
         // A child of `maaf bench-suite` ends with the suite, however the suite ends.
         if let Err(e) = maaf_io::process::end_with_parent() {
             eprintln!("maaf: error: {e}");
             std::process::exit(1);
         }
-        if let Err(e) = self.execute(Cli::parse()) {
+        let cli = Cli::parse();
+        init_logger(cli.log_level());
+        if let Err(e) = self.execute(cli) {
             eprintln!("maaf: error: {e:#}");
             std::process::exit(1);
         }
@@ -184,6 +184,24 @@ impl Maaf {
             Err(e) => Err(anyhow::anyhow!("cannot start the worker threads: {e}")),
         }
     }
+}
+
+/// Prints the library's messages on stderr at `level` and above (`RUST_LOG` wins when
+/// set), one line each: `maaf: MESSAGE`, `maaf: warning: MESSAGE`. A program that set
+/// a logger of its own keeps it.
+fn init_logger(level: log::LevelFilter) {
+    let _ = env_logger::Builder::new()
+        .filter_level(level)
+        .parse_default_env()
+        .format(|buf, record| {
+            use std::io::Write;
+            match record.level() {
+                log::Level::Warn => writeln!(buf, "maaf: warning: {}", record.args()),
+                log::Level::Error => writeln!(buf, "maaf: error: {}", record.args()),
+                _ => writeln!(buf, "maaf: {}", record.args()),
+            }
+        })
+        .try_init();
 }
 
 /// Lets a closed pipe end the process quietly, as command-line tools do (`maaf

@@ -3,8 +3,8 @@
 
 use std::path::PathBuf;
 
+use maaf_scene::MAX_BATCH;
 use maaf_train::bench::{StepBenchOptions, bench_step, format_table, measure_peak};
-use maaf_train::trainer::MAX_BATCH;
 use maaf_train::{Plugins, load_run};
 
 /// Most timed or warm-up iterations per count: a benchmark, not a training (the

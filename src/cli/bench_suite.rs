@@ -18,7 +18,7 @@ use maaf_filter::FilterKind;
 use maaf_scene::TrainConfig;
 use maaf_scene::write_atomic;
 use maaf_train::Plugins;
-use maaf_train::sweep::shell_quote;
+use maaf_train::sweep::{shell_quote, split_args};
 use serde::{Deserialize, Serialize};
 
 use super::train::{FilterArg, SettingsArgs, config_from};
@@ -78,7 +78,8 @@ pub struct BenchSuiteArgs {
     /// Iterations of every run (quick checks) [default: each preset's].
     #[arg(long)]
     pub iters: Option<usize>,
-    /// Extra arguments of `maaf eval` for every run, split at spaces.
+    /// Extra arguments of `maaf eval` for every run, as one string split as a shell
+    /// would (quotes group words).
     #[arg(long, default_value = "--no-images", allow_hyphen_values = true)]
     pub eval_args: String,
     /// Also evaluate every run on these backgrounds (`white` and/or `black`), after its
@@ -322,7 +323,6 @@ fn plan(args: &BenchSuiteArgs, out: &Path, plugins: &Plugins) -> anyhow::Result<
     for (name, file) in &presets {
         for &f in &args.filters {
             let settings = SettingsArgs {
-                data: None,
                 model: None,
                 filter: Some(FilterKind::from(f).name().to_string()),
                 train_scale: None,
@@ -452,7 +452,11 @@ fn train_args(spec: &SuiteSpec, out: &Path, run: &SuiteRun) -> anyhow::Result<Ve
 }
 
 /// `maaf eval` arguments of a run, on `background` when it is another than the run's.
-fn eval_args(spec: &SuiteSpec, run: &SuiteRun, background: Option<&str>) -> Vec<String> {
+fn eval_args(
+    spec: &SuiteSpec,
+    run: &SuiteRun,
+    background: Option<&str>,
+) -> anyhow::Result<Vec<String>> {
     let mut v: Vec<String> = ["eval", "--run", &run.dir.display().to_string()]
         .map(String::from)
         .to_vec();
@@ -460,8 +464,8 @@ fn eval_args(spec: &SuiteSpec, run: &SuiteRun, background: Option<&str>) -> Vec<
     if let Some(bg) = background {
         v.extend(["--background".to_string(), bg.to_string()]);
     }
-    v.extend(spec.eval_args.split_whitespace().map(String::from));
-    v
+    v.extend(split_args(&spec.eval_args, "--eval-args")?);
+    Ok(v)
 }
 
 /// The `--also-eval-on` backgrounds of a run still to be evaluated on: not the run's
@@ -600,7 +604,7 @@ fn evaluate(
     run: &SuiteRun,
     background: Option<&str>,
 ) -> anyhow::Result<()> {
-    let args = eval_args(spec, run, background);
+    let args = eval_args(spec, run, background)?;
     spawn(exe, &args)?;
     let name = background.map_or_else(|| "eval".to_string(), other_background_name);
     let file = run.dir.join(format!("{name}.json"));

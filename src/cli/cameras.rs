@@ -1,11 +1,13 @@
 //! `maaf cameras`: write the cameras of a data set's split as maaf camera files, so
 //! `maaf render --camera` and `maaf render-ply --camera` can be driven without
-//! hand-made JSON.
+//! hand-made JSON. Each file carries its view's time (`"time"`), at which `maaf render
+//! --camera` renders unless `--time` says otherwise; [`read_camera_file`] reads both.
 
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use maaf_scene::write_atomic;
+use maaf_splat::Camera;
 use maaf_train::data::{Dataset, DatasetOptions, Split};
 
 /// Arguments of `maaf cameras`.
@@ -21,9 +23,9 @@ pub struct CamerasArgs {
     /// source size must be divisible by 1 / scale.
     #[arg(long, default_value_t = 1.0)]
     pub scale: f64,
-    /// Output folder: NNNN.json per view (the camera format of `render --camera`) and
-    /// cameras.json listing each file with its view's time; a folder written earlier
-    /// is replaced whole.
+    /// Output folder: NNNN.json per view (the camera format of `render --camera`, with
+    /// the view's time) and cameras.json listing each file with its view's time; a
+    /// folder written earlier is replaced whole.
     #[arg(long)]
     pub out: PathBuf,
 }
@@ -84,6 +86,25 @@ fn refuse_foreign_files(out: &Path) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// A camera file (the format `maaf cameras` writes) and its optional `"time"`; errors
+/// name the file and the field.
+pub fn read_camera_file(path: &Path) -> anyhow::Result<(Camera, Option<f64>)> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("{}: cannot read", path.display()))?;
+    let shown = path.display().to_string();
+    let camera = Camera::from_json_str(&text, &shown)?;
+    let value: serde_json::Value =
+        serde_json::from_str(&text).with_context(|| format!("{shown}: not a camera file"))?;
+    let time = match value.get("time") {
+        None | Some(serde_json::Value::Null) => None,
+        Some(t) => match t.as_f64().filter(|t| t.is_finite()) {
+            Some(t) => Some(t),
+            None => bail!("{shown}: time = {t}: must be a finite number"),
+        },
+    };
+    Ok((camera, time))
+}
+
 /// Runs `maaf cameras`.
 pub fn run(args: &CamerasArgs) -> anyhow::Result<()> {
     if !(args.scale.is_finite() && args.scale > 0.0 && args.scale <= 1.0) {
@@ -105,7 +126,10 @@ pub fn run(args: &CamerasArgs) -> anyhow::Result<()> {
             let mut index = Vec::with_capacity(cameras.len());
             for (i, (camera, time)) in cameras.iter().zip(&times).enumerate() {
                 let name = camera_file(i);
-                write_atomic(&tmp.join(&name), camera.to_json_string().as_bytes())?;
+                let mut file = serde_json::to_value(camera)?;
+                file["time"] = serde_json::json!(time);
+                let text = serde_json::to_string_pretty(&file)?;
+                write_atomic(&tmp.join(&name), text.as_bytes())?;
                 index.push(serde_json::json!({ "file": name, "time": time }));
             }
             let listing = serde_json::to_string_pretty(&serde_json::json!({ "cameras": index }))?;

@@ -9,8 +9,28 @@ use crate::cli;
 #[derive(Parser)]
 #[command(name = "maaf", version, about, long_about = None)]
 pub(super) struct Cli {
+    /// Print only warnings and errors on stderr (no progress lines or bars).
+    #[arg(short, long, global = true, conflicts_with = "verbose")]
+    pub(super) quiet: bool,
+    /// Also print debug messages on stderr.
+    #[arg(short, long, global = true)]
+    pub(super) verbose: bool,
     #[command(subcommand)]
     command: Command,
+}
+
+impl Cli {
+    /// The level of the messages the command prints on stderr: info (progress), warn
+    /// with `-q`, debug with `-v`.
+    pub(super) fn log_level(&self) -> log::LevelFilter {
+        if self.quiet {
+            log::LevelFilter::Warn
+        } else if self.verbose {
+            log::LevelFilter::Debug
+        } else {
+            log::LevelFilter::Info
+        }
+    }
 }
 
 #[derive(Subcommand)]
@@ -18,13 +38,14 @@ enum Command {
     /// Generate the built-in scene, train with no / static / motion-aware 3D filter,
     /// evaluate at 1/4x..4x and write a report (the README's main command).
     Demo(cli::demo::DemoArgs),
-    /// Print the build configuration (float types, thread count) and exit.
+    /// Print the version, the float types and the worker thread count, and exit.
     Info,
     /// Write a built-in synthetic dynamic scene (D-NeRF format, supersampled, with flow).
     Generate(cli::generate::GenerateArgs),
     /// Write the cameras of a data set's split as camera files for render --camera.
     Cameras(cli::cameras::CamerasArgs),
-    /// Summarise a D-NeRF-format data set (views, resolution, times, cameras, bounds).
+    /// Summarise a data set in any of the three layouts maaf reads (D-NeRF, Plenoptic
+    /// Video, Dynamic 3D Gaussians): views, resolution, times, cameras, bounds.
     Inspect(cli::inspect::InspectArgs),
     /// Train a 4D Gaussian model (SaRO-GS or Deformable-3DGS, + 3D filter) on a data set.
     Train(cli::train::TrainArgs),
@@ -79,8 +100,14 @@ pub(super) fn run(cli: Cli, plugins: &Plugins) -> anyhow::Result<()> {
         Command::BenchSuite(args) => cli::bench_suite::run(&args, plugins)?,
         Command::Info => {
             println!("maaf {}", env!("CARGO_PKG_VERSION"));
+            println!(
+                "floats: f32 (training, rendering, evaluation), f64 (gradient checks: autodiff::check)"
+            );
             // The pool the commands run on (RAYON_NUM_THREADS, default one per core).
-            println!("threads: {}", rayon::current_num_threads());
+            println!(
+                "threads: {} (RAYON_NUM_THREADS, default one per core)",
+                rayon::current_num_threads()
+            );
         }
     }
     Ok(())

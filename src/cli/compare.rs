@@ -29,7 +29,7 @@ pub struct CompareArgs {
     pub json: bool,
     /// Background for pixels with alpha < 1 (opaque images are unaffected): white,
     /// black, or r,g,b in [0, 1].
-    #[arg(long, value_parser = Background::parse, default_value = "white")]
+    #[arg(long, value_parser = Background::parse, default_value_t = Background::default())]
     pub background: Background,
     /// LPIPS backbone: alex or vgg (as `maaf eval --lpips-net`).
     #[arg(long, default_value = "alex")]

@@ -188,6 +188,10 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         start.elapsed().as_secs_f64(),
         report.markdown.display()
     );
+    let zoom = report_dir.join(maaf_eval::report::zoom::ZOOM_FIGURE);
+    if zoom.is_file() {
+        println!("zoomed out and in, the README's figure: {}", zoom.display());
+    }
     Ok(())
 }
 

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use anyhow::bail;
 use maaf_eval::render::recorded_data;
 use maaf_scene::{ModelRegistry, SceneRecord, TrainedScene};
-use maaf_train::data::{Dataset, DatasetOptions, Split, WHITE};
+use maaf_train::data::{Dataset, DatasetOptions, Split};
 
 use super::Background;
 use maaf_eval::{EvalOptions, evaluate_run_with, scale_label};
@@ -45,7 +45,7 @@ pub struct EvalArgs {
     /// Background the data is composited on and the model rendered on: white, black,
     /// or r,g,b in [0, 1]. Another than the run's own writes RUN/eval-on-NAME.json and
     /// RUN/eval-on-NAME/ beside the run's eval.json (what the model put into empty
-    /// space shows there) [default: the one in RUN/data.json, else white].
+    /// space shows there) [default: the run's].
     #[arg(long, value_parser = Background::parse)]
     pub background: Option<Background>,
     /// Also measure temporal stability (W-Temporal Error, W-SSIM, W-LPIPS) of a
@@ -98,7 +98,7 @@ impl From<SplitArg> for Split {
 
 /// Opens the data set of `run`: `data` if given, else the folder in `RUN/data.json`
 /// (an error naming it and suggesting --data when it is gone); the background from
-/// `background`, else the recorded one, else white.
+/// `background`, else the recorded one, else the default (black).
 pub fn open_run_data(
     run: &Path,
     data: Option<&Path>,
@@ -121,7 +121,7 @@ pub fn open_run_data(
     let background = match (background, &recorded) {
         (Some(b), _) => b.rgb(),
         (None, Some(r)) => r.background,
-        (None, None) => WHITE,
+        (None, None) => Background::default().rgb(),
     };
     Ok(Dataset::open(&root, DatasetOptions { background })?)
 }

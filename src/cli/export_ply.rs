@@ -37,8 +37,9 @@ pub struct ExportPlyArgs {
     /// Output PLY file (--time), or folder or .zip file (--frames).
     #[arg(long)]
     pub out: PathBuf,
-    /// Background of the run's data (only used to open the data set): white, black, or
-    /// r,g,b in [0, 1] [default: the one in RUN/data.json, else white].
+    /// Background of the run's data (only used to open the data set of a run saved
+    /// before checkpoints recorded their cameras): white, black, or r,g,b in [0, 1]
+    /// [default: the run's]. The PLY header records the run's own background.
     #[arg(long, value_parser = Background::parse)]
     pub background: Option<Background>,
 }

@@ -1,4 +1,5 @@
-//! `maaf inspect`: summarise a D-NeRF-format data set before training.
+//! `maaf inspect`: summarise a data set (D-NeRF, Plenoptic Video or the Dynamic 3D
+//! Gaussians layout) before training.
 
 use std::path::PathBuf;
 
@@ -7,7 +8,9 @@ use maaf_train::data::inspect::inspect;
 /// Arguments of `maaf inspect`.
 #[derive(clap::Args, Debug)]
 pub struct InspectArgs {
-    /// Data folder holding transforms_{train,val,test}.json.
+    /// Data folder: D-NeRF (transforms_{train,val,test}.json), Plenoptic Video
+    /// (poses_bounds.npy, camXX/) or the Dynamic 3D Gaussians layout (train_meta.json,
+    /// ims/).
     #[arg(long)]
     pub data: PathBuf,
     /// Print the summary as JSON.

@@ -1,7 +1,7 @@
 //! `maaf render` (one image of a trained run at a time and camera) and
 //! `maaf render-video` (a fixed-camera video over time: PNG frames + animated GIF).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use maaf_eval::camera_path::Rig;
@@ -13,32 +13,28 @@ use maaf_splat::Camera;
 use maaf_train::data::{Dataset, Split};
 
 use super::Background;
+use super::cameras::read_camera_file;
 use super::eval::{load_scene, open_run_data, read_lock};
 use maaf_scene::ModelRegistry;
 
-/// Where the camera comes from (shared by `render` and `render-video`).
+/// The run, its camera's size and the background (shared by `render` and
+/// `render-video`; each says where its camera comes from).
 #[derive(clap::Args, Debug)]
 pub struct CameraArgs {
     /// Run directory written by `maaf train`.
     #[arg(long)]
     pub run: PathBuf,
-    /// Data folder the run was trained on, read only for --view, --path test and the
-    /// default start of an orbit or spiral [default: the one in RUN/data.json].
-    #[arg(long)]
-    pub data: Option<PathBuf>,
-    /// A data-set view as SPLIT:INDEX, e.g. test:0 or video:0 (render: this or
-    /// --camera) [default: test:0 as the start of an orbit or spiral].
-    #[arg(long, conflicts_with = "camera")]
-    pub view: Option<String>,
-    /// Camera JSON: {"width","height","fx","fy","cx","cy","world_to_camera":[[4]x4]},
-    /// as `maaf cameras` writes them [default: none; see --view].
+    /// Camera JSON: {"width","height","fx","fy","cx","cy","world_to_camera":[[4]x4]}
+    /// and optionally "time", as `maaf cameras` writes them [default: none].
     #[arg(long)]
     pub camera: Option<PathBuf>,
-    /// Scale relative to the training scale for --view (2 = zoom-in 2x).
+    /// Scale of a data-set view's camera relative to the training scale (2 = zoom-in
+    /// 2x).
     #[arg(long, default_value_t = 1.0, conflicts_with = "size")]
     pub scale: f64,
-    /// Image size WxH in pixels instead of --scale: the camera's intrinsics are
-    /// stretched to it [default: the camera's own size].
+    /// Image size WxH in pixels instead of --scale, of the camera's aspect ratio (the
+    /// camera's intrinsics are scaled to it; another aspect is refused) [default: the
+    /// camera's own size].
     #[arg(long, value_parser = parse_size)]
     pub size: Option<(u32, u32)>,
     /// Background: white, black, or r,g,b in [0, 1] [default: the one the run was
@@ -52,7 +48,16 @@ pub struct CameraArgs {
 pub struct RenderArgs {
     #[command(flatten)]
     camera: CameraArgs,
-    /// Time to render [default: the view's time with --view, else 0].
+    /// A data-set view as SPLIT:INDEX, e.g. test:0 or video:0, whose camera is
+    /// rendered [default: none: give this or --camera].
+    #[arg(long, conflicts_with = "camera")]
+    pub view: Option<String>,
+    /// Data folder the run was trained on, read only for --view [default: the one in
+    /// RUN/data.json].
+    #[arg(long)]
+    pub data: Option<PathBuf>,
+    /// Time to render [default: the view's time with --view, the camera file's "time"
+    /// with --camera, else 0].
     #[arg(long)]
     pub time: Option<f64>,
     /// Output PNG (8-bit).
@@ -80,6 +85,15 @@ pub enum PathArg {
 pub struct RenderVideoArgs {
     #[command(flatten)]
     camera: CameraArgs,
+    /// A data-set view as SPLIT:INDEX, e.g. test:0 or video:0, whose camera is the
+    /// fixed camera or the start of an orbit or spiral (this or --camera) [default:
+    /// test:0 for an orbit or spiral].
+    #[arg(long, conflicts_with = "camera")]
+    pub view: Option<String>,
+    /// Data folder the run was trained on, read only for --view, --path test and the
+    /// default start of an orbit or spiral [default: the one in RUN/data.json].
+    #[arg(long)]
+    pub data: Option<PathBuf>,
     /// Camera path.
     #[arg(long, value_enum, default_value_t = PathArg::Fixed)]
     pub path: PathArg,
@@ -87,10 +101,14 @@ pub struct RenderVideoArgs {
     /// with --path test); at most 10000.
     #[arg(long, default_value_t = 30)]
     pub frames: usize,
-    /// Output folder (frame_NNNN.png and video.gif).
+    /// Output folder (frame_NNNN.png and video.gif); a video file name (.mp4, .gif,
+    /// ...) is refused.
     #[arg(long)]
     pub out: PathBuf,
 }
+
+/// Extensions of video files, which `render-video --out` (a folder) refuses.
+const VIDEO_EXTENSIONS: [&str; 7] = ["mp4", "m4v", "mov", "mkv", "webm", "avi", "gif"];
 
 /// Parses `--size WxH`.
 fn parse_size(s: &str) -> Result<(u32, u32), String> {
@@ -112,9 +130,22 @@ fn parse_size(s: &str) -> Result<(u32, u32), String> {
     Ok((side(w)?, side(h)?))
 }
 
-/// `camera` stretched to `width` x `height` pixels (focal lengths and principal point
-/// scaled per axis).
+/// `camera` at `width` x `height` pixels (focal lengths and principal point scaled),
+/// refused with both sizes named when its aspect ratio differs from the camera's by
+/// more than a pixel's rounding.
 fn resized(camera: &Camera, (width, height): (u32, u32)) -> anyhow::Result<Camera> {
+    let (cw, ch) = (f64::from(camera.width), f64::from(camera.height));
+    let same_aspect = (f64::from(width) * ch / cw - f64::from(height)).abs() < 1.0
+        || (f64::from(height) * cw / ch - f64::from(width)).abs() < 1.0;
+    if !same_aspect {
+        bail!(
+            "--size {width}x{height}: the camera is {}x{}, another aspect ratio, which would stretch the image; give {width}x{} or {}x{height}, or --scale",
+            camera.width,
+            camera.height,
+            (f64::from(width) * ch / cw).round(),
+            (f64::from(height) * cw / ch).round()
+        );
+    }
     let sx = f64::from(width) / f64::from(camera.width);
     let sy = f64::from(height) / f64::from(camera.height);
     Ok(Camera::new(
@@ -155,32 +186,25 @@ struct Setup {
 }
 
 /// Loads the run's scene (on --background when given) and resolves the camera of
-/// --view or --camera, if any. The data set is opened only for --view or when
-/// `need_data` (and for a run saved before checkpoints recorded their cameras).
-fn setup(args: &CameraArgs, need_data: bool, models: &ModelRegistry) -> anyhow::Result<Setup> {
+/// `view` or --camera, if any, with its time. The data set (`data_dir`, else the
+/// run's) is opened only for `view` or when `need_data` (and for a run saved before
+/// checkpoints recorded their cameras).
+fn setup(
+    args: &CameraArgs,
+    view: Option<&str>,
+    data_dir: Option<&Path>,
+    need_data: bool,
+    models: &ModelRegistry,
+) -> anyhow::Result<Setup> {
     // Check the cheap arguments before loading the model.
-    let view = args.view.as_deref().map(parse_view).transpose()?;
-    let file_camera = args
-        .camera
-        .as_ref()
-        .map(|p| Camera::from_json_file(p))
-        .transpose()?;
+    let view = view.map(parse_view).transpose()?;
+    let file_camera = args.camera.as_deref().map(read_camera_file).transpose()?;
     let data = if view.is_some() || need_data {
-        Some(open_run_data(
-            &args.run,
-            args.data.as_deref(),
-            args.background,
-        )?)
+        Some(open_run_data(&args.run, data_dir, args.background)?)
     } else {
         None
     };
-    let mut scene = load_scene(
-        &args.run,
-        args.data.as_deref(),
-        args.background,
-        data.as_ref(),
-        models,
-    )?;
+    let mut scene = load_scene(&args.run, data_dir, args.background, data.as_ref(), models)?;
     if let Some(b) = args.background {
         scene.record.background = b.rgb();
     }
@@ -190,7 +214,7 @@ fn setup(args: &CameraArgs, need_data: bool, models: &ModelRegistry) -> anyhow::
             let time = data.times(split).get(index).copied();
             (Some(cam), time)
         }
-        (None, Some(cam), _) => (Some(cam), None),
+        (None, Some((cam, time)), _) => (Some(cam), time),
         _ => (None, None),
     };
     let camera = match (camera, args.size) {
@@ -246,7 +270,13 @@ pub fn run(args: &RenderArgs, models: &ModelRegistry) -> anyhow::Result<()> {
         camera,
         time: view_time,
         ..
-    } = setup(&args.camera, false, models)?;
+    } = setup(
+        &args.camera,
+        args.view.as_deref(),
+        args.data.as_deref(),
+        false,
+        models,
+    )?;
     let Some(camera) = camera else {
         bail!("give --view SPLIT:INDEX or --camera CAM.json");
     };
@@ -272,17 +302,36 @@ pub fn run(args: &RenderArgs, models: &ModelRegistry) -> anyhow::Result<()> {
 /// Runs `maaf render-video`.
 pub fn run_video(args: &RenderVideoArgs, models: &ModelRegistry) -> anyhow::Result<()> {
     check_frame_count(args.frames)?;
+    if let Some(ext) = args
+        .out
+        .extension()
+        .map(|e| e.to_string_lossy().to_lowercase())
+        && VIDEO_EXTENSIONS.contains(&ext.as_str())
+    {
+        bail!(
+            "--out {}: render-video writes a folder of PNG frames and video.gif, not a .{ext} file; give a folder (--out {}) and encode its frames with a video tool if needed (ffmpeg -i {}/frame_%04d.png v.mp4)",
+            args.out.display(),
+            args.out.with_extension("").display(),
+            args.out.with_extension("").display()
+        );
+    }
     let _lock = read_lock(&args.camera.run)?;
     // The test views' cameras come from the data set: the path of them, and the
     // default start of an orbit or spiral.
     let need_data =
-        args.path == PathArg::Test || (args.camera.view.is_none() && args.camera.camera.is_none());
+        args.path == PathArg::Test || (args.view.is_none() && args.camera.camera.is_none());
     let Setup {
         scene,
         data,
         camera,
         ..
-    } = setup(&args.camera, need_data, models)?;
+    } = setup(
+        &args.camera,
+        args.view.as_deref(),
+        args.data.as_deref(),
+        need_data,
+        models,
+    )?;
     let range = scene.record.time_range;
     let test_camera = |i: usize| -> anyhow::Result<Camera> {
         let Some(data) = &data else {

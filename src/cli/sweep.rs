@@ -7,13 +7,17 @@ use std::path::PathBuf;
 
 use anyhow::{Context, bail};
 use maaf_scene::write_atomic;
-use maaf_train::sweep::{Axis, Layout, points, shell_quote};
+use maaf_train::sweep::{Axis, Layout, points, shell_quote, split_args};
 
 use super::train::{SettingsArgs, config_from};
 
 /// Arguments of `maaf sweep`.
 #[derive(clap::Args, Debug)]
 pub struct SweepArgs {
+    /// Data folder every point trains on (D-NeRF, Plenoptic Video or the Dynamic 3D
+    /// Gaussians layout).
+    #[arg(long)]
+    pub data: PathBuf,
     /// Sweep folder to create: one run folder per point, jobs.txt, report.sh.
     #[arg(long)]
     pub out: PathBuf,
@@ -24,10 +28,11 @@ pub struct SweepArgs {
     /// Every combination of the axes instead of one axis at a time around the base.
     #[arg(long)]
     pub cross: bool,
-    /// Extra arguments of `maaf eval` for every point (quoted as one string).
+    /// Extra arguments of `maaf eval` for every point, as one string split as a shell
+    /// would (quotes group words).
     #[arg(long, default_value = "", allow_hyphen_values = true)]
     pub eval_args: String,
-    /// The base run's data and settings, as for `maaf train`.
+    /// The base point's settings, as for `maaf train`.
     #[command(flatten)]
     pub settings: SettingsArgs,
 }
@@ -35,7 +40,7 @@ pub struct SweepArgs {
 /// Writes the sweep and prints how to run it.
 pub fn run(args: &SweepArgs) -> anyhow::Result<()> {
     let settings = &args.settings;
-    let data_arg = settings.data_or_bail()?;
+    let data_arg = &args.data;
     if !data_arg.is_dir() {
         bail!("{}: not a data folder", data_arg.display());
     }
@@ -45,6 +50,7 @@ pub fn run(args: &SweepArgs) -> anyhow::Result<()> {
             args.out.display()
         );
     }
+    let eval_args = split_args(&args.eval_args, "--eval-args")?;
     let base = config_from(settings)?;
     let axes = args
         .grid
@@ -65,7 +71,6 @@ pub fn run(args: &SweepArgs) -> anyhow::Result<()> {
     let out = std::path::absolute(&args.out)
         .with_context(|| format!("{}: cannot resolve", args.out.display()))?;
     let q = |p: &std::path::Path| shell_quote(&p.display().to_string());
-    let background = settings.background_or_default().to_string();
     let mut jobs = String::new();
     let mut runs = Vec::with_capacity(pts.len());
     for p in &pts {
@@ -73,14 +78,13 @@ pub fn run(args: &SweepArgs) -> anyhow::Result<()> {
         let spec = out.join("configs").join(format!("{}.json", p.name));
         let json = serde_json::to_string_pretty(&p.config)?;
         write_atomic(&spec, json.as_bytes())?;
-        let eval_extra = if args.eval_args.is_empty() {
-            String::new()
-        } else {
-            format!(" {}", args.eval_args)
-        };
+        let eval_extra: String = eval_args
+            .iter()
+            .map(|a| format!(" {}", shell_quote(a)))
+            .collect();
         writeln!(
             jobs,
-            "{exe} train --data {data} --out {dir} --config {spec} --background {background} && {exe} eval --run {dir}{eval_extra}",
+            "{exe} train --data {data} --out {dir} --config {spec} && {exe} eval --run {dir}{eval_extra}",
             exe = q(&exe),
             data = q(&data),
             dir = q(&dir),

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, bail};
 use maaf_eval::metrics::psnr;
 use maaf_eval::render::recorded_data;
-use maaf_filter::FilterKind;
+use maaf_filter::{FilterConfig, FilterKind, MotionEstimator};
 use maaf_scene::{TrainConfig, TrainedScene};
 use maaf_train::Plugins;
 use maaf_train::data::{Dataset, DatasetOptions, Split};
@@ -36,19 +36,19 @@ pub struct TrainArgs {
     /// trained on, on purpose (without it another data set is refused, naming both).
     #[arg(long, requires = "from")]
     pub other_data: bool,
-    /// What to train on and with which settings.
-    #[command(flatten)]
-    pub settings: SettingsArgs,
-}
-
-/// The data and training settings of a run (shared by `maaf train` and `maaf sweep`).
-#[derive(clap::Args, Debug)]
-pub struct SettingsArgs {
     /// Data folder (D-NeRF, Plenoptic Video or the Dynamic 3D Gaussians layout)
     /// [default: none for a new run; with --resume, the run's, recorded in
     /// RUN/data.json].
     #[arg(long)]
     pub data: Option<PathBuf>,
+    /// The training settings.
+    #[command(flatten)]
+    pub settings: SettingsArgs,
+}
+
+/// The training settings of a run (shared by `maaf train` and `maaf sweep`).
+#[derive(clap::Args, Debug)]
+pub struct SettingsArgs {
     /// 4D representation: `saro` (SaRO-GS), `deform` (Deformable-3DGS), `track` (Dynamic
     /// 3D Gaussians' tracking) or one the program registers (docs/extending.md); its
     /// settings: the `model` section of --config [default: the config's, else saro].
@@ -56,8 +56,10 @@ pub struct SettingsArgs {
     pub model: Option<String>,
     /// 3D smoothing filter: `none` (classic 0.3 px^2 2D dilation), `mip3d`
     /// (Mip-Splatting's static 3D filter + 2D Mip filter), `motion` (the motion-aware
-    /// nu(t) + 2D Mip filter) or one the program registers [default: the config's,
-    /// else motion].
+    /// nu(t) by the paper's KDE + 2D Mip filter), `window_max` (the motion-aware
+    /// filter with maaf's windowed-maximum estimator, as `"filter": {"kind": "motion",
+    /// "estimator": "window_max"}`) or one the program registers [default: the
+    /// config's, else motion].
     #[arg(long)]
     pub filter: Option<String>,
     /// Training scale relative to the source images [default: the config's, else 0.25,
@@ -79,25 +81,11 @@ pub struct SettingsArgs {
     /// configs/, every key in docs/config.md) [default: none: the defaults].
     #[arg(long)]
     pub config: Option<PathBuf>,
-    /// Background the RGBA images are composited on: white, black, or r,g,b in [0, 1]
-    /// [default: white; with --resume, the run's].
+    /// Background the RGBA images are composited on and the model rendered on: white,
+    /// black, or r,g,b in [0, 1] [default: the config's `background`, else black, the
+    /// paper's D-NeRF protocol].
     #[arg(long, value_parser = Background::parse)]
     pub background: Option<Background>,
-}
-
-impl SettingsArgs {
-    /// `--data`, which a new run (or a sweep) needs.
-    pub fn data_or_bail(&self) -> anyhow::Result<&Path> {
-        self.data
-            .as_deref()
-            .ok_or_else(|| anyhow::anyhow!("--data DIR is required (the training data folder)"))
-    }
-
-    /// `--background`, white when not given.
-    pub fn background_or_default(&self) -> Background {
-        self.background
-            .unwrap_or(Background(maaf_train::data::WHITE))
-    }
 }
 
 /// The built-in filters, as `maaf bench-suite --filters` takes them.
@@ -147,7 +135,7 @@ pub fn config_from(args: &SettingsArgs) -> anyhow::Result<TrainConfig> {
         config.model = ModelConfig::default_of(kind).map_err(anyhow::Error::msg)?;
     }
     if let Some(f) = &args.filter {
-        config.filter.kind = FilterKind::from_name(f);
+        set_filter(&mut config.filter, f);
     }
     if let Some(s) = args.train_scale {
         config.train_scale = s;
@@ -161,8 +149,22 @@ pub fn config_from(args: &SettingsArgs) -> anyhow::Result<TrainConfig> {
     if let Some(s) = args.seed {
         config.seed = s;
     }
+    if let Some(b) = args.background {
+        config.background = b;
+    }
     config.validate()?;
     Ok(config)
+}
+
+/// Sets the filter `--filter NAME` names: `window_max` is the motion filter with the
+/// windowed-maximum estimator, any other name the filter kind of that name.
+fn set_filter(filter: &mut FilterConfig, name: &str) {
+    if name == "window_max" {
+        filter.kind = FilterKind::Motion;
+        filter.estimator = MotionEstimator::WindowMax;
+    } else {
+        filter.kind = FilterKind::from_name(name);
+    }
 }
 
 /// What a JSON value is, for messages.
@@ -180,7 +182,7 @@ fn json_kind(v: &serde_json::Value) -> &'static str {
 /// The configuration of the run being resumed: its `config.json`, with the budget of
 /// `--iters` if given (said on stderr when it changes). Any other setting flag that
 /// differs from the run's is refused: a resumed run keeps its settings, so that it
-/// continues exactly as the first session would have.
+/// continues exactly as an uninterrupted run would have.
 fn resumed_config(args: &SettingsArgs, run: &Path) -> anyhow::Result<TrainConfig> {
     let path = run.join("config.json");
     let text = std::fs::read_to_string(&path).map_err(|e| {
@@ -189,8 +191,17 @@ fn resumed_config(args: &SettingsArgs, run: &Path) -> anyhow::Result<TrainConfig
             path.display()
         )
     })?;
-    let mut config: TrainConfig = serde_json::from_str(&text)
+    let value: serde_json::Value = serde_json::from_str(&text)
         .map_err(|e| anyhow::anyhow!("{}: invalid run config: {e}", path.display()))?;
+    let recorded_background = value.get("background").is_some();
+    let mut config: TrainConfig = serde_json::from_value(value)
+        .map_err(|e| anyhow::anyhow!("{}: invalid run config: {e}", path.display()))?;
+    if !recorded_background {
+        // A run from before the key: data.json recorded its background (white when
+        // even that is missing, the training default then).
+        let recorded = recorded_data(run)?;
+        config.background = Background(recorded.map_or(maaf_train::data::WHITE, |r| r.background));
+    }
     if let Some(file) = &args.config {
         bail!(
             "--config {}: a resumed run keeps the settings in {}; only --iters may change",
@@ -205,13 +216,11 @@ fn resumed_config(args: &SettingsArgs, run: &Path) -> anyhow::Result<TrainConfig
             .map(|m| format!("--model {m} (the run's is {})", config.model.kind())),
         args.filter
             .as_deref()
-            .map(FilterKind::from_name)
-            .filter(|f| *f != config.filter.kind)
+            .filter(|f| *f != config.filter.filter_name())
             .map(|f| {
                 format!(
-                    "--filter {} (the run's is {})",
-                    f.name(),
-                    config.filter.kind.name()
+                    "--filter {f} (the run's is {})",
+                    config.filter.filter_name()
                 )
             }),
         args.train_scale
@@ -223,6 +232,9 @@ fn resumed_config(args: &SettingsArgs, run: &Path) -> anyhow::Result<TrainConfig
         args.batch
             .filter(|b| *b != config.batch)
             .map(|b| format!("--batch {b} (the run's is {})", config.batch)),
+        args.background
+            .filter(|b| *b != config.background)
+            .map(|b| format!("--background {b} (the run's is {})", config.background)),
     ];
     if let Some(c) = conflicts.into_iter().flatten().next() {
         bail!(
@@ -243,38 +255,24 @@ fn resumed_config(args: &SettingsArgs, run: &Path) -> anyhow::Result<TrainConfig
     Ok(config)
 }
 
-/// The data folder and background of the run being resumed: `RUN/data.json`'s,
-/// `--data` when given (train_run refuses it unless its frames and cameras are the
-/// recorded ones), and a `--background` that differs from the recorded one refused.
-fn resumed_data(settings: &SettingsArgs, run: &Path) -> anyhow::Result<(PathBuf, [f32; 3])> {
-    let recorded = recorded_data(run)?;
-    let root = match (&settings.data, &recorded) {
-        (Some(d), _) => d.clone(),
-        (None, Some(r)) => r.root.clone(),
+/// The data folder of the run being resumed: `--data` when given (train_run refuses
+/// it unless its frames and cameras are the recorded ones), else `RUN/data.json`'s.
+fn resumed_data(data: Option<&Path>, run: &Path) -> anyhow::Result<PathBuf> {
+    match (data, recorded_data(run)?) {
+        (Some(d), _) => Ok(d.to_path_buf()),
+        (None, Some(r)) => Ok(r.root),
         (None, None) => bail!(
             "{}: records no data set (no data.json, a run of an older version); pass --data DIR",
             run.display()
         ),
-    };
-    let background = match (settings.background, &recorded) {
-        (Some(b), Some(r)) if b.rgb() != r.background => bail!(
-            "--background {}: the run {} was trained on background {:?}; a resumed run keeps it",
-            b,
-            run.display(),
-            r.background
-        ),
-        (Some(b), _) => b.rgb(),
-        (None, Some(r)) => r.background,
-        (None, None) => maaf_train::data::WHITE,
-    };
-    Ok((root, background))
+    }
 }
 
 /// Runs `maaf train`; `plugins` are the terms, representations, filters and
 /// strategies its config may name.
 pub fn run(args: &TrainArgs, plugins: &Plugins) -> anyhow::Result<()> {
     let settings = &args.settings;
-    if let Some(data) = &settings.data
+    if let Some(data) = &args.data
         && data.to_str().is_none()
     {
         bail!(
@@ -292,21 +290,24 @@ pub fn run(args: &TrainArgs, plugins: &Plugins) -> anyhow::Result<()> {
         (Some(o), None) => o.clone(),
         (None, None) => bail!("--out RUN is required (or --resume RUN)"),
     };
-    let (config, root, background) = match &args.resume {
-        Some(run) => {
-            let config = resumed_config(settings, run)?;
-            let (root, background) = resumed_data(settings, run)?;
-            (config, root, background)
-        }
-        None => {
-            let root = settings.data_or_bail()?.to_path_buf();
-            (
-                config_from(settings)?,
-                root,
-                settings.background_or_default().rgb(),
-            )
-        }
+    let (config, root) = match &args.resume {
+        Some(run) => (
+            resumed_config(settings, run)?,
+            resumed_data(args.data.as_deref(), run)?,
+        ),
+        None => match &args.data {
+            Some(data) => (config_from(settings)?, data.clone()),
+            None => bail!("--data DIR is required (the training data folder)"),
+        },
     };
+    // Names the program does not register are refused before the data is read.
+    let what = match (&args.resume, &settings.config) {
+        (Some(run), _) => run.join("config.json").display().to_string(),
+        (None, Some(file)) => file.display().to_string(),
+        (None, None) => "config".to_string(),
+    };
+    plugins.check(&config, &what)?;
+    let background = config.background.rgb();
     let data = Dataset::open(&root, DatasetOptions { background })?;
     // One trainer per run folder, for the whole command (test PSNR included).
     let doing = format!("trained (maaf train, pid {})", std::process::id());

@@ -1,4 +1,4 @@
-//! The cases of the reliability issue as a user meets them on the command line, each
+//! Bad input and interrupted work as a user meets them on the command line, each
 //! with the one-line message and the exit code it must give: resume after a kill,
 //! a folder swap cut short, divergence, caps and panics, unchecked settings and
 //! resume flags, and the smaller items (data paths, video folders, extensions, OS

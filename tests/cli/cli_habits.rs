@@ -1,7 +1,10 @@
 //! The command line's habits, as a user meets them: every option's default in
-//! `--help`, one `--background` spelling everywhere, `maaf cameras` feeding `render
-//! --camera`, `render --size`, `render-video` along camera paths, `report` printing every
-//! evaluated scale, and `train` asking for `--out`.
+//! `--help`, help that names only the command's own options, `info` printing what it
+//! says, a misspelt filter answered with the close name, one `--background` spelling
+//! everywhere, `maaf cameras` feeding `render --camera` (at the file's time), `render
+//! --size` keeping the camera's aspect, `render-video` along camera paths and refusing a
+//! video file name, `report` printing every evaluated scale, and `train` asking for
+//! `--out`.
 
 use std::path::Path;
 use std::process::{Command, Output};
@@ -170,41 +173,40 @@ fn cameras_render_sizes_paths_backgrounds_and_report() {
         "--out",
         s(&by_view),
     ]);
-    let t1 = times[1].to_string();
-    ok(&[
-        "render",
-        "--run",
-        s(&run_dir),
-        "--camera",
-        s(&cams.join("0001.json")),
-        "--time",
-        &t1,
-        "--out",
-        s(&by_file),
-    ]);
+    // The camera file carries its view's time, which render uses without --time.
+    let cam1 = cams.join("0001.json");
+    let by_camera = ["render", "--run", s(&run_dir), "--camera", s(&cam1)];
+    let said = ok(&[&by_camera[..], &["--out", s(&by_file)]].concat());
+    assert!(
+        times[1] > 0.0 && said.contains(&format!("t = {}", times[1])),
+        "{said}"
+    );
     assert_eq!(
         std::fs::read(&by_view).expect("view png"),
         std::fs::read(&by_file).expect("file png")
     );
+    let at_t = tmp.0.join("t.png");
+    let said = ok(&[&by_camera[..], &["--time", "0.75", "--out", s(&at_t)]].concat());
+    assert!(
+        said.contains("t = 0.75"),
+        "--time overrides the file's time: {said}"
+    );
 
-    // --size instead of --scale, on a view and on a camera file.
+    // --size instead of --scale, on a view and on a camera file (32x32): the camera's
+    // aspect, or a refusal naming both sizes rather than a stretched image.
     let sized = tmp.0.join("sized.png");
     for source in [
         ["--view", "test:0"],
         ["--camera", s(&cams.join("0000.json"))],
     ] {
-        ok(&[
-            "render",
-            "--run",
-            s(&run_dir),
-            source[0],
-            source[1],
-            "--size",
-            "40x30",
-            "--out",
-            s(&sized),
-        ]);
-        assert_eq!(png_size(&sized), (40, 30));
+        let args = ["render", "--run", s(&run_dir), source[0], source[1]];
+        ok(&[&args[..], &["--size", "40x40", "--out", s(&sized)]].concat());
+        assert_eq!(png_size(&sized), (40, 40));
+        let err = fails(&[&args[..], &["--size", "40x30", "--out", s(&sized)]].concat());
+        assert!(
+            err.contains("--size 40x30") && err.contains("32x32") && err.contains("40x40"),
+            "{err}"
+        );
     }
     let err = fails(&[
         "render",
@@ -304,6 +306,21 @@ fn cameras_render_sizes_paths_backgrounds_and_report() {
         s(&tmp.0.join("video_fixed")),
     ]);
     assert!(err.contains("--view"), "{err}");
+    // A video file name is refused before any work, naming the folder to give instead.
+    let err = fails(&[
+        "render-video",
+        "--run",
+        s(&run_dir),
+        "--path",
+        "orbit",
+        "--out",
+        s(&tmp.0.join("v.mp4")),
+    ]);
+    assert!(
+        err.contains("v.mp4") && err.contains("not a .mp4 file"),
+        "{err}"
+    );
+    assert!(!tmp.0.join("v.mp4").exists(), "nothing written");
 
     // `report` prints every evaluated scale, zoom-out included.
     ok(&[
@@ -351,4 +368,91 @@ fn a_closed_pipe_ends_the_command_quietly() {
         out.status
     );
     assert!(!err.contains("panicked"), "{err}");
+}
+
+/// Every `--option` a command's `--help` mentions is one of its own (or a global one),
+/// unless the text names the command it belongs to (`maaf eval --scales`).
+#[test]
+fn help_mentions_only_the_commands_own_options() {
+    let mut strays = Vec::new();
+    for cmd in [
+        "render",
+        "render-video",
+        "sweep",
+        "train",
+        "eval",
+        "export-ply",
+        "render-ply",
+    ] {
+        let help = ok(&[cmd, "--help"]);
+        let own: Vec<&str> = help
+            .lines()
+            .map(str::trim_start)
+            .filter(|l| l.starts_with("--") || (l.starts_with('-') && l.contains(", --")))
+            .filter_map(|l| {
+                l.split(|c: char| c.is_whitespace() || c == ',')
+                    .find(|w| w.starts_with("--"))
+            })
+            .collect();
+        for line in help.lines() {
+            let mut rest = line;
+            while let Some(i) = rest.find("--") {
+                let before = &rest[..i];
+                let word: String = rest[i..]
+                    .chars()
+                    .take_while(|c| c.is_ascii_alphanumeric() || *c == '-')
+                    .collect();
+                rest = &rest[i + word.len().max(2)..];
+                let other_command = before.contains("maaf ") || before.contains("`maaf");
+                if word.len() > 2 && !own.contains(&word.as_str()) && !other_command {
+                    strays.push(format!(
+                        "maaf {cmd} --help mentions {word}: {}",
+                        line.trim()
+                    ));
+                }
+            }
+        }
+    }
+    assert!(strays.is_empty(), "{strays:#?}");
+}
+
+#[test]
+fn info_prints_the_float_types_and_threads_and_inspect_names_its_layouts() {
+    let info = ok(&["info"]);
+    assert!(
+        info.contains("f32") && info.contains("f64") && info.contains("threads:"),
+        "{info}"
+    );
+    let help = ok(&["inspect", "--help"]);
+    for layout in ["D-NeRF", "Plenoptic Video", "Dynamic 3D Gaussians"] {
+        assert!(help.contains(layout), "{layout}: {help}");
+    }
+}
+
+/// A misspelt filter gets the close name, before any data is read or folder made; a
+/// name far from every filter gets the list and how to register one.
+#[test]
+fn a_misspelt_filter_is_answered_with_the_close_name() {
+    let tmp = TempDir::fresh("cli_did_you_mean");
+    let run_dir = tmp.0.join("run");
+    let args = [
+        "train",
+        "--data",
+        "/nonexistent/data",
+        "--out",
+        s(&run_dir),
+        "--filter",
+    ];
+    let err = fails(&[&args[..], &["mip"]].concat());
+    assert!(
+        err.contains("filter `mip` is not registered: did you mean `mip3d`?"),
+        "{err}"
+    );
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(!run_dir.exists());
+    let err = fails(&[&args[..], &["gaussian_blur"]].concat());
+    assert!(
+        !err.contains("did you mean") && err.contains("none, mip3d, motion, window_max"),
+        "{err}"
+    );
 }

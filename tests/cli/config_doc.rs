@@ -5,8 +5,8 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
+use maaf::scene::TrainConfig;
 use maaf::train::models::ModelConfig;
-use maaf::train::trainer::TrainConfig;
 use serde_json::Value;
 
 use crate::support::{config_json, json_leaves};

@@ -58,7 +58,8 @@ fn column(run: &Path, name: &str) -> Vec<f64> {
         .collect()
 }
 
-/// The README shows the program line for line (its code after the `//!` header).
+/// The README shows the program line for line (its code between the `//!` header and
+/// the marker before its gradient test).
 #[test]
 fn the_readme_shows_the_ten_line_program_as_it_is() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
@@ -67,6 +68,7 @@ fn the_readme_shows_the_ten_line_program_as_it_is() {
     let code: Vec<&str> = example
         .lines()
         .skip_while(|l| l.starts_with("//!") || l.is_empty())
+        .take_while(|l| *l != "// ---- end of the README's program ----")
         .collect();
     let readme = read("README.md");
     let shown: Vec<&str> = readme

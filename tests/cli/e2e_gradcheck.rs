@@ -9,8 +9,8 @@ use maaf::filter::FilterState;
 use maaf::scene::forward::{forward, forward_bound};
 use maaf::splat::{AlphaCutoff, Camera, Filter2d, RenderSettings};
 use maaf::train::loss::{ForwardTerms, Objective, batch_mean};
+use maaf::train::models::params::BoundParams;
 use maaf::train::models::{KPlaneConfig, PointCloud, Representation, SaroConfig, SaroModel};
-use maaf::train::params::BoundParams;
 
 /// Identity whose backward is 1% off: placed in the chain, the check must fail.
 struct OffByOnePercent;

@@ -1,6 +1,8 @@
 //! `maaf export-ply`, `maaf render-ply`, `maaf render` and `maaf eval --temporal` as a
-//! user runs them on a tiny trained run of the built-in scene: the exported frame
-//! renders to the same PNG as the run at that time, a sequence goes into a zip (and a
+//! user runs them on a tiny trained run of the built-in scene: an exported frame, alone
+//! or in a sequence, carries the run's background and 2D filter in its header, so
+//! `render-ply` with no options renders the same PNG as the run at that time (and on
+//! another background a visibly different one), a sequence goes into a zip (and a
 //! non-zip file in its way is refused in one line), eval without LPIPS weights
 //! writes null plus the reason and still fills the temporal fields, and eval on
 //! another background writes its own file with the model rendered on that background.
@@ -60,6 +62,8 @@ fn exported_frame_renders_as_the_run_and_eval_survives_missing_weights() {
             "0.5",
             "--iters",
             "20",
+            "--background",
+            "white",
         ],
         None,
     );
@@ -84,27 +88,20 @@ fn exported_frame_renders_as_the_run_and_eval_survives_missing_weights() {
     );
     let header = std::fs::read(&ply).expect("ply");
     let header = String::from_utf8_lossy(&header[..header.len().min(400)]).into_owned();
-    assert!(header.starts_with(
-        "ply\nformat binary_little_endian 1.0\ncomment maaf time 0.4\nelement vertex "
-    ));
+    assert!(
+        header.starts_with(
+            "ply\nformat binary_little_endian 1.0\ncomment maaf time 0.4\ncomment maaf background white\ncomment maaf filter2d mip\nelement vertex "
+        ),
+        "{header}"
+    );
     assert!(header.contains("property float x\nproperty float y\nproperty float z\n"));
     let (from_ply, from_run) = (tmp.0.join("ply.png"), tmp.0.join("run.png"));
-    maaf(
-        &[
-            "render-ply",
-            "--ply",
-            s(&ply),
-            "--camera",
-            s(&cam_path),
-            "--out",
-            s(&from_ply),
-            "--background",
-            "1,1,1",
-            "--filter2d",
-            "mip",
-        ],
-        None,
-    );
+    // `render-ply` of `ply` from the test camera into `out`, with `extra` options.
+    let render_ply = |ply: &Path, out: &Path, extra: &[&str]| {
+        let args = ["render-ply", "--ply", s(ply), "--camera", s(&cam_path)];
+        maaf(&[&args[..], &["--out", s(out)], extra].concat(), None);
+    };
+    render_ply(&ply, &from_ply, &[]);
     let at = |t: &str, out: &Path| {
         maaf(
             &[
@@ -132,28 +129,49 @@ fn exported_frame_renders_as_the_run_and_eval_survives_missing_weights() {
         "render-ply of the export differs from maaf render at t = 0.4: max {max}, {moved} of {} values",
         ply_img.len()
     );
-    // Negative control: the same PLY with the classic 2D dilation is another image.
-    let classic = tmp.0.join("classic.png");
+    // Negative controls: the same PLY with the classic 2D dilation, or on black (the
+    // default background without the header), is another image.
+    for (option, value) in [("--filter2d", "classic"), ("--background", "black")] {
+        let other = tmp.0.join(format!("{value}.png"));
+        render_ply(&ply, &other, &[option, value]);
+        let (max, _) = difference(&png(&other), &run_img);
+        assert!(
+            max > 4.0 / 255.0,
+            "{option} {value} changed nothing: max {max}"
+        );
+    }
+
+    // A frame of an exported sequence renders as the run at the time its header gives.
+    let seq = tmp.0.join("seq");
     maaf(
         &[
-            "render-ply",
-            "--ply",
-            s(&ply),
-            "--camera",
-            s(&cam_path),
+            "export-ply",
+            "--run",
+            s(&run),
+            "--frames",
+            "3",
             "--out",
-            s(&classic),
-            "--background",
-            "1,1,1",
-            "--filter2d",
-            "classic",
+            s(&seq),
         ],
         None,
     );
-    let (max, _) = difference(&png(&classic), &run_img);
+    let frame = seq.join("frame_0001.ply");
+    let head = std::fs::read(&frame).expect("frame");
+    let head = String::from_utf8_lossy(&head[..head.len().min(400)]).into_owned();
+    let time = head
+        .lines()
+        .find_map(|l| l.strip_prefix("comment maaf time "))
+        .expect("the frame's time")
+        .to_string();
+    assert!(head.contains("comment maaf background white\n"), "{head}");
+    let (seq_ply, seq_run) = (tmp.0.join("seq_ply.png"), tmp.0.join("seq_run.png"));
+    render_ply(&frame, &seq_ply, &[]);
+    at(&time, &seq_run);
+    let (seq_ply, seq_run) = (png(&seq_ply), png(&seq_run));
+    let (max, moved) = difference(&seq_ply, &seq_run);
     assert!(
-        max > 4.0 / 255.0,
-        "the classic dilation changed nothing: max {max}"
+        max <= 1.0 / 255.0 + 1e-6 && moved <= seq_ply.len() / 100,
+        "render-ply of frame 1 differs from maaf render at t = {time}: max {max}, {moved} values"
     );
 
     // 20 frames as one zip archive; a non-zip file at the .zip path is refused in one

@@ -12,6 +12,7 @@ mod custom_plugins;
 mod custom_terms;
 mod data_identity;
 mod e2e_gradcheck;
+mod eval_scales;
 mod export_eval;
 mod litter;
 mod log_columns;

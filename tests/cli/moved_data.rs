@@ -1,4 +1,4 @@
-//! A trained run without its data set (issue 40): the data folder moved away, `maaf
+//! A trained run without its data set: the data folder moved away, `maaf
 //! render` (camera file), `render-video` (fixed camera and an orbit around the
 //! training cameras the run saved) and `export-ply` work from the run alone and render
 //! what they rendered before the move; `maaf eval` refuses in one line naming the
@@ -45,7 +45,7 @@ fn a_run_renders_exports_and_evaluates_after_its_data_folder_moved() {
     };
     let scored = scales_of(&run);
 
-    let recorded = maaf::train::eval::render::recorded_data(&run)
+    let recorded = maaf::eval::render::recorded_data(&run)
         .expect("data.json")
         .expect("recorded")
         .root;

@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use maaf::train::trainer::TrainConfig;
+use maaf::scene::TrainConfig;
 
 use crate::support::{config_json, json_leaves};
 

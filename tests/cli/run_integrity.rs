@@ -1,4 +1,4 @@
-//! The cases of issue 38 ("a run directory nobody can corrupt") as a user meets them on
+//! A run directory nobody can corrupt, as a user meets it on
 //! the command line, each with its exit code and one-line message: a run remembers its
 //! data set, one trainer per run folder, memory checked before a user-sized
 //! allocation, degenerate cameras and non-finite output, typos under `model`, resume
@@ -108,7 +108,7 @@ fn case_1_a_run_remembers_its_data_set_and_refuses_another() {
 fn case_2_one_trainer_per_run_and_no_reader_while_it_trains() {
     let fx = fixture("integrity_lock");
     let run = fx.trained("run");
-    // A long resumed session holds the run until it is killed.
+    // A long resumed training holds the run until it is killed.
     let mut first = Command::new(env!("CARGO_BIN_EXE_maaf"))
         .args(["train", "--resume", s(&run), "--iters", "100000000"])
         .stdout(Stdio::null())
@@ -164,7 +164,7 @@ fn case_2_one_trainer_per_run_and_no_reader_while_it_trains() {
         &["is being trained"],
     );
     assert!(!png.exists() && !ply.exists());
-    // A kill -9 leaves no stale lock: the next session trains (two iterations past
+    // A kill -9 leaves no stale lock: the next training trains (two iterations past
     // the newest checkpoint the killed one wrote).
     first.kill().expect("kill");
     first.wait().expect("wait");
@@ -203,7 +203,7 @@ fn case_3_a_size_the_machine_cannot_hold_is_refused_before_allocating() {
 }
 
 #[test]
-// 3.14159265 is the issue's value: just under pi, so a focal length of 1e-8 px.
+// 3.14159265 is just under pi: a field of view whose focal length is 1e-8 px.
 #[allow(clippy::approx_constant)]
 fn case_4_degenerate_cameras_and_non_finite_output_fail() {
     let fx = fixture("integrity_camera");
@@ -288,12 +288,12 @@ fn case_4_degenerate_cameras_and_non_finite_output_fail() {
     assert!(!png.exists());
     // Export refuses non-finite Gaussians (a model made degenerate in memory: a
     // saved one with a NaN parameter is already refused on load).
-    let registry = maaf::train::scene::ModelRegistry::builtin();
-    let mut t = maaf::train::scene::TrainedScene::load(&nan, &registry).expect("model");
+    let registry = maaf::scene::ModelRegistry::builtin();
+    let mut t = maaf::scene::TrainedScene::load(&nan, &registry).expect("model");
     let p = t.model.params_mut().iter_mut().next().expect("a parameter");
     p.value.data_mut()[0] = f32::NAN;
     let ply = fx.root.join("x.ply");
-    let err = maaf::train::eval::export::export_frame(&t, 0.5, &ply).expect_err("NaN");
+    let err = maaf::eval::export::export_frame(&t, 0.5, &ply).expect_err("NaN");
     assert!(err.to_string().contains("nothing written"), "{err}");
     assert!(!ply.exists());
 }
@@ -338,10 +338,10 @@ fn case_6_settings_a_resume_cannot_honour_are_refused() {
     let fx = fixture("integrity_settings");
     let run = fx.trained("run");
     refused(
-        maaf(&["train", "--resume", s(&run), "--background", "black"]),
+        maaf(&["train", "--resume", s(&run), "--background", "white"]),
         &[
-            "--background black: the run",
-            "was trained on background [1.0, 1.0, 1.0]",
+            "--background white (the run's is black)",
+            "a resumed run keeps its settings",
         ],
     );
     refused(

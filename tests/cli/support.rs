@@ -77,7 +77,7 @@ pub fn json_leaves(value: &serde_json::Value) -> Vec<(String, serde_json::Value)
 
 /// A training configuration as JSON text and back, so an `f32` field reads as its
 /// shortest decimal (`0.2`, not `0.20000000298023224`).
-pub fn config_json(config: &maaf::train::trainer::TrainConfig) -> serde_json::Value {
+pub fn config_json(config: &maaf::scene::TrainConfig) -> serde_json::Value {
     let text = serde_json::to_string(config).expect("serialise");
     serde_json::from_str(&text).expect("parse back")
 }

@@ -13,8 +13,8 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use maaf_filter::{CameraTime, MotionCurves, ObservationTable, observed_frames};
+use maaf_scene::TrainConfig;
 use maaf_train::data::{Dataset, DatasetOptions, Split};
-use maaf_train::trainer::TrainConfig;
 
 fn main() -> Result<(), String> {
     let args: Vec<String> = std::env::args().skip(1).collect();

@@ -8,8 +8,9 @@ use maaf_filter::FilterRegistry;
 
 use crate::Error;
 use crate::loss::TermRegistry;
-use crate::scene::ModelRegistry;
-use crate::trainer::{StrategyRegistry, TrainConfig};
+use crate::trainer::StrategyRegistry;
+use maaf_scene::ModelRegistry;
+use maaf_scene::TrainConfig;
 
 /// The registries a run's config is resolved against.
 pub struct Plugins {
@@ -58,15 +59,25 @@ impl Plugins {
         let kind = config.model.kind();
         if !self.models.names().contains(&kind) {
             return Err(Error::Input(format!(
-                "{what}: representation (model.kind) `{kind}` is not registered in this program (registered: {}); use a program that registers it (maaf::cli::Maaf::representation)",
-                self.models.names().join(", ")
+                "{what}: {}",
+                maaf_io::unknown_name(
+                    "representation (model.kind)",
+                    kind,
+                    &self.models.names(),
+                    "maaf::cli::Maaf::representation"
+                )
             )));
         }
         let filter = config.filter.filter_name();
         if !self.filters.contains(filter) {
             return Err(Error::Input(format!(
-                "{what}: filter `{filter}` is not registered in this program (registered: {}); use a program that registers it (maaf::cli::Maaf::filter)",
-                self.filters.names().join(", ")
+                "{what}: {}",
+                maaf_io::unknown_name(
+                    "filter",
+                    filter,
+                    &self.filters.names(),
+                    "maaf::cli::Maaf::filter"
+                )
             )));
         }
         self.strategies.check(config, what)

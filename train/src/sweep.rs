@@ -1,4 +1,4 @@
-//! Ablation sweeps as plain job lists (issue 14 item 4): a small grid of config values
+//! Ablation sweeps as plain job lists: a small grid of config values
 //! becomes one run folder per point, each with its resolved `config.json`, and one shell
 //! line per point that trains and evaluates it. The lines are independent, so
 //! `bash jobs.txt` runs them one after another, `parallel -j2 < jobs.txt` (GNU
@@ -14,7 +14,7 @@
 use serde_json::Value;
 
 use crate::Error;
-use crate::trainer::TrainConfig;
+use maaf_scene::TrainConfig;
 
 /// One axis of a sweep: a config key and the values it takes.
 #[derive(Clone, Debug, PartialEq)]
@@ -177,15 +177,22 @@ pub fn points(base: &TrainConfig, axes: &[Axis], layout: Layout) -> Result<Vec<P
     Ok(out)
 }
 
-/// `s` quoted for a POSIX shell (single quotes; a quote inside becomes `'\''`).
+/// `s` quoted for a POSIX shell where it needs quoting (`shlex`). A NUL byte, which
+/// no shell word can hold (and no path or argument does), is dropped.
 pub fn shell_quote(s: &str) -> String {
-    if !s.is_empty()
-        && s.chars()
-            .all(|c| c.is_ascii_alphanumeric() || "/._-=+,:@".contains(c))
-    {
-        return s.to_string();
-    }
-    format!("'{}'", s.replace('\'', r"'\''"))
+    let s = s.replace('\0', "");
+    shlex::try_quote(&s).map_or(s.clone(), |q| q.into_owned())
+}
+
+/// Splits extra command-line arguments given as one string (`--eval-args "--scales
+/// 1,2 --no-images"`) as a POSIX shell would: quotes group words. `what` names the
+/// option in the error for unbalanced quotes.
+pub fn split_args(text: &str, what: &str) -> Result<Vec<String>, Error> {
+    shlex::split(text).ok_or_else(|| {
+        Error::Input(format!(
+            "{what} `{text}`: unbalanced quotes; quote each argument as a shell would"
+        ))
+    })
 }
 
 #[cfg(test)]
@@ -280,13 +287,30 @@ mod tests {
     }
 
     #[test]
-    fn shell_quoting_survives_spaces_and_quotes() {
+    fn quoted_words_split_back_into_the_same_words() {
+        let words = [
+            "runs/sweep/filter.h_x=0.1",
+            "my runs",
+            "it's",
+            "",
+            "$HOME",
+            "a\"b",
+        ];
+        let line: Vec<String> = words.iter().map(|w| shell_quote(w)).collect();
         assert_eq!(
-            shell_quote("runs/sweep/filter.h_x=0.1"),
-            "runs/sweep/filter.h_x=0.1"
+            split_args(&line.join(" "), "--eval-args").expect("splits"),
+            words
         );
-        assert_eq!(shell_quote("my runs"), "'my runs'");
-        assert_eq!(shell_quote("it's"), r"'it'\''s'");
-        assert_eq!(shell_quote(""), "''");
+        assert_eq!(
+            shell_quote("runs/sweep"),
+            "runs/sweep",
+            "plain words stay bare"
+        );
+        assert_eq!(
+            split_args("--scales '0.5, 1' --no-images", "--eval-args").expect("splits"),
+            ["--scales", "0.5, 1", "--no-images"]
+        );
+        let e = split_args("--scales '1", "--eval-args").expect_err("unbalanced");
+        assert!(e.to_string().contains("unbalanced quotes"), "{e}");
     }
 }

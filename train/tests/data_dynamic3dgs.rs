@@ -261,9 +261,10 @@ fn visual_hull_points_lie_on_the_movers() {
 
 #[test]
 fn a_tiny_run_trains_from_the_hull_and_evaluates_a_frame_stride_by_region() {
+    use maaf_eval::{EvalOptions, evaluate_run};
     use maaf_filter::FilterKind;
-    use maaf_train::eval::{EvalOptions, evaluate_run};
-    use maaf_train::trainer::{TrainConfig, train_run};
+    use maaf_scene::TrainConfig;
+    use maaf_train::trainer::train_run;
 
     let t = TempDir::new("d3dgs-run");
     let root = t.0.join("scene");

@@ -13,7 +13,7 @@ use maaf_train::data::synthetic::write::image_salt;
 use maaf_train::data::synthetic::{
     MultiviewOptions, build_scene, generate_multiview, scene_bounds,
 };
-use maaf_train::data::{Dataset, DatasetOptions, Format, Split, WHITE};
+use maaf_train::data::{Dataset, DatasetOptions, Format, Split};
 
 fn tiny() -> MultiviewOptions {
     MultiviewOptions {
@@ -80,7 +80,7 @@ fn loader_round_trips_the_generated_scene() {
                 image_salt(opts.seed, c, j),
             );
             premultiply(&mut rgba.data);
-            let want_rgb = composite_premultiplied(&rgba.data, WHITE);
+            let want_rgb = composite_premultiplied(&rgba.data, data.background());
             let view = data.view(split, index, 1.0).expect("view");
             let err = view
                 .image

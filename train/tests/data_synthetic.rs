@@ -88,7 +88,7 @@ fn generated_scene_round_trips_through_the_loader() {
         image_salt(opts.seed, 2, 1),
     );
     premultiply(&mut rgba.data);
-    let direct = composite_premultiplied(&rgba.data, [1.0, 1.0, 1.0]);
+    let direct = composite_premultiplied(&rgba.data, data.background());
     let max = direct
         .iter()
         .zip(&view.image.data)

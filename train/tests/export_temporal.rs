@@ -6,14 +6,15 @@
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
+use maaf_eval::export::{export_frame, export_sequence, export_sequence_zip};
+use maaf_eval::{EvalOptions, EvalReport, evaluate_scene};
 use maaf_filter::FilterKind;
+use maaf_scene::TrainConfig;
+use maaf_scene::{ModelRegistry, TrainedScene};
 use maaf_splat::{read_ply, render_gaussians};
 use maaf_train::data::synthetic::{self, GenerateOptions};
 use maaf_train::data::{Dataset, DatasetOptions, Split};
-use maaf_train::eval::export::{export_frame, export_sequence, export_sequence_zip};
-use maaf_train::eval::{EvalOptions, EvalReport, evaluate_scene};
-use maaf_train::scene::{ModelRegistry, TrainedScene};
-use maaf_train::trainer::{TrainConfig, train_run};
+use maaf_train::trainer::train_run;
 
 struct TempDir(PathBuf);
 
@@ -204,7 +205,7 @@ fn export_matches_render_and_temporal_eval_fills_the_fields() {
     let head = String::from_utf8_lossy(&head[..200]);
     assert!(head.contains("\ncomment maaf time 0.5\n"), "{head}");
     let mid = read_ply(&paths[1]).expect("frame 1");
-    let direct = maaf_train::eval::export::frame_gaussians(&scene, 0.5);
+    let direct = maaf_eval::export::frame_gaussians(&scene, 0.5);
     assert_eq!(mid.means, direct.means);
     zip_holds_the_folder_version(&scene, &tmp.0);
 

@@ -6,12 +6,13 @@
 
 use std::path::PathBuf;
 
+use maaf_eval::filter_agreement::{FilterStudy, MOVING, filter_agreement};
 use maaf_filter::{FilterKind, MotionCurves};
+use maaf_scene::TrainedScene;
+use maaf_scene::{TrainConfig, camera_extent};
 use maaf_train::data::{Dataset, DatasetOptions};
-use maaf_train::eval::filter_agreement::{FilterStudy, MOVING, filter_agreement};
 use maaf_train::models::{ModelConfig, SaroConfig};
-use maaf_train::scene::TrainedScene;
-use maaf_train::trainer::{TrainConfig, Trainer, camera_extent};
+use maaf_train::trainer::Trainer;
 
 /// A SaRO motion run on mutant at 100x100 (400 Gaussians) after `steps` iterations,
 /// dynamic from the first one when `static_iterations` is 0, as the trained scene it

@@ -13,13 +13,13 @@ use std::path::Path;
 
 use common::TempDir;
 use maaf_autodiff::{Tape, Tensor};
+use maaf_scene::forward::forward;
+use maaf_scene::{LossRegion, ModelRegistry, TrainConfig, TrainedScene};
 use maaf_splat::{RenderSettings, Window};
 use maaf_train::data::synthetic::{MultiviewOptions, generate_dynamic3dgs};
 use maaf_train::data::{Dataset, DatasetOptions, Split};
-use maaf_train::forward::forward;
-use maaf_train::scene::{ModelRegistry, TrainedScene};
 use maaf_train::trainer::region::crop;
-use maaf_train::trainer::{LossRegion, TrainConfig, train_run};
+use maaf_train::trainer::train_run;
 
 /// The `approach` scene, 5 cameras (4 train, 1 test) x 4 frames at 64 x 48.
 fn generated(dir: &Path) {

@@ -9,12 +9,13 @@ use std::path::PathBuf;
 
 use maaf_autodiff::Tensor;
 use maaf_filter::FilterKind;
+use maaf_scene::TrainConfig;
+use maaf_scene::forward::forward;
+use maaf_scene::{ModelRegistry, TrainedScene};
 use maaf_train::data::synthetic::{self, GenerateOptions};
-use maaf_train::data::{Dataset, DatasetOptions, Split};
-use maaf_train::forward::forward;
+use maaf_train::data::{Background, Dataset, DatasetOptions, Split, WHITE};
 use maaf_train::models::ModelConfig;
-use maaf_train::scene::{ModelRegistry, TrainedScene};
-use maaf_train::trainer::{TrainConfig, Trainer, save_checkpoint};
+use maaf_train::trainer::{Trainer, save_checkpoint};
 
 struct TempDir(PathBuf);
 
@@ -149,4 +150,34 @@ fn a_loaded_scene_renders_bit_identically_to_its_trainer() {
         .expect("refused")
         .to_string();
     assert!(err.contains("(registered: deform)"), "{err}");
+
+    // A trainer refuses a data set opened on another background than its config's;
+    // a checkpoint from before the config had `background` reads it from its scene
+    // record (here white, which the default, black, is not).
+    let white = Dataset::open(&data_dir, DatasetOptions { background: WHITE }).expect("open");
+    let err = Trainer::new(&white, config("saro", FilterKind::None))
+        .err()
+        .expect("refused")
+        .to_string();
+    assert!(
+        err.contains("composited on white") && err.contains("background is black"),
+        "{err}"
+    );
+    let on_white = TrainConfig {
+        background: Background(WHITE),
+        ..config("saro", FilterKind::None)
+    };
+    let trainer = Trainer::new(&white, on_white).expect("trainer");
+    let dir = tmp.0.join("white").join("model");
+    save_checkpoint(&trainer, &dir).expect("save");
+    let state = dir.join("state.json");
+    let mut json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&state).expect("state")).expect("json");
+    let removed = json["config"]
+        .as_object_mut()
+        .and_then(|c| c.remove("background"));
+    assert_eq!(removed, Some(serde_json::json!("white")));
+    std::fs::write(&state, json.to_string()).expect("write");
+    let older = maaf_scene::checkpoint_read::Opened::read_state(&dir).expect("reads");
+    assert_eq!(older.config.background, Background(WHITE));
 }

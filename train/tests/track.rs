@@ -13,12 +13,12 @@ use std::path::Path;
 use common::TempDir;
 use glam::DVec3;
 use maaf_filter::FilterKind;
+use maaf_scene::{ModelRegistry, TrainConfig, TrainedScene};
 use maaf_train::data::synthetic::scene::Shape;
 use maaf_train::data::synthetic::{MultiviewOptions, build_scene, generate_multiview};
 use maaf_train::data::{Dataset, DatasetOptions};
 use maaf_train::models::{ModelConfig, TrackConfig};
-use maaf_train::scene::{ModelRegistry, TrainedScene};
-use maaf_train::trainer::{TrainConfig, Trainer, load_checkpoint, save_checkpoint};
+use maaf_train::trainer::{Trainer, load_checkpoint, save_checkpoint};
 
 const FRAMES: usize = 10;
 

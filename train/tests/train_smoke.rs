@@ -6,12 +6,12 @@ use std::path::PathBuf;
 
 use maaf_autodiff::{PerGaussian, Tensor};
 use maaf_filter::{CameraTime, FilterKind, observed_frames};
+use maaf_models::params::Rows;
+use maaf_scene::{DensifyGradient, TrainConfig};
 use maaf_train::data::{Dataset, DatasetOptions, Split};
 use maaf_train::models::ModelConfig;
-use maaf_train::params::Rows;
 use maaf_train::trainer::{
-    DensifyGradient, DensifyPlan, Liveness, TrainConfig, Trainer, keep_highest, load_checkpoint,
-    save_checkpoint,
+    DensifyPlan, Liveness, Trainer, keep_highest, load_checkpoint, save_checkpoint,
 };
 
 fn mutant() -> Option<Dataset> {

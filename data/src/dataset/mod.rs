@@ -35,22 +35,7 @@ use super::median_mask::Rgb8;
 use super::n3dv::{POSES_BOUNDS, read_plenoptic};
 use super::points::{POINTS_FILE, read_points};
 use super::visual_hull::{HullOptions, HullStep, HullView, hull_cloud};
-use crate::PointCloud;
-
-/// White background, `[1, 1, 1]` (the default, as D-NeRF's `white_bkgd = True`).
-pub const WHITE: [f32; 3] = [1.0, 1.0, 1.0];
-/// Black background, `[0, 0, 0]` (Deformable-3DGS's default).
-pub const BLACK: [f32; 3] = [0.0, 0.0, 0.0];
-
-/// The spelling of a background colour that `--background` reads: `white`, `black` or
-/// `r,g,b`.
-pub fn background_name(rgb: [f32; 3]) -> String {
-    match rgb {
-        c if c == WHITE => "white".into(),
-        c if c == BLACK => "black".into(),
-        [r, g, b] => format!("{r},{g},{b}"),
-    }
-}
+use crate::{Background, PointCloud};
 
 /// Options for [`Dataset::open`].
 #[derive(Clone, Debug, PartialEq)]
@@ -60,8 +45,11 @@ pub struct DatasetOptions {
 }
 
 impl Default for DatasetOptions {
+    /// The default background ([`Background::default`], black).
     fn default() -> Self {
-        DatasetOptions { background: WHITE }
+        DatasetOptions {
+            background: Background::default().rgb(),
+        }
     }
 }
 

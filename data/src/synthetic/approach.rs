@@ -1,7 +1,7 @@
 //! The `approach` scene for the multi-view video rig: movers whose distance to the
 //! cameras changes several-fold, so their screen-space sampling rate `f / d(t)` changes
-//! as much over time as it does across cameras (issue 14: the setting where a
-//! motion-aware 3D filter should differ from a static one).
+//! as much over time as it does across cameras (the setting where a motion-aware 3D
+//! filter should differ from a static one).
 //!
 //! Static: the floor (0.01-wide grid lines every 0.05), the backdrop (glyphs down to
 //! 0.025 tall, a 2-to-60 cycles-per-unit chirp) and the comb of 0.012-wide bars, shared

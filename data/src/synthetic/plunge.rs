@@ -1,4 +1,4 @@
-//! The `plunge` scene of the stability suite (issue 14, item 5): the motions that break
+//! The `plunge` scene of the stability suite: the motions that break
 //! anti-aliasing, for the multi-view rig.
 //!
 //! The static set of `dolly` (floor grid, backdrop glyphs and chirp, comb of 0.012-wide

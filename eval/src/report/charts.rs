@@ -11,7 +11,8 @@ use plotters::element::DashedPathElement;
 use plotters::prelude::*;
 use plotters::style::{FontStyle, register_font};
 
-use super::style::{line, marker, method, method_colour, series_style, with_legend};
+use super::gap::{dodge, gap_panel};
+use super::style::{SeriesStyle, line, marker, method, method_colour, series_style, with_legend};
 use super::{ReportRun, scale_header};
 use crate::Error;
 use crate::images::save_png;
@@ -150,10 +151,12 @@ fn draw_legend<'a, 'b: 'a>(
         .map_err(e2s)
 }
 
-/// PSNR (left) and SSIM (right) against the render scale (log2 axis), one line per run.
+/// PSNR, SSIM and the PSNR gap to the best run against the render scale (log2 axis),
+/// one line per run ([`super::gap`]: the third panel separates runs the first two
+/// draw on top of each other).
 pub fn quality_vs_scale(runs: &[ReportRun], path: &Path) -> Result<(), Error> {
-    save_chart(path, (1300, 560), |root| {
-        let panels = with_legend(root, runs)?.split_evenly((1, 2));
+    save_chart(path, (1950, 560), |root| {
+        let panels = with_legend(root, runs)?.split_evenly((1, 3));
         scale_panel(
             &panels[0],
             runs,
@@ -164,7 +167,8 @@ pub fn quality_vs_scale(runs: &[ReportRun], path: &Path) -> Result<(), Error> {
         )?;
         scale_panel(&panels[1], runs, "SSIM vs render scale", "SSIM", 3, &|s| {
             Some(s.ssim)
-        })
+        })?;
+        gap_panel(&panels[2], runs)
     })
 }
 
@@ -192,7 +196,7 @@ pub fn quality_by_region(runs: &[ReportRun], path: &Path) -> Result<(), Error> {
 
 /// One panel of a metric against the render scale (log2 axis, labelled at the
 /// evaluated powers of two), a line per run over the scales where `metric` has a
-/// value, `decimals` on the y labels.
+/// value, each run's points dodged a little sideways, `decimals` on the y labels.
 fn scale_panel(
     area: &Area<'_>,
     runs: &[ReportRun],
@@ -206,12 +210,14 @@ fn scale_panel(
     let (x0, x1) = padded_range(keys.iter().copied(), 0.08);
     let series: Vec<Vec<(f64, f64)>> = runs
         .iter()
-        .map(|r| {
+        .enumerate()
+        .map(|(i, r)| {
+            let x = |s: f64| s.log2() + dodge(i, runs.len());
             let mut pts: Vec<(f64, f64)> = r
                 .eval
                 .scales
                 .iter()
-                .filter_map(|s| metric(s).map(|v| (s.scale.log2(), v)))
+                .filter_map(|s| metric(s).map(|v| (x(s.scale), v)))
                 .collect();
             pts.sort_by(|a, b| a.0.total_cmp(&b.0));
             pts
@@ -219,35 +225,58 @@ fn scale_panel(
         .collect();
     let (y0, y1) = padded_range(series.iter().flatten().map(|p| p.1), 0.05);
     let mut chart = new_chart(area, title, 24, 70, (x0, x1), (y0, y1))?;
+    draw_scale_axes(&mut chart, keys.len(), y_desc, decimals)?;
+    for (i, pts) in series.iter().enumerate() {
+        draw_run(&mut chart, pts, series_style(runs, i))?;
+    }
+    Ok(())
+}
+
+/// Draws one run's line through `pts` with its marker at each point.
+pub(super) fn draw_run(
+    chart: &mut Chart<'_, '_>,
+    pts: &[(f64, f64)],
+    style: SeriesStyle,
+) -> Result<(), String> {
+    chart
+        .draw_series(std::iter::once(line(pts.to_vec(), style)))
+        .map_err(e2s)?;
+    chart
+        .draw_series(pts.iter().map(|&q| marker(q, style)))
+        .map_err(e2s)?;
+    Ok(())
+}
+
+/// Draws the axes of a chart against the render scale: the log2 x axis labelled at
+/// the `scales` evaluated powers of two only, `decimals` on the y labels.
+pub(super) fn draw_scale_axes(
+    chart: &mut Chart<'_, '_>,
+    scales: usize,
+    y_desc: &str,
+    decimals: usize,
+) -> Result<(), String> {
     chart
         .configure_mesh()
         .x_desc("render scale relative to training (log axis)")
         .y_desc(y_desc)
-        .x_labels(keys.len().max(2))
+        .x_labels(scales.max(2))
         .x_label_formatter(&|x| {
-            // Labels only at whole powers of two (the evaluated scales).
             if (x - x.round()).abs() < 1e-6 {
                 scale_header(2f64.powf(x.round()))
             } else {
                 String::new()
             }
         })
-        .y_label_formatter(&|y| format!("{y:.decimals$}"))
+        .y_label_formatter(&|y| {
+            // Rounded first, so a label near zero never prints as "-0.00".
+            let step = 10f64.powi(decimals as i32);
+            format!("{:.decimals$}", (y * step).round() / step + 0.0)
+        })
         .label_style(text(16))
         .axis_desc_style(text(17))
         .light_line_style(WHITE.mix(0.0))
         .draw()
-        .map_err(e2s)?;
-    for (i, pts) in series.iter().enumerate() {
-        let style = series_style(runs, i);
-        chart
-            .draw_series(std::iter::once(line(pts.clone(), style)))
-            .map_err(e2s)?;
-        chart
-            .draw_series(pts.iter().map(|&q| marker(q, style)))
-            .map_err(e2s)?;
-    }
-    Ok(())
+        .map_err(e2s)
 }
 
 /// One scatter panel: a point per run at `(x(run), y(run))` (the legend is the
@@ -466,7 +495,7 @@ fn estimator_colour(name: &str) -> RGBColor {
 fn estimator_label(name: &str) -> String {
     match name {
         "kde" => "KDE (paper)".into(),
-        "window_max" => "window max (ours)".into(),
+        "window_max" => "window max (maaf's)".into(),
         other => other.into(),
     }
 }

@@ -8,8 +8,8 @@ use std::path::Path;
 use plotters::prelude::*;
 
 use super::ReportRun;
-use super::charts::{e2s, new_chart, padded_range, save_chart, text};
-use super::style::{line, marker, series_style, with_legend};
+use super::charts::{draw_run, e2s, new_chart, padded_range, save_chart, text};
+use super::style::{series_style, with_legend};
 use crate::Error;
 
 /// `(elapsed_seconds, val_psnr)` of every `log.csv` row of `run` that has a
@@ -20,17 +20,20 @@ pub fn validation_curve(run: &Path) -> Result<Vec<(f64, f64)>, Error> {
     if !path.is_file() {
         return Ok(Vec::new());
     }
-    let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
-    let mut lines = text.lines();
-    let header: Vec<&str> = lines.next().unwrap_or("").split(',').collect();
-    let column = |name: &str| header.iter().position(|h| *h == name);
+    let bad = |e: csv::Error| Error::Input(format!("{}: {e}", path.display()));
+    let mut reader = csv::ReaderBuilder::new()
+        .flexible(true)
+        .from_path(&path)
+        .map_err(bad)?;
+    let header = reader.headers().map_err(bad)?.clone();
+    let column = |name: &str| header.iter().position(|h| h == name);
     let (Some(t), Some(v)) = (column("elapsed_seconds"), column("val_psnr")) else {
         return Ok(Vec::new());
     };
     let mut points = Vec::new();
-    for (k, line) in lines.enumerate() {
-        let cells: Vec<&str> = line.split(',').collect();
-        let cell = |i: usize| cells.get(i).copied().unwrap_or("");
+    for (k, row) in reader.records().enumerate() {
+        let row = row.map_err(bad)?;
+        let cell = |i: usize| row.get(i).unwrap_or("");
         if cell(v).is_empty() {
             continue;
         }
@@ -82,13 +85,7 @@ pub fn validation_psnr_vs_time(runs: &[ReportRun], path: &Path) -> Result<bool, 
             .draw()
             .map_err(e2s)?;
         for (i, curve) in curves.iter().enumerate() {
-            let style = series_style(runs, i);
-            chart
-                .draw_series(std::iter::once(line(curve.clone(), style)))
-                .map_err(e2s)?;
-            chart
-                .draw_series(curve.iter().map(|&p| marker(p, style)))
-                .map_err(e2s)?;
+            draw_run(&mut chart, curve, series_style(runs, i))?;
         }
         Ok(())
     })?;

@@ -13,6 +13,7 @@
 
 pub mod charts;
 pub mod curves;
+mod gap;
 pub mod published;
 pub mod regions;
 pub mod rings;
@@ -20,6 +21,7 @@ pub mod style;
 pub mod suite;
 pub mod temporal;
 pub mod views;
+pub mod zoom;
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -83,6 +85,7 @@ impl ReportRun {
                 frame_stride: 1,
                 lpips_net: "alex".into(),
                 scales,
+                skipped_scales: Vec::new(),
             },
             analysis: None,
         }
@@ -172,7 +175,8 @@ fn metric_at(r: &ReportRun, s: f64) -> Option<(f64, f64)> {
 
 /// A markdown table of PSNR and SSIM at `scales` plus their averages, one row per
 /// run (the layout of the paper's Tab. 2). Missing cells are `-`; a run missing a
-/// scale gets no average.
+/// scale gets no average. Bold marks the best value of each column (every value that
+/// prints the same as the best), when the column has two or more.
 pub fn metrics_table(runs: &[ReportRun], scales: &[f64]) -> String {
     let mut t = String::from("| Method |");
     for s in scales {
@@ -187,41 +191,42 @@ pub fn metrics_table(runs: &[ReportRun], scales: &[f64]) -> String {
         t.push_str("---:|");
     }
     t.push('\n');
-    for r in runs {
-        let cells: Vec<Option<(f64, f64)>> = scales.iter().map(|&s| metric_at(r, s)).collect();
-        let complete = cells.iter().all(Option::is_some);
-        let avg = |f: fn(&(f64, f64)) -> f64| {
-            let v: Vec<f64> = cells.iter().flatten().map(f).collect();
-            (complete && !v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64)
-        };
+    // Per run, the PSNR columns then the SSIM columns, each scale then the average.
+    let rows: Vec<Vec<Option<f64>>> = runs
+        .iter()
+        .map(|r| {
+            let cells: Vec<Option<(f64, f64)>> = scales.iter().map(|&s| metric_at(r, s)).collect();
+            let complete = !cells.is_empty() && cells.iter().all(Option::is_some);
+            let column = |f: fn(&(f64, f64)) -> f64| {
+                let v: Vec<Option<f64>> = cells.iter().map(|c| c.as_ref().map(f)).collect();
+                let avg = complete.then(|| v.iter().flatten().sum::<f64>() / v.len() as f64);
+                v.into_iter().chain([avg])
+            };
+            column(|c| c.0).chain(column(|c| c.1)).collect()
+        })
+        .collect();
+    let digits = |k: usize| if k <= scales.len() { 2 } else { 4 };
+    let best: Vec<Option<String>> = (0..2 * scales.len() + 2)
+        .map(|k| {
+            let values: Vec<f64> = rows.iter().filter_map(|r| r[k]).collect();
+            let top = values.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            (values.len() > 1).then(|| format!("{top:.*}", digits(k)))
+        })
+        .collect();
+    for (r, row) in runs.iter().zip(&rows) {
         let _ = write!(t, "| {} |", r.label);
-        for c in &cells {
-            match c {
-                Some((p, _)) => {
-                    let _ = write!(t, " {p:.2} |");
+        for (k, cell) in row.iter().enumerate() {
+            match cell {
+                Some(v) => {
+                    let v = format!("{v:.*}", digits(k));
+                    if best[k].as_ref() == Some(&v) {
+                        let _ = write!(t, " **{v}** |");
+                    } else {
+                        let _ = write!(t, " {v} |");
+                    }
                 }
                 None => t.push_str(" - |"),
             }
-        }
-        match avg(|c| c.0) {
-            Some(v) => {
-                let _ = write!(t, " **{v:.2}** |");
-            }
-            None => t.push_str(" - |"),
-        }
-        for c in &cells {
-            match c {
-                Some((_, s)) => {
-                    let _ = write!(t, " {s:.4} |");
-                }
-                None => t.push_str(" - |"),
-            }
-        }
-        match avg(|c| c.1) {
-            Some(v) => {
-                let _ = write!(t, " **{v:.4}** |");
-            }
-            None => t.push_str(" - |"),
         }
         t.push('\n');
     }
@@ -361,6 +366,17 @@ pub fn write_report(runs: &[PathBuf], out: &Path) -> Result<ReportOutput, Error>
         md.push_str("\n## Renders and error maps\n\n");
         md.push_str(&pictures);
     }
+    if zoom::zoom_figure(&runs, &scales, out)?.is_some() {
+        let names: Vec<&str> = runs.iter().map(|r| r.label.as_str()).collect();
+        let _ = writeln!(
+            md,
+            "\n## Zoomed out and in\n\nGround truth, then {} (left to right) on one test view: top at {} (enlarged without interpolation), bottom at {} (a centre crop). The README's figure is this file.\n\n![zoomed out and in]({})",
+            names.join(", "),
+            scales.first().map_or(String::new(), |s| scale_header(*s)),
+            scales.last().map_or(String::new(), |s| scale_header(*s)),
+            zoom::ZOOM_FIGURE
+        );
+    }
     let by_region = regions::region_table(&runs, &scales);
     if !by_region.is_empty() {
         md.push_str(
@@ -429,6 +445,43 @@ pub fn write_report(runs: &[PathBuf], out: &Path) -> Result<ReportOutput, Error>
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn bold_marks_the_best_of_each_column_only() {
+        let run = |label: &str, psnr: [f64; 2], ssim: [f64; 2]| {
+            let cells = [0.25, 4.0]
+                .iter()
+                .zip(psnr.iter().zip(ssim))
+                .map(|(&s, (&p, q))| crate::ScaleResult::new(s, (8, 8), p, q))
+                .collect();
+            ReportRun::for_test(label, "saro", label, cells)
+        };
+        let runs = [
+            run("none", [16.0, 15.0], [0.5, 0.30]),
+            run("mip3d", [28.0, 16.0], [0.8, 0.31]),
+            run("motion", [28.0, 15.5], [0.7, 0.31]),
+        ];
+        let table = metrics_table(&runs, &[0.25, 4.0]);
+        let line = |label: &str| {
+            table
+                .lines()
+                .find(|l| l.starts_with(&format!("| {label} |")))
+                .expect("row")
+                .to_string()
+        };
+        assert_eq!(
+            line("none"),
+            "| none | 16.00 | 15.00 | 15.50 | 0.5000 | 0.3000 | 0.4000 |"
+        );
+        assert_eq!(
+            line("mip3d"),
+            "| mip3d | **28.00** | **16.00** | **22.00** | **0.8000** | **0.3100** | **0.5550** |"
+        );
+        assert_eq!(
+            line("motion"),
+            "| motion | **28.00** | 15.50 | 21.75 | 0.7000 | **0.3100** | 0.5050 |"
+        );
+    }
 
     #[test]
     fn headers() {

@@ -1,7 +1,8 @@
 //! The report's pictures: for one test view at each evaluated scale, the ground
 //! truth, every run's render and its error map (copied from `RUN/eval/<scale>x/`,
-//! where `maaf eval` saved them, into `OUT/views/<scale>x/`), and the colour bar that
-//! says what error each colour of the maps means.
+//! where `maaf eval` saved them, into `OUT/views/<scale>x/`, those below 1x enlarged
+//! back to the 1x size without interpolation), and the colour bar that says what error
+//! each colour of the maps means.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -9,10 +10,11 @@ use std::path::{Path, PathBuf};
 use plotters::prelude::*;
 
 use super::charts::{e2s, save_chart, text};
+use super::zoom::{copy_enlarged, enlargement};
 use super::{ReportRun, scale_header};
+use crate::Error;
 use crate::images::{ERROR_MAP_MAX, ramp};
 use crate::scale_label;
-use crate::{Error, write_atomic};
 
 /// The colour bar of the error maps, in the report folder.
 pub const COLOUR_BAR: &str = "error_colour_bar.png";
@@ -45,12 +47,6 @@ fn saved_views(dir: &Path) -> Vec<usize> {
         .collect();
     v.sort_unstable();
     v
-}
-
-/// Copies `from` to `to` crash-safely.
-fn copy(from: &Path, to: &Path) -> Result<(), Error> {
-    let bytes = std::fs::read(from).map_err(|e| Error::io(from, e))?;
-    write_atomic(to, &bytes)
 }
 
 /// The smallest view index every run evaluated at `s` saved images of, with the
@@ -90,12 +86,18 @@ pub fn view_section(runs: &[ReportRun], scales: &[f64], out: &Path) -> Result<St
             .flatten()
             .map(|d| d.join(&gt_name))
             .find(|p| p.is_file());
-        let _ = writeln!(md, "### {} (test view {view})\n", scale_header(s));
+        let factor = enlargement(s);
+        let enlarged = if factor > 1 {
+            format!(", enlarged {factor}x without interpolation")
+        } else {
+            String::new()
+        };
+        let _ = writeln!(md, "### {} (test view {view}{enlarged})\n", scale_header(s));
         let mut head = String::from("| ground truth |");
         let mut sep = String::from("|---|");
         let mut renders = match &gt {
             Some(p) => {
-                copy(p, &folder.join(&gt_name))?;
+                copy_enlarged(p, &folder.join(&gt_name), factor)?;
                 format!("| ![ground truth]({rel}/{gt_name}) |")
             }
             None => "| not saved (evaluated before ground truth was saved; re-run `maaf eval`) |"
@@ -112,9 +114,10 @@ pub fn view_section(runs: &[ReportRun], scales: &[f64], out: &Path) -> Result<St
             };
             for (kind, cells) in [("render", &mut renders), ("error", &mut errors)] {
                 let name = format!("run{k:02}_{kind}_{view:03}.png");
-                copy(
+                copy_enlarged(
                     &dir.join(format!("{kind}_{view:03}.png")),
                     &folder.join(&name),
+                    factor,
                 )?;
                 let _ = write!(cells, " ![{kind} of {}]({rel}/{name}) |", r.label);
             }

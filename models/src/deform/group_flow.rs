@@ -19,7 +19,7 @@
 //! (its knot-0 position) moves to `R (x_0 - n_g) + n_g + T` around the group's node
 //! `n_g = c_g0`.
 //!
-//! Ours, not the reference's: knots are uniform in t (`k / (K-1)`, K = the number of
+//! maaf's, not the reference's: knots are uniform in t (`k / (K-1)`, K = the number of
 //! training frames capped at `max_knots`) instead of the training frames' own time
 //! stamps; every member enters the rotation fit (the reference samples 100);
 //! farthest-point sampling starts at Gaussian 0 (the reference at a random one).

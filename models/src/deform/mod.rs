@@ -27,11 +27,11 @@
 //! `x + d_xyz` with `d_xyz` computed from the detached centre), scale
 //! `exp(log s) + ds_0` and quaternion `r_g(t) (q / |q| + dq_0)`, where `ds_0`, `dq_0`
 //! are the MLP's residuals at t = 0 when the groups were fitted and `r_g(t)` the
-//! group's turn (ours: the reference drops the residuals, and turns the quaternion
+//! group's turn (maaf's: the reference drops the residuals, and turns the quaternion
 //! only with `gflow_local_rot`; on mutant dropping them cost 20 dB at the switch).
 //! The nodes `n_g` = fitted centroid + a trained offset.
 //!
-//! Ours, not the reference's: the head starts at zero (PyTorch's default
+//! maaf's, not the reference's: the head starts at zero (PyTorch's default
 //! initialisation there), so the first dynamic iteration renders the warmed-up
 //! scene unchanged instead of a random deformation of it.
 

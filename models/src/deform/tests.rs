@@ -100,7 +100,7 @@ fn slow_residuals(m: &DeformModel<f64>, i: usize, time: f64) -> Vec<f64> {
         t = affine(&relu(affine(&t, &w0, &b0)), &w1, &b1);
     }
     let input: Vec<f64> = encode(x, c.x_freqs).into_iter().chain(t).collect();
-    // The reference's `linear[0..depth]` then the heads, in our parameter names.
+    // The reference's `linear[0..depth]` then the heads, in maaf's parameter names.
     let mut names: Vec<String> = Vec::new();
     if c.skip {
         let before = c.depth / 2 + 1;

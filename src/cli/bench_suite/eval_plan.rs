@@ -13,6 +13,7 @@ use maaf_eval::eval_json::OTHER_BACKGROUND_PREFIX;
 use maaf_eval::{EvalOptions, check_eval_options};
 use maaf_scene::TrainConfig;
 use maaf_train::data::{BLACK, Dataset, DatasetOptions};
+use maaf_train::sweep::{shell_quote, split_args};
 
 use super::super::eval::{EvalArgs, SplitArg};
 use super::SuiteSpec;
@@ -31,12 +32,13 @@ struct EvalLine {
 /// `--also-eval-on`) and data (the scene, recorded in the run).
 const SUITE_OWNED: [&str; 4] = ["--run", "--split", "--background", "--data"];
 
-/// `--eval-args` split at spaces (one space between words, as stored in
-/// `suite.json`) with the evaluation they ask for. Refused in one line: an option
-/// the suite sets itself, one `maaf eval` does not take or a bad value, and `--help`
-/// or `--version`, which would print and evaluate nothing.
+/// `--eval-args` split as a shell would (quotes group words; stored in `suite.json`
+/// as [`words`]) with the evaluation they ask for. Refused in one line: unbalanced
+/// quotes, an option the suite sets itself, one `maaf eval` does not take or a bad
+/// value, and `--help` or `--version`, which would print and evaluate nothing.
 pub(super) fn parse_eval_args(text: &str) -> anyhow::Result<(String, EvalOptions)> {
-    let tokens: Vec<&str> = text.split_whitespace().collect();
+    let tokens = split_args(text, "--eval-args")?;
+    let tokens: Vec<&str> = tokens.iter().map(String::as_str).collect();
     for word in &tokens {
         let name = word.split('=').next().unwrap_or(word);
         if SUITE_OWNED.contains(&name) {
@@ -141,9 +143,18 @@ pub(super) fn reevaluated<'a>(
         .collect())
 }
 
-/// `--eval-args` as `suite.json` stores it: its words joined by one space.
+/// `--eval-args` as `suite.json` stores it: its words (split as a shell would), each
+/// quoted where it needs it, joined by one space; unbalanced quotes (refused by
+/// [`parse_eval_args`]) are kept as given.
 pub(super) fn words(eval_args: &str) -> String {
-    eval_args.split_whitespace().collect::<Vec<_>>().join(" ")
+    match split_args(eval_args, "--eval-args") {
+        Ok(words) => words
+            .iter()
+            .map(|w| shell_quote(w))
+            .collect::<Vec<_>>()
+            .join(" "),
+        Err(_) => eval_args.to_string(),
+    }
 }
 
 /// Removes the evaluations of the run in `dir` (`eval.json`, `eval-on-*.json`), so

@@ -61,7 +61,7 @@ mod tests {
     use maaf_data::{BLACK, Dataset, DatasetOptions, Split};
 
     use super::*;
-    use crate::trainer::TrainConfig;
+    use maaf_scene::TrainConfig;
 
     /// The target of a view is its image composited on the drawn colour at load time
     /// (an independent path: the data set opened on that background), and without

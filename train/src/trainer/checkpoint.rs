@@ -1,7 +1,7 @@
 //! Checkpoints: a folder holding `tensors.safetensors` (the parameter store as
 //! `param/{name}`, Adam moments, the representation's buffers, densification
 //! statistics, the liveness record, f/d observations, the scene record
-//! [`crate::scene::SceneRecord`] as `scene/*`) and
+//! [`maaf_scene::SceneRecord`] as `scene/*`) and
 //! `state.json` (model name, iteration, counters, configuration, filter state, and
 //! the CRC-32 of the tensors file, checked on every load).
 //! Built under a temporary name and swapped in by [`maaf_io::replace_dir`], so a
@@ -16,9 +16,9 @@ use safetensors::{Dtype, tensor::TensorView};
 
 use super::{DensifyStats, Liveness, Trainer};
 use crate::data::Dataset;
-use crate::params::Rows;
-use crate::scene::checkpoint_read::{BUFFER, Opened, State, bytes_of, tensor};
 use crate::{Error, Plugins};
+use maaf_models::params::Rows;
+use maaf_scene::checkpoint_read::{BUFFER, Opened, State, bytes_of, tensor};
 
 /// Per Gaussian (u32), the last iteration with an opacity gradient
 /// ([`super::Liveness`]); absent in checkpoints written before it existed.

@@ -5,6 +5,7 @@
 //!
 //! Runs logged before the weighted columns existed have the same header without them;
 //! a resume of such a run keeps appending in that layout ([`LogLayout::unweighted`]).
+//! The file is written and read with the `csv` crate.
 
 use crate::loss::Objective;
 
@@ -54,46 +55,70 @@ impl LogLayout {
         }
     }
 
-    /// The header line (no newline).
-    pub(super) fn header(&self) -> String {
-        let mut header = String::from("iteration");
-        for (name, _) in &self.terms {
-            header.push(',');
-            header.push_str(name);
-        }
+    /// The header's fields.
+    pub(super) fn header(&self) -> Vec<String> {
+        let mut header = vec!["iteration".to_string()];
+        header.extend(self.terms.iter().map(|(name, _)| name.clone()));
         if self.weighted {
-            for (name, weight) in &self.terms {
-                header.push_str(&format!(",{}*{name}", weight_text(*weight)));
-            }
+            header.extend(
+                self.terms
+                    .iter()
+                    .map(|(name, weight)| format!("{}*{name}", weight_text(*weight))),
+            );
         }
-        header.push_str(",total,num_gaussians,elapsed_seconds,skipped_steps,val_psnr");
+        header.extend(
+            [
+                "total",
+                "num_gaussians",
+                "elapsed_seconds",
+                "skipped_steps",
+                "val_psnr",
+            ]
+            .map(String::from),
+        );
         header
     }
 
-    /// One row (with its newline) from the step's unweighted term values by name
-    /// (`NaN` for a term the step did not report).
-    pub(super) fn row(&self, values: &[(String, f64)], stats: &RowStats<'_>) -> String {
+    /// One row's fields from the step's unweighted term values by name (`NaN` for a
+    /// term the step did not report).
+    pub(super) fn row(&self, values: &[(String, f64)], stats: &RowStats<'_>) -> Vec<String> {
         let value = |name: &str| {
             values
                 .iter()
                 .find(|(n, _)| n == name)
                 .map_or(f64::NAN, |(_, v)| *v)
         };
-        let mut row = stats.iteration.to_string();
-        for (name, _) in &self.terms {
-            row.push_str(&format!(",{:.6e}", value(name)));
-        }
+        let mut row = vec![stats.iteration.to_string()];
+        row.extend(
+            self.terms
+                .iter()
+                .map(|(name, _)| format!("{:.6e}", value(name))),
+        );
         if self.weighted {
-            for (name, weight) in &self.terms {
-                row.push_str(&format!(",{:.6e}", weight * value(name)));
-            }
+            row.extend(
+                self.terms
+                    .iter()
+                    .map(|(name, weight)| format!("{:.6e}", weight * value(name))),
+            );
         }
-        row.push_str(&format!(
-            ",{:.6e},{},{:.3},{},{}\n",
-            stats.total, stats.num_gaussians, stats.elapsed, stats.skipped, stats.val
-        ));
+        row.extend([
+            format!("{:.6e}", stats.total),
+            stats.num_gaussians.to_string(),
+            format!("{:.3}", stats.elapsed),
+            stats.skipped.to_string(),
+            stats.val.to_string(),
+        ]);
         row
     }
+}
+
+/// `fields` as one line of CSV (quoted where a field needs it), as `log.csv` holds it.
+pub(super) fn csv_line(fields: &[String]) -> Result<Vec<u8>, crate::Error> {
+    let mut line = csv::Writer::from_writer(Vec::new());
+    line.write_record(fields)
+        .map_err(|e| crate::Error::Input(format!("log.csv: {e}")))?;
+    line.into_inner()
+        .map_err(|e| crate::Error::Input(format!("log.csv: {e}")))
 }
 
 /// A weight as the header spells it: the shortest decimal (`0.8`), or scientific
@@ -115,11 +140,11 @@ mod tests {
         let objective = Objective::<f64>::photometric(0.2).with_fn("reg", 8e-6, |ctx| ctx.zero());
         let layout = LogLayout::of(&objective);
         assert_eq!(
-            layout.header(),
+            layout.header().join(","),
             "iteration,l1,dssim,reg,0.8*l1,0.2*dssim,8e-6*reg,total,num_gaussians,elapsed_seconds,skipped_steps,val_psnr"
         );
         assert_eq!(
-            layout.unweighted().header(),
+            layout.unweighted().header().join(","),
             "iteration,l1,dssim,reg,total,num_gaussians,elapsed_seconds,skipped_steps,val_psnr"
         );
         let values = vec![
@@ -136,15 +161,13 @@ mod tests {
             val: "",
         };
         let row = layout.row(&values, &stats);
-        let cells: Vec<f64> = row
-            .split(',')
-            .skip(4)
-            .take(3)
+        let cells: Vec<f64> = row[4..7]
+            .iter()
             .map(|c| c.parse().expect("number"))
             .collect();
         assert_eq!(cells, vec![0.4, 0.05, 1.6e-5]);
-        assert_eq!(row.split(',').count(), layout.header().split(',').count());
+        assert_eq!(row.len(), layout.header().len());
         let old = layout.unweighted().row(&values, &stats);
-        assert_eq!(old.split(',').count(), 9, "{old}");
+        assert_eq!(old.len(), 9, "{old:?}");
     }
 }

@@ -1,5 +1,5 @@
 //! The training loop (docs/architecture.md): one view per iteration, a fresh tape per
-//! step, the pipeline of [`crate::forward`], the objective as named terms, Adam,
+//! step, the pipeline of [`maaf_scene::forward`], the objective as named terms, Adam,
 //! densification and filter refreshes outside the tape.
 //!
 //! A trainer is built from a config ([`Trainer::new`]: the model kind is
@@ -39,12 +39,7 @@ pub use checkpoint::{
     checkpoint_iteration, load_checkpoint, load_checkpoint_with_plugins, save_checkpoint,
 };
 pub use densify::{DensifyPlan, DensifyStats, ViewGrad, plan as plan_densify};
-/// The run's configuration, its timings and what it starts from: `maaf-scene` types,
-/// here under the trainer's paths.
-pub use maaf_scene::{
-    BackdropConfig, CameraColourConfig, DensifyConfig, DensifyGradient, LossRegion, MAX_BATCH,
-    OpacityReset, PruneConfig, Timings, TrainConfig, camera_extent, model_init, repair_run_dir,
-};
+
 pub use prune::{keep_highest, removal_sensitivity};
 pub use reset::{Liveness, opacity_caps};
 pub use resume::{checkpoints_newest_first, load_newest, truncate_log};
@@ -59,8 +54,11 @@ pub use strategy::{
 use crate::data::{Dataset, Image};
 use crate::loss::Objective;
 use crate::models::{Canonical, Representation};
-use crate::scene::{SceneRecord, TrainedScene, observed_views, training_views};
 use crate::{Error, Plugins};
+use maaf_scene::{
+    DensifyConfig, DensifyGradient, LossRegion, OpacityReset, SceneRecord, Timings, TrainConfig,
+    TrainedScene, camera_extent, model_init, observed_views, repair_run_dir, training_views,
+};
 
 /// A trainer: the model, its optimiser, the filter and every per-Gaussian container,
 /// resized in lock-step by [`PerGaussian::select_rows`].
@@ -213,6 +211,14 @@ impl Trainer {
         plugins: &Plugins,
     ) -> Result<Self, Error> {
         config.validate()?;
+        if data.background() != config.background.rgb() {
+            return Err(Error::Input(format!(
+                "{}: the data set is composited on {} but the config's background is {}; open it on the config's (DatasetOptions {{ background: config.background.rgb() }})",
+                data.root().display(),
+                crate::data::Background(data.background()),
+                config.background
+            )));
+        }
         let views = training_views(data, &config)?;
         let cameras: Vec<Camera> = views.iter().map(|v| v.camera.clone()).collect();
         let extent = camera_extent(&cameras);
@@ -225,12 +231,12 @@ impl Trainer {
         let (observed, observed_slot) =
             observed_views(&view_times, sampling.observes(), config.filter.max_views);
         if observed.len() < views.len() && sampling.observes() {
-            log_line(&format!(
+            ::log::info!(
                 "motion filter: observing {} of {} training views (filter.max_views), {} B per Gaussian",
                 observed.len(),
                 views.len(),
                 4 * observed.len()
-            ));
+            );
         }
         let bounds = data.scene_bounds();
         let gts = views.iter().map(|v| v.image.to_tensor()).collect();
@@ -314,7 +320,7 @@ impl Trainer {
     /// [`CanonicalIds`]): what densification, the opacity reset, a strategy and the
     /// filters read.
     ///
-    /// [`ParamStore::canonical`]: crate::params::ParamStore::canonical
+    /// [`ParamStore::canonical`]: maaf_models::params::ParamStore::canonical
     /// [`CanonicalIds`]: crate::models::CanonicalIds
     pub fn canonical(&self) -> Canonical<f32> {
         self.model.params().canonical(self.model.canonical_ids())
@@ -331,7 +337,7 @@ impl Trainer {
             .model
             .params()
             .iter()
-            .filter(|p| p.rows == crate::params::Rows::PerGaussian)
+            .filter(|p| p.rows == maaf_models::params::Rows::PerGaussian)
             .map(|p| p.value.shape().iter().skip(1).product::<usize>())
             .sum();
         let floats = row * (4 + 4 * self.config.batch.max(1)) + self.observations.num_frames() + 3;
@@ -356,7 +362,7 @@ impl Trainer {
     /// The deformed, filtered Gaussians at `time` as plain tensors
     /// `[means, scales, quats, opacity, sh]`: what the renderer draws.
     pub fn frame_at(&self, time: f64) -> [Tensor<f32>; 5] {
-        crate::forward::gaussians_at(self.model.as_ref(), &self.filter, time)
+        maaf_scene::forward::gaussians_at(self.model.as_ref(), &self.filter, time)
     }
 
     /// What a checkpoint of this run records besides the model
@@ -422,9 +428,4 @@ impl Trainer {
         self.stats.select_rows(&plan.index);
         self.liveness.select_rows(&plan.index);
     }
-}
-
-/// Progress and warnings go to stderr, one line each.
-fn log_line(msg: &str) {
-    eprintln!("maaf: {msg}");
 }

@@ -8,8 +8,8 @@ use maaf_autodiff::{Tape, Tensor};
 use maaf_filter::FilterState;
 use maaf_splat::{Camera, GaussianVars, RenderSettings, SplatFloat};
 
-use super::{DensifyPlan, Trainer, log_line};
-use crate::forward::{deformed_at, fold_filter};
+use super::{DensifyPlan, Trainer};
+use maaf_scene::forward::{deformed_at, fold_filter};
 
 /// How much the total intensity of one render depends on each Gaussian: with
 /// `S = sum over pixels and channels of the image` and `o_i` the opacity of Gaussian
@@ -105,7 +105,7 @@ impl Trainer {
         let scores = match self.sensitivity_scores(it) {
             Ok(s) => s,
             Err(e) => {
-                log_line(&format!("iteration {it}: sensitivity pruning skipped: {e}"));
+                log::warn!("iteration {it}: sensitivity pruning skipped: {e}");
                 return false;
             }
         };
@@ -120,9 +120,7 @@ impl Trainer {
             pruned,
             ..Default::default()
         });
-        log_line(&format!(
-            "iteration {it}: sensitivity pruning removed {pruned} of {n} Gaussians"
-        ));
+        log::info!("iteration {it}: sensitivity pruning removed {pruned} of {n} Gaussians");
         true
     }
 }

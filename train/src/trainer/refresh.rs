@@ -6,8 +6,8 @@ use maaf_autodiff::PerGaussian;
 use maaf_filter::{FilterInputs, ObservationTable, SamplingFilter};
 use maaf_splat::Camera;
 
-use super::{Trainer, log_line};
-use crate::scene::{centres, observed_views};
+use super::Trainer;
+use maaf_scene::{centres, observed_views};
 
 /// The trainer as a filter's inputs.
 struct Inputs<'a>(&'a Trainer);
@@ -81,7 +81,7 @@ impl Trainer {
                 },
             );
             if let Err(e) = result {
-                log_line(&format!("observation pass failed: {e}"));
+                log::warn!("observation pass failed: {e}");
             }
         }
         self.refresh_filter();
@@ -92,7 +92,7 @@ impl Trainer {
     pub fn refresh_filter(&mut self) {
         match self.sampling.compute(&Inputs(self), &self.config.filter) {
             Ok(state) => self.filter = state,
-            Err(e) => log_line(&format!("filter refresh skipped: {e}")),
+            Err(e) => log::warn!("filter refresh skipped: {e}"),
         }
     }
 }

@@ -5,7 +5,6 @@
 
 use std::path::{Path, PathBuf};
 
-use super::log_line;
 use crate::{Error, write_atomic};
 
 /// The complete checkpoint folders `checkpoints/iter_N` (temporaries excluded).
@@ -32,7 +31,7 @@ pub fn checkpoints_newest_first(out: &Path) -> Vec<(PathBuf, usize)> {
         .filter_map(|(dir, is_model)| match super::checkpoint_iteration(&dir) {
             Ok(it) => Some((dir, it, is_model)),
             Err(e) => {
-                log_line(&format!("skipping an unreadable checkpoint: {e}"));
+                log::warn!("skipping an unreadable checkpoint: {e}");
                 None
             }
         })
@@ -53,9 +52,9 @@ pub fn load_newest<T>(
     for (dir, _) in checkpoints_newest_first(out) {
         match load(&dir) {
             Ok(t) => return Some((t, dir)),
-            Err(e) => log_line(&format!(
-                "warning: skipping a checkpoint that does not load, falling back to an older one: {e}"
-            )),
+            Err(e) => log::warn!(
+                "skipping a checkpoint that does not load, falling back to an older one: {e}"
+            ),
         }
     }
     None
@@ -67,32 +66,55 @@ pub fn load_newest<T>(
 /// returns the index of the one the log has (0 for a log not written yet, which is
 /// started with `headers[0]`). Refuses a log whose header is none of them (a
 /// different objective).
-pub fn truncate_log(path: &Path, headers: &[String], iteration: usize) -> Result<usize, Error> {
-    let text = match std::fs::read(path) {
-        Ok(bytes) => String::from_utf8_lossy(&bytes).into_owned(),
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => String::new(),
+pub fn truncate_log(
+    path: &Path,
+    headers: &[Vec<String>],
+    iteration: usize,
+) -> Result<usize, Error> {
+    let bytes = match std::fs::read(path) {
+        Ok(bytes) => bytes,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Vec::new(),
         Err(e) => return Err(Error::io(path, e)),
     };
-    let mut lines = text.split_inclusive('\n');
-    let found = match lines.next().map(|l| l.trim_end_matches('\n')) {
+    let bad = |e: csv::Error| Error::Input(format!("{}: {e}", path.display()));
+    let mut reader = csv::ReaderBuilder::new()
+        .has_headers(false)
+        .flexible(true)
+        .from_reader(bytes.as_slice());
+    let mut records = reader.records();
+    let found = match records.next() {
         None => 0,
-        Some(first) => headers.iter().position(|h| h == first).ok_or_else(|| {
-            Error::Input(format!(
-                "{}: its columns `{first}` differ from this run's objective `{}` (on resume, add the same custom terms as in the first session)",
-                path.display(),
-                headers.first().map_or("", String::as_str)
-            ))
-        })?,
+        Some(first) => {
+            let first = first.map_err(bad)?;
+            headers
+                .iter()
+                .position(|h| first.iter().eq(h.iter().map(String::as_str)))
+                .ok_or_else(|| {
+                    Error::Input(format!(
+                        "{}: its columns `{}` differ from this run's objective `{}` (on resume, add the same custom terms as when the run started)",
+                        path.display(),
+                        first.iter().collect::<Vec<_>>().join(","),
+                        headers.first().map_or(String::new(), |h| h.join(","))
+                    ))
+                })?
+        }
     };
-    let mut kept = format!("{}\n", headers.get(found).map_or("", String::as_str));
-    // Only complete rows (ending with a newline) of iterations the checkpoint covers.
-    for line in lines.take_while(|l| {
-        let it = l.split(',').next().and_then(|v| v.parse::<usize>().ok());
-        l.ends_with('\n') && it.is_some_and(|it| it <= iteration)
+    let rows: Vec<csv::StringRecord> = records.collect::<Result<_, _>>().map_err(bad)?;
+    // A last row without its newline was torn by a kill: only complete rows count.
+    let complete = rows.len() - usize::from(!bytes.ends_with(b"\n") && !rows.is_empty());
+    let mut kept = csv::Writer::from_writer(Vec::new());
+    kept.write_record(headers.get(found).map_or(&[][..], Vec::as_slice))
+        .map_err(bad)?;
+    for row in rows[..complete].iter().take_while(|r| {
+        let it = r.get(0).and_then(|v| v.parse::<usize>().ok());
+        it.is_some_and(|it| it <= iteration)
     }) {
-        kept.push_str(line);
+        kept.write_record(row).map_err(bad)?;
     }
-    write_atomic(path, kept.as_bytes())?;
+    let kept = kept
+        .into_inner()
+        .map_err(|e| Error::Input(format!("{}: {e}", path.display())))?;
+    write_atomic(path, &kept)?;
     Ok(found)
 }
 
@@ -105,7 +127,8 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("maaf-log-{}", std::process::id()));
         std::fs::create_dir_all(&dir).expect("dir");
         let log = dir.join("log.csv");
-        let header = ["iteration,l1,total".to_string()];
+        let fields = |line: &str| line.split(',').map(String::from).collect::<Vec<_>>();
+        let header = [fields("iteration,l1,total")];
         std::fs::write(
             &log,
             "iteration,l1,total\n1,0.5,0.5\n2,0.4,0.4\n3,0.3,0.3\n4,0.2",
@@ -122,13 +145,13 @@ mod tests {
             std::fs::read_to_string(&log).expect("r"),
             "iteration,l1,total\n1,0.5,0.5\n"
         );
-        let both = ["iteration,l1,0.8*l1,total".to_string(), header[0].clone()];
+        let both = [fields("iteration,l1,0.8*l1,total"), header[0].clone()];
         assert_eq!(truncate_log(&log, &both, 9).expect("older layout"), 1);
         assert_eq!(
             std::fs::read_to_string(&log).expect("r"),
             "iteration,l1,total\n1,0.5,0.5\n"
         );
-        let other = ["iteration,l1,mine,total".to_string()];
+        let other = [fields("iteration,l1,mine,total")];
         let err = truncate_log(&log, &other, 9).expect_err("other objective");
         assert!(
             err.to_string().contains("differ from this run's objective"),

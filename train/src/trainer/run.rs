@@ -2,20 +2,19 @@
 //! under `checkpoints/`, the final model in `model/`, and `summary.json`; resumable
 //! from the newest complete checkpoint (`resume.rs`).
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 
-use super::log::{LogLayout, RowStats};
+use super::log::{LogLayout, RowStats, csv_line};
 use super::{
     Timings, TrainConfig, Trainer, checkpoints_newest_first, load_checkpoint_with_plugins,
-    load_newest, log_line, repair_run_dir, save_checkpoint, truncate_log,
+    load_newest, repair_run_dir, save_checkpoint, truncate_log,
 };
 use crate::data::Dataset;
-use crate::scene::TrainedScene;
 use crate::{Error, Plugins, write_atomic};
+use maaf_scene::TrainedScene;
 use maaf_scene::backdrop::BACKDROP_DIR;
 
 /// What a finished run reports (also written as `RUN/summary.json`).
@@ -102,7 +101,7 @@ pub fn train_run_with_plugins(
     plugins.check(&config, &what)?;
     if resume {
         check_unrecorded_data(out, data)?;
-        crate::eval::render::check_and_record_data(out, data)?;
+        maaf_eval::render::check_and_record_data(out, data)?;
     }
     repair_run_dir(out)?;
     let budget = config.iterations;
@@ -127,23 +126,23 @@ pub fn train_run_with_plugins(
 
 /// A run without `data.json` (an older run, or the file removed) is checked against
 /// what its newest readable checkpoint records
-/// ([`crate::eval::render::check_checkpoint_data`]), so other data with the same view
+/// ([`maaf_eval::render::check_checkpoint_data`]), so other data with the same view
 /// count is refused rather than resumed, and other data with another view count is
 /// refused rather than started over on top of the checkpoints.
 fn check_unrecorded_data(out: &Path, data: &Dataset) -> Result<(), Error> {
-    if crate::eval::render::recorded_data(out)?.is_some() {
+    if maaf_eval::render::recorded_data(out)?.is_some() {
         return Ok(());
     }
     let newest = checkpoints_newest_first(out)
         .into_iter()
-        .find(|(dir, _)| crate::scene::Opened::open(dir).is_ok());
+        .find(|(dir, _)| maaf_scene::Opened::open(dir).is_ok());
     match newest {
-        Some((dir, _)) => crate::eval::render::check_checkpoint_data(&dir, data),
+        Some((dir, _)) => maaf_eval::render::check_checkpoint_data(&dir, data),
         None => Ok(()),
     }
 }
 
-/// With a background layer in the run's config ([`super::BackdropConfig`]): trains
+/// With a background layer in the run's config ([`maaf_scene::BackdropConfig`]): trains
 /// it into `RUN/backdrop` first (a run of its own with
 /// [`TrainConfig::backdrop_layer`]'s settings; resumed when cut short, left as it
 /// is when finished), then puts it behind `trainer` ([`Trainer::set_backdrop`]).
@@ -163,11 +162,11 @@ fn attach_backdrop(
         .and_then(|b| serde_json::from_slice::<RunSummary>(&b).ok())
         .is_some_and(|s| s.iterations == config.iterations);
     if !done {
-        log_line(&format!(
+        log::info!(
             "background layer: {} iterations into {}",
             config.iterations,
             dir.display()
-        ));
+        );
         let resume = dir.join("config.json").is_file();
         train_run_with_plugins(data, config, &dir, resume, plugins)?;
     }
@@ -266,7 +265,7 @@ pub fn branch_run(
 
 /// [`branch_run`] with the registries of `plugins` ([`train_run_with_plugins`]).
 /// Unless `other_data`, `data` must be the data set the checkpoint was trained on
-/// ([`crate::eval::render::check_checkpoint_data`]: its run's `data.json`, else its
+/// ([`maaf_eval::render::check_checkpoint_data`]: its run's `data.json`, else its
 /// scene record); `other_data` branches onto another data set on purpose.
 pub fn branch_run_with_plugins(
     data: &Dataset,
@@ -278,7 +277,7 @@ pub fn branch_run_with_plugins(
 ) -> Result<RunSummary, Error> {
     let _lock = lock_run(out)?;
     if !other_data {
-        crate::eval::render::check_checkpoint_data(from, data).map_err(|e| match e {
+        maaf_eval::render::check_checkpoint_data(from, data).map_err(|e| match e {
             Error::Input(m) => {
                 Error::Input(format!("{m} (to branch onto it on purpose: --other-data)"))
             }
@@ -297,7 +296,7 @@ pub fn branch_run_with_plugins(
             trainer.config.iterations
         )));
     }
-    log_line(&format!(
+    log::info!(
         "branching from {} at iteration {} of {}{}",
         from.display(),
         trainer.iteration,
@@ -307,7 +306,7 @@ pub fn branch_run_with_plugins(
         } else {
             format!(" (starting fresh: {})", fresh.join(", "))
         }
-    ));
+    );
     run_trainer(trainer, out, false, Some(data))
 }
 
@@ -315,8 +314,8 @@ pub fn branch_run_with_plugins(
 /// representation of its own, custom terms pushed onto [`Trainer::objective`]): the
 /// library's run entry point for research code. With `resume`, the newest complete
 /// checkpoint of `out` is restored into `trainer` ([`Trainer::restore`]), which keeps
-/// its objective and its iteration budget: build the trainer exactly as for the first
-/// session, so custom terms are re-supplied. Refuses a resume whose objective differs
+/// its objective and its iteration budget: build the trainer exactly as when the run
+/// started, so custom terms are re-supplied. Refuses a resume whose objective differs
 /// from the one `log.csv` was written with, and a trainer whose objective lacks terms
 /// its config names ([`crate::loss::Objective::unregistered`]: one loaded by
 /// [`super::load_checkpoint`] for rendering).
@@ -341,12 +340,12 @@ pub fn train_run_with(mut trainer: Trainer, out: &Path, resume: bool) -> Result<
 }
 
 fn say_resumed(trainer: &Trainer, dir: &Path) {
-    log_line(&format!(
+    log::info!(
         "resuming from {} (iteration {} of {})",
         dir.display(),
         trainer.iteration,
         trainer.config.iterations
-    ));
+    );
 }
 
 /// Trains `trainer` into `out` to its budget. `record` is the data set of a new run
@@ -365,9 +364,12 @@ fn run_trainer(
         )));
     }
     trainer.check_memory(trainer.num_gaussians())?;
+    for warning in trainer.config.schedule_warnings() {
+        log::warn!("{}: {warning}", out.display());
+    }
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     if let Some(data) = record {
-        crate::eval::render::record_data(out, data)?;
+        maaf_eval::render::record_data(out, data)?;
     }
     let model_dir = out.join("model");
     let config_json =
@@ -381,23 +383,33 @@ fn run_trainer(
         if truncate_log(&log_path, &headers, trainer.iteration)? == 0 {
             current
         } else {
-            log_line("log.csv predates the weighted-term columns: appending in its layout");
+            log::info!("log.csv predates the weighted-term columns: appending in its layout");
             old
         }
     } else {
-        write_atomic(&log_path, format!("{}\n", current.header()).as_bytes())?;
+        write_atomic(&log_path, &csv_line(&current.header())?)?;
         current
     };
-    let mut log = std::fs::OpenOptions::new()
+    let file = std::fs::OpenOptions::new()
         .append(true)
         .open(&log_path)
         .map_err(|e| Error::io(&log_path, e))?;
+    let mut log = csv::Writer::from_writer(file);
+    let log_error = |e: csv::Error| Error::Input(format!("{}: {e}", log_path.display()));
     let total = trainer.config.iterations;
-    let bar = indicatif::ProgressBar::new(total as u64);
+    // The bar names the run, so a sequence of trainings (the demo, a suite) says which
+    // one is running; progress is info, hidden by `maaf -q`.
+    let name = run_name(out);
+    let bar = if log::log_enabled!(log::Level::Info) {
+        indicatif::ProgressBar::new(total as u64)
+    } else {
+        indicatif::ProgressBar::hidden()
+    };
     bar.set_position(trainer.iteration as u64);
+    bar.set_prefix(name.clone());
     bar.set_style(
         indicatif::ProgressStyle::with_template(
-            "{bar:30} {pos}/{len} [{elapsed_precise}<{eta_precise}] {msg}",
+            "{prefix} {bar:30} {pos}/{len} [{elapsed_precise}<{eta_precise}] {msg}",
         )
         .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
@@ -437,9 +449,9 @@ fn run_trainer(
                 skipped: trainer.skipped_steps,
                 val: &val,
             };
-            let row = layout.row(&trainer.last_terms, &stats);
-            log.write_all(row.as_bytes())
-                .map_err(|e| Error::io(&log_path, e))?;
+            log.write_record(layout.row(&trainer.last_terms, &stats))
+                .and_then(|()| log.flush().map_err(csv::Error::from))
+                .map_err(log_error)?;
             bar.set_message(format!(
                 "loss {loss:.4}  gaussians {}",
                 trainer.num_gaussians()
@@ -447,8 +459,8 @@ fn run_trainer(
         }
         bar.set_position(it as u64);
         if bar.is_hidden() && (it * 10 / total.max(1)) != ((it - 1) * 10 / total.max(1)) {
-            eprintln!(
-                "maaf: iteration {it}/{total}  loss {loss:.4}  gaussians {}",
+            log::info!(
+                "{name}: iteration {it}/{total}  loss {loss:.4}  gaussians {}",
                 trainer.num_gaussians()
             );
         }
@@ -472,6 +484,21 @@ fn run_trainer(
     };
     summary.write(out)?;
     Ok(summary)
+}
+
+/// How progress lines name the run in `out`: its folder and the folder above it
+/// (`runs/motion`), as a sequence of runs tells them apart.
+fn run_name(out: &Path) -> String {
+    let parts: Vec<String> = out
+        .components()
+        .rev()
+        .filter_map(|c| match c {
+            std::path::Component::Normal(p) => Some(p.to_string_lossy().into_owned()),
+            _ => None,
+        })
+        .take(2)
+        .collect();
+    parts.into_iter().rev().collect::<Vec<_>>().join("/")
 }
 
 /// `RUN/checkpoints/iter_NNNNNN`.

@@ -11,23 +11,23 @@ use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_pcg::Pcg64;
 
-use super::LossRegion;
+use super::Trainer;
 use super::cpu_clock::CpuStamp;
 use super::region::{background_target, crop, share};
 use super::strategy::StepInfo;
 use super::{DensifyGradient, ViewGrad};
-use super::{Trainer, log_line};
-use crate::forward::{Forward, forward_bound};
 use crate::loss::{Evaluated, ForwardTerms, batch_mean};
-use crate::scene::centres;
+use maaf_scene::LossRegion;
 use maaf_scene::backdrop::over_backdrop;
+use maaf_scene::centres;
+use maaf_scene::forward::{Forward, forward_bound};
 
 impl Trainer {
-    /// Render settings at `iteration` ([`crate::scene::render_settings`], the 2D filter
+    /// Render settings at `iteration` ([`maaf_scene::render_settings`], the 2D filter
     /// chosen by whether the trainer's filter smooths,
     /// [`maaf_filter::SamplingFilter::smooths`]).
     pub fn render_settings(&self, iteration: usize) -> RenderSettings {
-        crate::scene::render_settings(
+        maaf_scene::render_settings(
             &self.config,
             self.background,
             iteration,
@@ -245,7 +245,7 @@ impl Trainer {
                 // A NaN/Inf in the loss or a gradient: the update is skipped so nothing
                 // non-finite reaches the parameters (or a checkpoint); counted and logged.
                 self.skipped_steps += 1;
-                log_line(&format!("iteration {it}: step skipped: {e}"));
+                log::warn!("iteration {it}: step skipped: {e}");
                 self.last_skip = Some(e);
             }
         }

@@ -230,8 +230,13 @@ impl StrategyRegistry {
             return Ok(());
         }
         Err(crate::Error::Input(format!(
-            "{what}: densify.strategy `{name}` is not registered in this program (registered: {}); use a program that registers it (maaf::cli::Maaf::strategy)",
-            self.names().join(", ")
+            "{what}: {}",
+            maaf_io::unknown_name(
+                "densify.strategy",
+                name,
+                &self.names(),
+                "maaf::cli::Maaf::strategy"
+            )
         )))
     }
 

@@ -1,7 +1,7 @@
 //! Validation during training: a few held-back views rendered every `val_every`
 //! iterations, their mean PSNR logged as `val_psnr` in `log.csv`, so quality can be
-//! drawn against training time without a separate evaluation (issue: speed against
-//! accuracy as curves). Outside the tape and the optimiser: the run is unchanged.
+//! drawn against training time without a separate evaluation (speed against accuracy
+//! as curves). Outside the tape and the optimiser: the run is unchanged.
 
 use maaf_autodiff::Tensor;
 use maaf_splat::Camera;
@@ -9,7 +9,7 @@ use maaf_splat::Camera;
 use super::Trainer;
 use crate::Error;
 use crate::data::{Dataset, Split};
-use crate::metrics::psnr;
+use maaf_eval::metrics::psnr;
 use maaf_scene::render_over;
 
 /// A held-back view at the training scale.

@@ -439,7 +439,7 @@ fn read_other_backgrounds(run: &Path) -> Result<Vec<OtherBackground>, Error> {
         if name.starts_with(OTHER_BACKGROUND_PREFIX) && name.ends_with(".json") {
             let eval = EvalReport::read_file(&path)?;
             found.push(OtherBackground {
-                background: maaf_data::background_name(eval.background),
+                background: maaf_data::Background(eval.background).to_string(),
                 scales: cells(&eval),
             });
         }
