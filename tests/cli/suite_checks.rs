@@ -74,34 +74,46 @@ const EVAL: &str = "--no-images --max-views 1 --scales 1";
 #[test]
 fn the_evaluation_is_checked_while_planning_and_may_change_without_retraining() {
     let st = suite_fixture("suite_eval_plan");
-    // Arguments maaf eval refuses, and a scale the scene cannot be evaluated at, are
-    // refused before anything is trained or written.
+    // Arguments maaf eval refuses, and scales none of which the scene can be evaluated
+    // at, are refused before anything is trained or written.
     refused(
         st.run("--bogus", &[]),
         &["--eval-args `--bogus`", "--bogus"],
     );
     refused(
         st.run("--no-images --scales 8", &[]),
-        &["cannot evaluate scene a", "scale 8x"],
+        &["cannot evaluate scene a", "8x needs 128x128 ground truth"],
     );
+    // A config trained at the source scale cannot be evaluated at 2x or 4x: asked for
+    // those scales alone it is refused, naming its training scale; with the default
+    // scales it is planned (eval skips those two and evaluates the others).
     let full = st.fx.root.join("full.json");
     std::fs::write(&full, r#"{"iterations": 2, "train_scale": 1.0}"#).expect("preset");
-    let out = maaf(&[
-        "bench-suite",
-        "--data",
-        s(&st.scenes),
-        "--preset",
-        s(&full),
-        "--out",
-        s(&st.out),
-        "--filters",
-        "none",
-    ]);
+    let full_suite = |eval_args: &str, out: &Path, extra: &[&str]| {
+        let mut args = vec![
+            "bench-suite",
+            "--data",
+            s(&st.scenes),
+            "--preset",
+            s(&full),
+            "--out",
+            s(out),
+            "--filters",
+            "none",
+            "--eval-args",
+            eval_args,
+        ];
+        args.extend_from_slice(extra);
+        maaf(&args)
+    };
     refused(
-        out,
-        &["cannot evaluate scene a", "trained at scale 1", "scale 2x"],
+        full_suite("--no-images --scales 2,4", &st.out, &[]),
+        &["cannot evaluate scene a", "trained at scale 1", "2x needs"],
     );
     assert!(!st.out.exists(), "nothing written for a refused plan");
+    let planned = st.fx.root.join("full_suite");
+    succeeded(full_suite("--no-images", &planned, &["--jobs-only"]));
+    assert!(planned.join("jobs.txt").is_file());
 
     let first = succeeded_out(st.run(EVAL, &[]));
     assert!(first.contains("trained and evaluated"), "{first}");

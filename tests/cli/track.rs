@@ -70,7 +70,7 @@ fn train_a_generated_video_frame_by_frame_and_export_it() {
     let bytes = std::fs::read(&ply).expect("ply");
     let header = String::from_utf8_lossy(&bytes[..bytes.len().min(200)]).into_owned();
     assert!(
-        header.contains("comment maaf time 0.5\nelement vertex "),
+        header.contains("comment maaf time 0.5\n") && header.contains("\nelement vertex "),
         "{header}"
     );
 }
