@@ -9,6 +9,13 @@ use std::process::{Command, Output};
 
 use super::support::{fixture, maaf, refused, s, succeeded};
 
+/// The README's program compiled into this test crate, so that its gradient test runs
+/// under `cargo test` while `cargo test` builds the example itself as the program the
+/// tests below run (an example marked `test = true` would be built only as a test
+/// harness, without its `main`).
+#[path = "../../examples/custom_regulariser.rs"]
+mod readme_program;
+
 /// The example binary: `cargo test` builds every example into `target/PROFILE/examples`,
 /// beside the folder of the `maaf` binary.
 pub(crate) fn example(name: &str) -> PathBuf {
