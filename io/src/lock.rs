@@ -136,8 +136,9 @@ impl RunLock {
         };
         let mut registry = held();
         let map = registry.get_or_insert_with(HashMap::new);
-        // A lock file removed by a refused command between our open and our lock is
-        // no longer the run's; take the lock again on the new one (a few tries).
+        // A lock file removed by a refused command between this process's open and
+        // its lock is no longer the run's; take the lock again on the new one (a few
+        // tries).
         for _ in 0..8 {
             let created_dir = exclusive && !run.exists();
             if exclusive {
