@@ -4,7 +4,7 @@
 use std::collections::BTreeMap;
 
 use maaf_data::Background;
-use maaf_filter::FilterConfig;
+use maaf_filter::{FilterConfig, FilterKind};
 use serde::{Deserialize, Serialize};
 
 use maaf_models::{ModelConfig, TrackConfig};
@@ -214,14 +214,14 @@ pub enum LossRegion {
 /// pixels (`loss_region = background`), trained into `RUN/backdrop/` first and then
 /// held fixed; the run's own model is rendered over it
 /// (`C = C_model + T_model * C_background`). Needs foreground masks of the training
-/// views. The layer takes the run's seed, scale, filter, colour correction and
-/// photometric loss; the keys below are its own.
+/// views. The layer takes the run's seed, scale, filter settings, colour correction
+/// and photometric loss; the keys below are its own (its filter kind among them).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct BackdropConfig {
     /// Iterations of the background layer's run; 0 = no background layer.
     pub iterations: usize,
-    /// Its initial points, random in the box of the cameras.
+    /// Its initial points (static points only, placed as `static_points` says).
     pub init_points: usize,
     /// Its Gaussian cap.
     pub max_gaussians: usize,
@@ -229,6 +229,11 @@ pub struct BackdropConfig {
     pub densify_until: usize,
     /// Its spherical-harmonics degree.
     pub sh_degree: usize,
+    /// Its 3D filter (`filter.kind`'s names; the run's other filter settings). Default
+    /// `mip3d`: the layer is static, so Mip-Splatting's nu, the largest f/d over the
+    /// training cameras, is its sampling rate at every time; the motion-aware filter
+    /// under test is the model's.
+    pub filter: FilterKind,
 }
 
 impl Default for BackdropConfig {
@@ -239,6 +244,7 @@ impl Default for BackdropConfig {
             max_gaussians: 30_000,
             densify_until: 3_500,
             sh_degree: 0,
+            filter: FilterKind::Mip3d,
         }
     }
 }
@@ -423,6 +429,10 @@ impl TrainConfig {
             terms: BTreeMap::new(),
             loss_region: LossRegion::Background,
             backdrop: BackdropConfig::default(),
+            filter: FilterConfig {
+                kind: b.filter.clone(),
+                ..self.filter.clone()
+            },
             model: ModelConfig::Deform(maaf_models::DeformConfig {
                 warm_up: usize::MAX,
                 sh_degree: b.sh_degree,
@@ -617,6 +627,25 @@ impl TrainConfig {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The backdrop layer is a static, single-view-per-step run on the background
+    /// pixels whose filter is `backdrop.filter` (the static one unless set), with the
+    /// run's other filter settings.
+    #[test]
+    fn the_backdrop_layer_is_static_with_its_own_filter_kind() {
+        let mut run: TrainConfig = serde_json::from_str(
+            r#"{"filter": {"kind": "motion", "s3d": 0.3}, "backdrop": {"iterations": 50}}"#,
+        )
+        .expect("parses");
+        let layer = run.backdrop_layer();
+        assert_eq!(layer.filter.kind, FilterKind::Mip3d);
+        assert_eq!(layer.filter.s3d, 0.3);
+        assert_eq!(layer.loss_region, LossRegion::Background);
+        assert_eq!((layer.iterations, layer.batch), (50, 1));
+        assert!(!layer.backdrop.enabled());
+        run.backdrop.filter = FilterKind::None;
+        assert_eq!(run.backdrop_layer().filter.kind, FilterKind::None);
+    }
 
     /// A run shorter than its schedule is told what it skips; the full schedule and a
     /// filterless run's refreshes are not.
