@@ -1,30 +1,18 @@
 //! D-NeRF loader: the real mutant scene, multi-scale views and every bad-input error.
 
 mod common;
+mod mutant;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use common::TempDir;
 use glam::DVec3;
 use maaf_train::data::downsample::recomposite;
 use maaf_train::data::{BLACK, DataError, Dataset, DatasetOptions, Split, WHITE};
 
-fn mutant() -> Option<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/dnerf/mutant");
-    if dir.join("transforms_train.json").exists() {
-        Some(dir)
-    } else {
-        println!(
-            "SKIPPED: D-NeRF mutant scene not found at {} (tests that need it do nothing)",
-            dir.display()
-        );
-        None
-    }
-}
-
 #[test]
 fn mutant_loads_with_json_times_and_centred_cameras() {
-    let Some(dir) = mutant() else { return };
+    let dir = mutant::mutant_root();
     let data = Dataset::open(&dir, DatasetOptions::default()).expect("mutant opens");
     assert_eq!(data.len(Split::Train), 150);
     assert_eq!(data.len(Split::Val), 20);
@@ -86,7 +74,7 @@ fn mutant_loads_with_json_times_and_centred_cameras() {
 
 #[test]
 fn mutant_views_are_decoded_once_per_scale() {
-    let Some(dir) = mutant() else { return };
+    let dir = mutant::mutant_root();
     let data = Dataset::open(&dir, DatasetOptions { background: WHITE }).expect("opens");
     let full = data.view(Split::Test, 3, 1.0).expect("full res");
     assert_eq!(

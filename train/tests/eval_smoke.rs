@@ -2,7 +2,9 @@
 //! images): eval.json has exactly the contract fields, renders and error maps are
 //! written, bad input fails with one line and overwrites nothing.
 
-use std::path::{Path, PathBuf};
+mod mutant;
+
+use std::path::Path;
 
 use maaf_eval::metrics::rings::RingErrors;
 use maaf_eval::render::record_data;
@@ -11,15 +13,6 @@ use maaf_filter::FilterKind;
 use maaf_scene::TrainConfig;
 use maaf_train::data::{Dataset, DatasetOptions};
 use maaf_train::trainer::train_run;
-
-fn mutant_root() -> Option<PathBuf> {
-    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/dnerf/mutant");
-    if !root.exists() {
-        eprintln!("skipping: {} is absent", root.display());
-        return None;
-    }
-    Some(root)
-}
 
 fn tiny_config() -> TrainConfig {
     let mut c = TrainConfig {
@@ -66,7 +59,7 @@ fn fewer_training_views(root: &Path, keep: usize, out: &Path) {
 
 #[test]
 fn eval_writes_the_contract_and_refuses_bad_input() {
-    let Some(root) = mutant_root() else { return };
+    let root = mutant::mutant_root();
     let data = Dataset::open(&root, DatasetOptions::default()).expect("mutant");
     let tmp = std::env::temp_dir().join(format!("maaf_eval_{}", std::process::id()));
     let run = tmp.join("run");

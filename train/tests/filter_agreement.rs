@@ -4,7 +4,7 @@
 //! are exactly the drawn (Gaussian, time bin) pairs. The nu(t) chart's export picks
 //! its Gaussians by drawn-centre motion, checked against an independent loop.
 
-use std::path::PathBuf;
+mod mutant;
 
 use maaf_eval::filter_agreement::{FilterStudy, MOVING, filter_agreement};
 use maaf_filter::{FilterKind, MotionCurves};
@@ -16,13 +16,9 @@ use maaf_train::trainer::Trainer;
 
 /// A SaRO motion run on mutant at 100x100 (400 Gaussians) after `steps` iterations,
 /// dynamic from the first one when `static_iterations` is 0, as the trained scene it
-/// holds; `None` without the data.
-fn mutant_run(static_iterations: usize, steps: usize) -> Option<TrainedScene> {
-    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/dnerf/mutant");
-    if !root.exists() {
-        eprintln!("skipping: {} is absent", root.display());
-        return None;
-    }
+/// holds.
+fn mutant_run(static_iterations: usize, steps: usize) -> TrainedScene {
+    let root = mutant::mutant_root();
     let data = Dataset::open(&root, DatasetOptions::default()).expect("mutant");
     let mut config = TrainConfig {
         train_scale: 0.125,
@@ -40,14 +36,12 @@ fn mutant_run(static_iterations: usize, steps: usize) -> Option<TrainedScene> {
     for _ in 0..steps {
         trainer.step();
     }
-    Some(trainer.into_scene())
+    trainer.into_scene()
 }
 
 #[test]
 fn agreement_counts_drawn_pairs_and_never_exceeds_the_static_nu_of_a_static_model() {
-    let Some(scene) = mutant_run(SaroConfig::default().static_iterations, 0) else {
-        return;
-    };
+    let scene = mutant_run(SaroConfig::default().static_iterations, 0);
     let agreement = filter_agreement(&scene).expect("a motion run");
 
     // Independent count of the drawn pairs at the curves' bin times.
@@ -99,9 +93,7 @@ fn agreement_counts_drawn_pairs_and_never_exceeds_the_static_nu_of_a_static_mode
 #[test]
 fn the_nu_t_chart_shows_the_least_and_the_most_moving_drawn_gaussian() {
     // A few dynamic iterations give the residual MLP something to move.
-    let Some(scene) = mutant_run(0, 20) else {
-        return;
-    };
+    let scene = mutant_run(0, 20);
     let curves = MotionCurves::refresh(&scene.observations, &scene.config.filter).expect("curves");
     // The chart's Gaussians: the least and the most moving of those drawn at a
     // quarter of the bins and observed in a quarter of the frames, by an independent

@@ -2,7 +2,7 @@
 //! falls, resume is bit-identical, a NaN is caught and never checkpointed, and one
 //! densification plan resizes every per-Gaussian container in lock-step.
 
-use std::path::PathBuf;
+mod mutant;
 
 use maaf_autodiff::{PerGaussian, Tensor};
 use maaf_filter::{CameraTime, FilterKind, observed_frames};
@@ -14,13 +14,8 @@ use maaf_train::trainer::{
     DensifyPlan, Liveness, Trainer, keep_highest, load_checkpoint, save_checkpoint,
 };
 
-fn mutant() -> Option<Dataset> {
-    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/dnerf/mutant");
-    if !root.exists() {
-        eprintln!("skipping: {} is absent", root.display());
-        return None;
-    }
-    Some(Dataset::open(&root, DatasetOptions::default()).expect("mutant loads"))
+fn mutant() -> Dataset {
+    Dataset::open(&mutant::mutant_root(), DatasetOptions::default()).expect("mutant loads")
 }
 
 /// 100x100 training images, 600 random points, densification every 20 iterations.
@@ -75,7 +70,7 @@ fn assert_same_params(a: &mut Trainer, b: &mut Trainer, what: &str) {
 
 #[test]
 fn loss_falls_with_every_filter_and_representation() {
-    let Some(data) = mutant() else { return };
+    let data = mutant();
     let runs = [
         ("saro", FilterKind::None),
         ("saro", FilterKind::Mip3d),
@@ -115,7 +110,7 @@ fn loss_falls_with_every_filter_and_representation() {
 /// would, so every view is still seen once per epoch.
 #[test]
 fn a_batch_walks_the_same_view_sequence() {
-    let Some(data) = mutant() else { return };
+    let data = mutant();
     let one = Trainer::new(&data, tiny_config(FilterKind::None)).expect("trainer");
     let three = Trainer::new(
         &data,
@@ -140,7 +135,7 @@ fn a_batch_walks_the_same_view_sequence() {
 
 #[test]
 fn resume_is_bit_identical() {
-    let Some(data) = mutant() else { return };
+    let data = mutant();
     // A batch of views per iteration resumes on the same view sequence.
     for (kind, batch) in [("saro", 1), ("deform", 1), ("saro", 3)] {
         let cfg = TrainConfig {
@@ -214,7 +209,7 @@ fn resume_is_bit_identical_for(data: &Dataset, kind: &str, cfg: TrainConfig) {
 /// record exactly.
 #[test]
 fn a_checkpoint_without_the_liveness_record_loads() {
-    let Some(data) = mutant() else { return };
+    let data = mutant();
     let mut t = Trainer::new(&data, tiny_config(FilterKind::Mip3d)).expect("trainer");
     for _ in 0..30 {
         t.step();
@@ -255,7 +250,7 @@ fn a_checkpoint_without_the_liveness_record_loads() {
 
 #[test]
 fn a_nan_is_caught_and_never_checkpointed() {
-    let Some(data) = mutant() else { return };
+    let data = mutant();
     let mut t = Trainer::new(&data, tiny_config(FilterKind::Mip3d)).expect("trainer");
     t.step();
     let slot = t
@@ -281,7 +276,7 @@ fn a_nan_is_caught_and_never_checkpointed() {
 
 #[test]
 fn a_run_without_gaussians_stops_with_one_line() {
-    let Some(data) = mutant() else { return };
+    let data = mutant();
     let mut t = Trainer::new(&data, tiny_config(FilterKind::Mip3d)).expect("trainer");
     t.step();
     assert!(t.check_health().is_ok());
@@ -305,7 +300,7 @@ fn a_run_without_gaussians_stops_with_one_line() {
 /// many, and leaves the parameters' update unchanged (the statistic is a by-product).
 #[test]
 fn the_abs_statistic_bounds_the_mean_one_and_changes_no_parameter() {
-    let Some(data) = mutant() else { return };
+    let data = mutant();
     let mut runs = Vec::new();
     for gradient in [DensifyGradient::Mean, DensifyGradient::Abs] {
         let mut c = tiny_config(FilterKind::Mip3d);
@@ -337,7 +332,7 @@ fn the_abs_statistic_bounds_the_mean_one_and_changes_no_parameter() {
 
 #[test]
 fn one_plan_resizes_every_container_in_lock_step() {
-    let Some(data) = mutant() else { return };
+    let data = mutant();
     let mut t = Trainer::new(&data, tiny_config(FilterKind::Motion)).expect("trainer");
     for _ in 0..45 {
         t.step();
@@ -459,7 +454,7 @@ fn one_plan_resizes_every_container_in_lock_step() {
 /// survivors' parameters and densification statistics, and training goes on.
 #[test]
 fn sensitivity_pruning_removes_the_lowest_scores_at_its_iteration() {
-    let Some(data) = mutant() else { return };
+    let data = mutant();
     for kind in ["saro", "deform"] {
         let mut c = tiny_config_of(kind, FilterKind::Motion);
         c.prune.every = 30;
@@ -507,7 +502,7 @@ fn sensitivity_pruning_removes_the_lowest_scores_at_its_iteration() {
 /// parameters.
 #[test]
 fn validation_psnr_is_logged_and_changes_nothing() {
-    let Some(data) = mutant() else { return };
+    let data = mutant();
     let base = std::env::temp_dir().join(format!("maaf-val-{}", std::process::id()));
     let run = |val_every: usize, name: &str| {
         let mut c = tiny_config(FilterKind::Motion);
@@ -551,7 +546,7 @@ fn validation_psnr_is_logged_and_changes_nothing() {
 /// render just after the reset).
 #[test]
 fn validation_sees_the_model_before_an_opacity_reset() {
-    let Some(data) = mutant() else { return };
+    let data = mutant();
     let base = std::env::temp_dir().join(format!("maaf-val-reset-{}", std::process::id()));
     let val_at_20 = |reset_every: usize, name: &str| {
         let mut c = tiny_config(FilterKind::Mip3d);
@@ -587,7 +582,7 @@ fn validation_sees_the_model_before_an_opacity_reset() {
 
 #[test]
 fn a_branch_continues_a_checkpoint_with_its_own_settings() {
-    let Some(data) = mutant() else { return };
+    let data = mutant();
     let cfg = TrainConfig {
         iterations: 40,
         ..tiny_config_of("deform", FilterKind::Motion)
@@ -670,7 +665,7 @@ fn a_branch_continues_a_checkpoint_with_its_own_settings() {
 
 #[test]
 fn the_motion_filter_observes_at_most_max_views_and_the_others_none() {
-    let Some(data) = mutant() else { return };
+    let data = mutant();
     let cfg = tiny_config(FilterKind::Motion);
     let mut full = Trainer::new(&data, cfg.clone()).expect("trainer");
     for _ in 0..25 {
@@ -745,7 +740,7 @@ fn a_run_with_its_own_term_loads_for_rendering_and_trains_only_with_the_term() {
     use maaf_train::trainer::{
         load_checkpoint_with_plugins, train_run_with, train_run_with_plugins,
     };
-    let Some(data) = mutant() else { return };
+    let data = mutant();
     let dir = std::env::temp_dir().join(format!("maaf_own_term_{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     let mut config = tiny_config(FilterKind::None);

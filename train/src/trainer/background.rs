@@ -69,10 +69,11 @@ mod tests {
     #[test]
     fn view_target_is_the_image_composited_on_the_drawn_background() {
         let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/dnerf/mutant");
-        if !root.exists() {
-            eprintln!("skipping: {} is absent", root.display());
-            return;
-        }
+        assert!(
+            root.join("transforms_train.json").is_file(),
+            "{}: the D-NeRF mutant scene is missing (README, \"Data\", says where the D-NeRF scenes come from)",
+            root.display()
+        );
         let data = Dataset::open(&root, DatasetOptions { background: BLACK }).expect("opens");
         let mut config = TrainConfig {
             train_scale: 0.125,
