@@ -38,14 +38,14 @@ pub fn backdrop_dir_of(dir: &Path) -> PathBuf {
 pub fn over_backdrop<'t, T: Float>(
     image: Var<'t, T>,
     alpha: Var<'t, T>,
-    backdrop: &Tensor<T>,
+    backdrop: Tensor<T>,
 ) -> Var<'t, T> {
     let shape = alpha.shape();
     let transmittance = alpha
         .scale(-1.0)
         .add_scalar(1.0)
         .reshape(&[shape[0], shape[1], 1]);
-    image + transmittance * image.tape().constant(backdrop.clone())
+    image + transmittance * image.tape().constant(backdrop)
 }
 
 #[cfg(test)]
@@ -64,7 +64,7 @@ mod tests {
         let out = over_backdrop(
             tape.constant(image.clone()),
             tape.constant(alpha.clone()),
-            &back,
+            back.clone(),
         )
         .value();
         for p in 0..6 {
@@ -84,7 +84,7 @@ mod tests {
             random_tensor::<f64>(&[4, 3], 0.0, 1.0, 5),
         ];
         let r = gradcheck(
-            |_, v| over_backdrop(v[0], v[1], &back),
+            |_, v| over_backdrop(v[0], v[1], back.clone()),
             &inputs,
             &GradcheckConfig::default().with_tol(1e-9, 1e-7),
         );

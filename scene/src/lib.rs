@@ -389,7 +389,7 @@ pub fn render_over(
     let tape = maaf_autodiff::Tape::new();
     let params = model.params().bind_constants(&tape);
     let out = forward(model, &params, filter, camera, time, &settings);
-    let image = match &back {
+    let image = match back {
         Some(b) => backdrop::over_backdrop(out.render.image, out.render.alpha, b),
         None => out.render.image,
     };

@@ -325,7 +325,7 @@ impl Trainer {
         if let Some(layer) = &self.backdrop {
             let image = layer.image(view);
             let behind = window.map_or_else(|| image.clone(), |w| crop(image, &w));
-            fwd.render.image = over_backdrop(fwd.render.image, fwd.render.alpha, &behind);
+            fwd.render.image = over_backdrop(fwd.render.image, fwd.render.alpha, behind);
         }
         let gt = target.unwrap_or_else(|| self.gts[view].clone());
         match window {
