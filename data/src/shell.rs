@@ -19,7 +19,7 @@
 //! point takes the pixel's colour. Rays that leave the sphere within a tenth of its
 //! radius (grazing the wall beside their own camera) are drawn again.
 
-use glam::DVec3;
+use glam::{DMat4, DVec3, DVec4};
 use maaf_splat::Camera;
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
@@ -98,49 +98,22 @@ pub fn fit_sphere(points: &[DVec3]) -> Option<(DVec3, f64)> {
         return None;
     }
     // Normal equations of the rows [2x, 2y, 2z, 1] . [o, k] = |p|^2.
-    let mut a = [[0.0f64; 4]; 4];
-    let mut rhs = [0.0f64; 4];
+    let mut a = DMat4::ZERO;
+    let mut rhs = DVec4::ZERO;
     for p in points {
-        let row = [2.0 * p.x, 2.0 * p.y, 2.0 * p.z, 1.0];
-        for i in 0..4 {
-            for j in 0..4 {
-                a[i][j] += row[i] * row[j];
-            }
-            rhs[i] += row[i] * p.length_squared();
-        }
+        let row = DVec4::new(2.0 * p.x, 2.0 * p.y, 2.0 * p.z, 1.0);
+        a += DMat4::from_cols(row * row.x, row * row.y, row * row.z, row * row.w);
+        rhs += row * p.length_squared();
     }
-    let x = solve4(a, rhs)?;
+    // Singular (numerically) when the determinant is negligible against the entries'.
+    let scale = a.to_cols_array().iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    if a.determinant().abs() <= 1e-12 * scale.powi(4) {
+        return None;
+    }
+    let x = a.inverse() * rhs;
     let centre = DVec3::new(x[0], x[1], x[2]);
     let r2 = x[3] + centre.length_squared();
     (r2 > 0.0).then(|| (centre, r2.sqrt()))
-}
-
-/// Solves the 4x4 system by Gaussian elimination with partial pivoting; `None` when a
-/// pivot is (numerically) zero.
-fn solve4(mut a: [[f64; 4]; 4], mut b: [f64; 4]) -> Option<[f64; 4]> {
-    let scale = a.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
-    for col in 0..4 {
-        let pivot = (col..4).max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))?;
-        if a[pivot][col].abs() <= 1e-12 * scale {
-            return None;
-        }
-        a.swap(col, pivot);
-        b.swap(col, pivot);
-        let pivot_row = a[col];
-        for row in col + 1..4 {
-            let f = a[row][col] / pivot_row[col];
-            for (v, p) in a[row].iter_mut().zip(pivot_row).skip(col) {
-                *v -= f * p;
-            }
-            b[row] -= f * b[col];
-        }
-    }
-    let mut x = [0.0; 4];
-    for row in (0..4).rev() {
-        let s: f64 = (row + 1..4).map(|k| a[row][k] * x[k]).sum();
-        x[row] = (b[row] - s) / a[row][row];
-    }
-    Some(x)
 }
 
 /// `count` points on `shell` from the background pixels of `views` (module doc),
