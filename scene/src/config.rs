@@ -191,6 +191,20 @@ pub enum StaticPoints {
     Shell,
 }
 
+/// At which training times the visual hull's points are carved (`hull_times`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum HullTimes {
+    /// At up to `HullOptions::steps` times spread over the training frames, the
+    /// points carrying their time: movers for a model whose Gaussians live at times.
+    #[default]
+    All,
+    /// The whole hull share at the earliest training time: for a model that starts
+    /// from the first frame and tracks it (`model.kind = "track"`), which uses no
+    /// other frame's points.
+    First,
+}
+
 /// Which pixels of a training view the objective sees (`loss_region`). `background`
 /// and `foreground` need foreground masks of the training views (the Dynamic 3D
 /// Gaussians layout's `seg/`).
@@ -296,6 +310,8 @@ pub struct TrainConfig {
     pub random_background: bool,
     /// Where the static initial points lie ([`StaticPoints`]).
     pub static_points: StaticPoints,
+    /// At which training times the hull points are carved ([`HullTimes`]).
+    pub hull_times: HullTimes,
     /// Per-camera colour correction of the training renders ([`CameraColourConfig`]).
     pub camera_colour: CameraColourConfig,
     /// Which pixels of a training view the objective sees ([`LossRegion`]).
@@ -323,6 +339,12 @@ pub struct TrainConfig {
     /// Held-back views the validation PSNR averages (evenly spaced over the val split,
     /// else the test split).
     pub val_views: usize,
+    /// Keep as the run's model (`model/`) the state with the best validation PSNR
+    /// (`val_psnr`, every `val_every` iterations, on the data set's validation split,
+    /// never the test split) instead of the last one, which stays in
+    /// `checkpoints/iter_N`: SaRO-GS `train.py` keeps its best evaluation, but by
+    /// test PSNR. Off by default.
+    pub keep_best: bool,
     /// Scan every forward value and cotangent for NaN/Inf (slower; names the op).
     pub validate: bool,
     /// Largest share of skipped (non-finite) steps a run may have before it is
@@ -353,6 +375,7 @@ impl Default for TrainConfig {
             background: Background::default(),
             random_background: false,
             static_points: StaticPoints::Box,
+            hull_times: HullTimes::All,
             camera_colour: CameraColourConfig::default(),
             loss_region: LossRegion::All,
             focus_margin: 8,
@@ -363,6 +386,7 @@ impl Default for TrainConfig {
             log_every: 100,
             val_every: 500,
             val_views: 3,
+            keep_best: false,
             validate: false,
             max_skipped_fraction: 0.05,
             skip_grace: 20,
@@ -536,6 +560,12 @@ impl TrainConfig {
         }
         if self.val_every > 0 {
             count("val_views", self.val_views, 1, 10_000)?;
+        } else if self.keep_best {
+            return Err(bad(
+                "keep_best",
+                &true,
+                "false when val_every = 0 (the best state is chosen by the validation PSNR)",
+            ));
         }
         in_range("max_skipped_fraction", self.max_skipped_fraction, 0.0, 1.0)?;
         let d = &self.densify;
@@ -606,7 +636,8 @@ impl TrainConfig {
     /// ([`TrackConfig::first_frame_end`] iterations; Dynamic 3D Gaussians densifies
     /// and resets opacities in its first timestep only, and tracks every Gaussian
     /// after it): refuses a `densify.until` (densification and opacity reset) or
-    /// `prune.until` past it.
+    /// `prune.until` past it, and an opacity reset at its last iteration, which would
+    /// leave every opacity at the reset value with its learning rate frozen.
     fn check_first_frame(&self, track: &TrackConfig) -> Result<(), Error> {
         let end = track.first_frame_end(self.iterations);
         let range = format!(
@@ -619,6 +650,16 @@ impl TrainConfig {
         }
         if self.prune.every > 0 && self.prune.until > end {
             return Err(bad("prune.until", &self.prune.until, &range));
+        }
+        let every = d.opacity_reset_every;
+        if every > 0 && d.until >= end && end.is_multiple_of(every) {
+            return Err(bad(
+                "densify.opacity_reset_every",
+                &every,
+                &format!(
+                    "no divisor of {end}, the last iteration of frame 0 with model.kind track, while densify.until reaches it (a reset there leaves every opacity at the reset value, frozen after frame 0); lower densify.until"
+                ),
+            ));
         }
         Ok(())
     }
@@ -749,8 +790,20 @@ mod tests {
             ),
             "{msg}"
         );
+        // The default reset every 2000 iterations would come at the last iteration
+        // of frame 0 and leave the opacities there.
         c.densify.until = 2000;
-        c.validate().expect("densification within frame 0");
+        let msg = c.validate().expect_err("a reset at 2000").to_string();
+        assert!(
+            msg.starts_with(
+                "config: densify.opacity_reset_every = 2000: must be no divisor of 2000"
+            ),
+            "{msg}"
+        );
+        c.densify.opacity_reset_every = 1000;
+        c.densify.until = 1999;
+        c.validate()
+            .expect("densification within frame 0, the last reset at 1000");
         c.prune.every = 100;
         let msg = c.validate().expect_err("default prune.until").to_string();
         assert!(

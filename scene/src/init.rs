@@ -9,7 +9,7 @@ use maaf_splat::Camera;
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 
-use crate::config::StaticPoints;
+use crate::config::{HullTimes, StaticPoints};
 use crate::{Error, TrainConfig};
 
 /// Radius of the sphere around the mean camera centre that holds every camera,
@@ -58,6 +58,7 @@ pub fn model_init(data: &Dataset, config: &TrainConfig) -> Result<ModelInit, Err
             config.init_points,
             config.hull_fraction,
             config.static_points == StaticPoints::Shell,
+            config.hull_times == HullTimes::First,
             config.seed,
         )
         .map_err(|e| Error::Input(e.to_string()))?

@@ -38,8 +38,8 @@ use maaf_splat::{Camera, Filter2d, RenderSettings};
 
 pub use checkpoint_read::Opened;
 pub use config::{
-    BackdropConfig, CameraColourConfig, DensifyConfig, DensifyGradient, LossRegion, MAX_BATCH,
-    OpacityReset, PruneConfig, StaticPoints, TrainConfig,
+    BackdropConfig, CameraColourConfig, DensifyConfig, DensifyGradient, HullTimes, LossRegion,
+    MAX_BATCH, OpacityReset, PruneConfig, StaticPoints, TrainConfig,
 };
 pub use error::{Error, write_atomic};
 pub use init::{camera_extent, model_init, training_views};

@@ -228,7 +228,7 @@ fn visual_hull_points_lie_on_the_movers() {
     generated_at(&root, 12, 4, 192, 128);
     let data = Dataset::open(&root, DatasetOptions::default()).expect("opens");
     let init = data
-        .initial_cloud(4000, 0.5, false, 1)
+        .initial_cloud(4000, 0.5, false, false, 1)
         .expect("carves")
         .expect("has masks");
     let (cloud, line, dynamic) = (init.cloud, init.description, init.hull_points);

@@ -275,13 +275,15 @@ impl Dataset {
     /// the training images have foreground masks (the Dynamic 3D Gaussians layout),
     /// [`hull_cloud`] over at most `HullOptions::steps` evenly spread training times with
     /// `hull_fraction` of the budget on the hulls and the rest static, with `shell` on
-    /// the capture dome's wall and floor ([`crate::shell`]); `None` otherwise (the
-    /// trainer then draws random points).
+    /// the capture dome's wall and floor ([`crate::shell`]), or with `first_time` the
+    /// whole hull share on the earliest training time (a model that starts from one
+    /// frame); `None` otherwise (the trainer then draws random points).
     pub fn initial_cloud(
         &self,
         budget: usize,
         hull_fraction: f64,
         shell: bool,
+        first_time: bool,
         seed: u64,
     ) -> Result<Option<InitialCloud>, DataError> {
         if let Some(cloud) = self.point_cloud()? {
@@ -303,6 +305,9 @@ impl Dataset {
         let mut times: Vec<f64> = train.frames.iter().map(|f| f.time).collect();
         times.sort_by(f64::total_cmp);
         times.dedup();
+        if first_time {
+            times.truncate(1);
+        }
         let options = HullOptions {
             dynamic_fraction: hull_fraction,
             shell,

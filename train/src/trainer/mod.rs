@@ -10,6 +10,7 @@
 //! a run directory.
 
 mod background;
+mod best;
 pub mod camera_colour;
 mod checkpoint;
 mod cpu_clock;
@@ -35,6 +36,7 @@ use maaf_autodiff::{OpProfile, PerGaussian, Tensor};
 use maaf_filter::{CameraTime, FilterState, ObservationTable, SamplingFilter};
 use maaf_splat::Camera;
 
+pub use best::{BEST_DIR, Chosen};
 pub use checkpoint::{
     checkpoint_iteration, load_checkpoint, load_checkpoint_with_plugins, save_checkpoint,
 };
@@ -254,7 +256,12 @@ impl Trainer {
             &plugins.terms,
         )?;
         let strategy = plugins.strategies.build(&config)?;
-        let held_out = validation::held_out_views(data, config.val_views, config.train_scale)?;
+        let held_out = validation::held_out_views(
+            data,
+            config.val_views,
+            config.train_scale,
+            config.keep_best,
+        )?;
         let masks = match config.loss_region {
             LossRegion::All => Vec::new(),
             _ => region::training_masks(data, config.train_scale)?,

@@ -7,6 +7,7 @@ use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 
+use super::best::{BestSoFar, Chosen};
 use super::log::{LogLayout, RowStats, csv_line};
 use super::{
     Timings, TrainConfig, Trainer, checkpoints_newest_first, load_checkpoint_with_plugins,
@@ -44,6 +45,10 @@ pub struct RunSummary {
     /// train` does, after training).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub test_psnr: Option<f64>,
+    /// With `keep_best`: the state `model/` holds, chosen by validation PSNR (the
+    /// last one is `checkpoints/iter_N`, N = `iterations`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub chosen: Option<Chosen>,
     /// Why the run failed after training (a NaN test PSNR), when it did.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub failure: Option<String>,
@@ -394,6 +399,11 @@ fn run_trainer(
         .append(true)
         .open(&log_path)
         .map_err(|e| Error::io(&log_path, e))?;
+    let mut best = if trainer.config.keep_best {
+        Some(BestSoFar::resume(out, &log_path)?)
+    } else {
+        None
+    };
     let mut log = csv::Writer::from_writer(file);
     let log_error = |e: csv::Error| Error::Input(format!("{}: {e}", log_path.display()));
     let total = trainer.config.iterations;
@@ -432,6 +442,11 @@ fn run_trainer(
         } else {
             String::new()
         };
+        if let Some(best) = &mut best
+            && best.offer(it, &val)
+        {
+            save_checkpoint(&trainer, best.dir())?;
+        }
         trainer.schedule();
         trainer.check_health()?;
         let loss = trainer
@@ -469,7 +484,14 @@ fn run_trainer(
         }
     }
     bar.finish_and_clear();
-    save_checkpoint(&trainer, &model_dir)?;
+    let chosen = best.as_ref().and_then(BestSoFar::chosen);
+    match &best {
+        Some(best) if chosen.is_some() => {
+            save_checkpoint(&trainer, &checkpoint_dir(out, trainer.iteration))?;
+            best.install(&model_dir)?;
+        }
+        _ => save_checkpoint(&trainer, &model_dir)?,
+    }
     let summary = RunSummary {
         iterations: trainer.iteration,
         train_seconds: trainer.timings.total(),
@@ -480,6 +502,7 @@ fn run_trainer(
         dead_at_cap: trainer.liveness.at_cap(trainer.last_reset),
         timings: trainer.timings.clone(),
         test_psnr: None,
+        chosen,
         failure: None,
     };
     summary.write(out)?;

@@ -20,17 +20,24 @@ pub(super) struct HeldOut {
 }
 
 /// `count` views evenly spaced over the validation split (the test split when the
-/// data set has no validation views), at `scale`; empty when `count` is 0.
+/// data set has no validation views, unless `choose`: views that choose the run's
+/// model must not be the ones it is measured on), at `scale`; empty when `count` is 0.
 pub(super) fn held_out_views(
     data: &Dataset,
     count: usize,
     scale: f64,
+    choose: bool,
 ) -> Result<Vec<HeldOut>, Error> {
     if count == 0 {
         return Ok(Vec::new());
     }
     let split = if data.len(Split::Val) > 0 {
         Split::Val
+    } else if choose {
+        return Err(Error::Input(format!(
+            "{}: keep_best chooses the model on validation views and this data set has none (the test views would then both choose and measure it)",
+            data.root().display()
+        )));
     } else {
         Split::Test
     };
