@@ -187,6 +187,31 @@ impl ModelConfig {
         }
     }
 
+    /// Scales the representation's own iteration counts by `s` (a budget's shorter or
+    /// longer schedule, `maaf train --budget`): SaRO's static stage, adaptive period and
+    /// learning-rate decays; Deformable-3DGS's warm-up, decays and GroupFlow's
+    /// iteration. The tracking model's schedule is a share of the run already; a
+    /// registered representation's options are its own and are left as they are.
+    pub fn scale_schedule(&mut self, s: f64) {
+        let scaled = |n: &mut usize| *n = ((*n as f64) * s).round().max(1.0) as usize;
+        match self {
+            ModelConfig::Saro(c) => {
+                scaled(&mut c.static_iterations);
+                scaled(&mut c.lr.max_steps);
+                if c.adaptive_every > 0 {
+                    scaled(&mut c.adaptive_every);
+                }
+            }
+            ModelConfig::Deform(c) => {
+                scaled(&mut c.warm_up);
+                scaled(&mut c.lr.position_max_steps);
+                scaled(&mut c.lr.deform_max_steps);
+                scaled(&mut c.group_flow.at);
+            }
+            ModelConfig::Track(_) | ModelConfig::Custom { .. } => {}
+        }
+    }
+
     /// Fills in what the data decides unless the config set it: SaRO's `duration`
     /// (the number of distinct training times). Called once when a run starts, so
     /// `config.json` records the value used.

@@ -10,6 +10,7 @@ use serde::{Deserialize, Serialize};
 use maaf_models::{ModelConfig, TrackConfig};
 
 use crate::Error;
+use crate::budget::WallBudget;
 
 /// Densification schedule and thresholds (3DGS `densify_and_prune`, SaRO-GS D-NeRF
 /// config: from 500 to 15 000 every 100, gradient threshold 2e-4, opacity reset every
@@ -276,6 +277,11 @@ impl BackdropConfig {
 pub struct TrainConfig {
     /// Iterations (`batch` views per iteration).
     pub iterations: usize,
+    /// A wall time for the whole run (`"10m"`; `maaf train --budget`): a new run
+    /// measures a short warm-up and trains the schedule scaled by one factor
+    /// ([`TrainConfig::scaled_schedule`]) chosen to finish in it. `None`: the schedule
+    /// as written.
+    pub budget: Option<WallBudget>,
     /// Training views per iteration. Each view is rendered at its own time from one
     /// binding of the model (SaRO's field and lifespans are queried once per
     /// iteration), and the gradient is the mean of the views' objectives: SaRO-GS
@@ -366,6 +372,7 @@ impl Default for TrainConfig {
     fn default() -> Self {
         TrainConfig {
             iterations: 20_000,
+            budget: None,
             batch: 1,
             train_scale: 0.25,
             seed: 0,
@@ -525,6 +532,13 @@ impl TrainConfig {
                 MAX_GAUSSIANS_CAP,
             )?;
             count("backdrop.sh_degree", b.sh_degree, 0, 3)?;
+            if self.budget.is_some() {
+                return Err(bad(
+                    "budget",
+                    &self.budget.map_or(0.0, WallBudget::seconds),
+                    "unset with a background layer (the budget's planner times the model's steps, not the layer's)",
+                ));
+            }
             if self.random_background {
                 return Err(bad(
                     "random_background",

@@ -15,6 +15,7 @@
 //! `docs/architecture.md` says where this crate sits.
 
 pub mod backdrop;
+pub mod budget;
 pub mod checkpoint_read;
 pub mod config;
 mod error;
@@ -36,6 +37,7 @@ use maaf_filter::{
 };
 use maaf_splat::{Camera, Filter2d, RenderSettings};
 
+pub use budget::WallBudget;
 pub use checkpoint_read::Opened;
 pub use config::{
     BackdropConfig, CameraColourConfig, DensifyConfig, DensifyGradient, HullTimes, LossRegion,

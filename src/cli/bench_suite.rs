@@ -327,6 +327,7 @@ fn plan(args: &BenchSuiteArgs, out: &Path, plugins: &Plugins) -> anyhow::Result<
                 filter: Some(FilterKind::from(f).name().to_string()),
                 train_scale: None,
                 iters: args.iters,
+                budget: None,
                 batch: None,
                 seed: None,
                 config: Some(file.to_path_buf()),

@@ -6,7 +6,7 @@ use anyhow::{Context, bail};
 use maaf_eval::metrics::psnr;
 use maaf_eval::render::recorded_data;
 use maaf_filter::{FilterConfig, FilterKind, MotionEstimator};
-use maaf_scene::{TrainConfig, TrainedScene};
+use maaf_scene::{TrainConfig, TrainedScene, WallBudget};
 use maaf_train::Plugins;
 use maaf_train::data::{Dataset, DatasetOptions, Split};
 use maaf_train::models::ModelConfig;
@@ -69,6 +69,12 @@ pub struct SettingsArgs {
     /// Iterations [default: the config's, else 20000, the D-NeRF protocol].
     #[arg(long)]
     pub iters: Option<usize>,
+    /// Wall time for the whole run (90s, 10m, 1.5h, 1h30m): a short measured warm-up
+    /// chooses one factor that scales the schedule (iterations, densification and
+    /// reset windows, Gaussian cap) to finish in it; `RUN/budget.json` records the
+    /// plan [default: the config's `budget`, else none: the schedule as written].
+    #[arg(long)]
+    pub budget: Option<WallBudget>,
     /// Training views per iteration, their gradients averaged (SaRO-GS configs: 4)
     /// [default: the config's, else 1].
     #[arg(long)]
@@ -142,6 +148,9 @@ pub fn config_from(args: &SettingsArgs) -> anyhow::Result<TrainConfig> {
     }
     if let Some(i) = args.iters {
         config.iterations = i;
+    }
+    if let Some(b) = args.budget {
+        config.budget = Some(b);
     }
     if let Some(b) = args.batch {
         config.batch = b;
@@ -235,6 +244,8 @@ fn resumed_config(args: &SettingsArgs, run: &Path) -> anyhow::Result<TrainConfig
         args.background
             .filter(|b| *b != config.background)
             .map(|b| format!("--background {b} (the run's is {})", config.background)),
+        args.budget
+            .map(|b| format!("--budget {b} (the run's schedule was chosen when it started)")),
     ];
     if let Some(c) = conflicts.into_iter().flatten().next() {
         bail!(

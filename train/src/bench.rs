@@ -180,7 +180,21 @@ fn mlp_forward_flops(n: usize, model: &ModelConfig, views: usize) -> f64 {
 /// replacement (seeded) from its model, as densification's clones would add them;
 /// no densification, opacity reset or filter refresh during the timed steps.
 fn resize_for_bench(trainer: &mut Trainer, gaussians: usize, opts: &StepBenchOptions) {
-    let mut rng = Pcg64::seed_from_u64(opts.seed);
+    resample_rows(trainer, gaussians, opts.seed);
+    let c = &mut trainer.config;
+    c.batch = opts.batch.unwrap_or(c.batch);
+    c.iterations = trainer.iteration + opts.warmup + opts.iterations + 1;
+    c.densify.from = usize::MAX;
+    c.densify.opacity_reset_every = 0;
+    c.filter.refresh.start = u64::MAX;
+    c.filter.refresh.after_densify = false;
+}
+
+/// Resizes `trainer` to `gaussians` Gaussians: its first rows, then rows sampled with
+/// replacement (seeded by `seed`) from its model, as densification's clones would add
+/// them (every per-Gaussian container follows, [`Trainer::apply_plan`]).
+pub fn resample_rows(trainer: &mut Trainer, gaussians: usize, seed: u64) {
+    let mut rng = Pcg64::seed_from_u64(seed);
     let n = trainer.num_gaussians();
     let index: Vec<usize> = (0..gaussians)
         .map(|i| if i < n { i } else { rng.random_range(0..n) })
@@ -194,13 +208,6 @@ fn resize_for_bench(trainer: &mut Trainer, gaussians: usize, opts: &StepBenchOpt
         split: 0,
         pruned: 0,
     });
-    let c = &mut trainer.config;
-    c.batch = opts.batch.unwrap_or(c.batch);
-    c.iterations = trainer.iteration + opts.warmup + opts.iterations + 1;
-    c.densify.from = usize::MAX;
-    c.densify.opacity_reset_every = 0;
-    c.filter.refresh.start = u64::MAX;
-    c.filter.refresh.after_densify = false;
 }
 
 /// Times `opts.iterations` training steps of the trained run `trainer` (see

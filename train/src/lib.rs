@@ -6,6 +6,7 @@
 //! `docs/architecture.md` says how the modules fit and where things plug in.
 
 pub mod bench;
+pub mod budget;
 mod load_run;
 pub mod loss;
 mod plugins;

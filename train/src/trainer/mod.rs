@@ -46,8 +46,8 @@ pub use prune::{keep_highest, removal_sensitivity};
 pub use reset::{Liveness, opacity_caps};
 pub use resume::{checkpoints_newest_first, load_newest, truncate_log};
 pub use run::{
-    RunSummary, branch_run, branch_run_with_plugins, checkpoint_dir, train_run, train_run_with,
-    train_run_with_plugins,
+    BUDGET_FILE, RunSummary, branch_run, branch_run_with_plugins, checkpoint_dir, train_run,
+    train_run_with, train_run_with_plugins,
 };
 pub use strategy::{
     DefaultStrategy, SensitivityPruning, StepInfo, Strategy, StrategyMaker, StrategyRegistry,

@@ -13,10 +13,14 @@ use super::{
     Timings, TrainConfig, Trainer, checkpoints_newest_first, load_checkpoint_with_plugins,
     load_newest, repair_run_dir, save_checkpoint, truncate_log,
 };
+use crate::budget::plan_budget;
 use crate::data::Dataset;
 use crate::{Error, Plugins, write_atomic};
 use maaf_scene::TrainedScene;
 use maaf_scene::backdrop::BACKDROP_DIR;
+
+/// The plan a budgeted run trained by (`RUN/budget.json`, [`crate::budget::BudgetPlan`]).
+pub const BUDGET_FILE: &str = "budget.json";
 
 /// What a finished run reports (also written as `RUN/summary.json`).
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -97,6 +101,7 @@ pub fn train_run_with_plugins(
     resume: bool,
     plugins: &Plugins,
 ) -> Result<RunSummary, Error> {
+    let started = Instant::now();
     let _lock = lock_run(out)?;
     let what = if resume {
         out.join("config.json").display().to_string()
@@ -122,6 +127,26 @@ pub fn train_run_with_plugins(
             t.config.iterations = budget;
             say_resumed(&t, &dir);
             t
+        }
+        None if config.budget.is_some() => {
+            let (config, plan) = plan_budget(data, &config, plugins, started)?;
+            log::info!(
+                "budget {:.0} s: schedule x{:.3}, {} iterations, at most {} Gaussians (a step: {:.1} ms at {} Gaussians, {:.1} ms at {}), predicted {:.0} s",
+                plan.budget_seconds,
+                plan.scale,
+                plan.iterations,
+                plan.max_gaussians,
+                1e3 * plan.step_seconds[0].1,
+                plan.step_seconds[0].0,
+                1e3 * plan.step_seconds[1].1,
+                plan.step_seconds[1].0,
+                plan.predicted_seconds
+            );
+            let trainer = Trainer::with_plugins(data, config, plugins)?;
+            std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+            let json = serde_json::to_vec_pretty(&plan).map_err(|e| Error::Input(e.to_string()))?;
+            write_atomic(&out.join(BUDGET_FILE), &json)?;
+            trainer
         }
         None => Trainer::with_plugins(data, config, plugins)?,
     };
