@@ -5,13 +5,15 @@
 //! run fits the budget.
 //!
 //! Cost model: a step at N Gaussians takes `a + b N` seconds, fitted to the warm-up's
-//! steps at the initial count and at the preset's cap (rows resampled as clones);
+//! steps at the initial count and at twice it (rows resampled as clones);
 //! the count is taken as the initial one until `densify.from`, growing linearly to
 //! the cap at `densify.until` and at the cap after it, an upper bound, since pruning
 //! keeps most runs under their cap. Refreshes and validations cost their measured
 //! time scaled by the count, one refresh per `filter.refresh.every` iterations from
 //! its start and one per densification. The time already spent (loading, the
 //! warm-up) comes off the budget, and 5 % is kept for the final save and test pass.
+//! When densification ends, [`TailControl`] sets the final iteration count from the
+//! run's measured speed.
 
 use std::time::Instant;
 
@@ -24,7 +26,7 @@ use crate::{Error, Plugins};
 use maaf_scene::TrainConfig;
 
 /// Steps timed at each Gaussian count (after one untimed step).
-const TIMED_STEPS: usize = 8;
+const TIMED_STEPS: usize = 5;
 /// Share of the budget kept for the final checkpoint and the test pass.
 const RESERVE: f64 = 0.05;
 /// Largest and smallest schedule factors.
@@ -51,6 +53,56 @@ pub struct BudgetPlan {
     pub max_gaussians: usize,
     /// The wall time the model predicts for the whole run, seconds.
     pub predicted_seconds: f64,
+    /// The run's iterations as the tail control set them when densification ended
+    /// ([`TailControl`]); `None` before that, or when the run has no tail.
+    #[serde(default)]
+    pub adjusted_iterations: Option<usize>,
+}
+
+/// Corrects the planned run where its cost is known: when densification ends (the
+/// Gaussian count settles), the wall time per iteration of the last iterations before
+/// it, validations and refreshes included, sets how many iterations the rest of the
+/// budget holds. Only the iteration count changes; the learning-rate decays and
+/// windows keep the plan's lengths. The warm-up's model errs on the safe side (it
+/// times the initial Gaussians, which pruning soon thins, and assumes the cap is
+/// reached), so the tail mostly grows.
+pub struct TailControl {
+    started: Instant,
+    available: f64,
+    at: usize,
+    window: usize,
+    mark: Option<Instant>,
+}
+
+impl TailControl {
+    /// The control of a run planned by `plan` into `config` (the scaled schedule),
+    /// which started at `started`; `None` when densification does not end before
+    /// the last iteration.
+    pub fn new(plan: &BudgetPlan, config: &TrainConfig, started: Instant) -> Option<Self> {
+        let at = config.densify.until;
+        (at >= 2 && at < config.iterations).then(|| TailControl {
+            started,
+            available: plan.budget_seconds * (1.0 - RESERVE),
+            at,
+            window: (at / 4).clamp(1, 100),
+            mark: None,
+        })
+    }
+
+    /// Called after iteration `it`: at the end of densification, the run's new
+    /// iteration count (at least `it + 1`).
+    pub fn after(&mut self, it: usize) -> Option<usize> {
+        if it == self.at - self.window {
+            self.mark = Some(Instant::now());
+        }
+        if it != self.at {
+            return None;
+        }
+        let per = self.mark?.elapsed().as_secs_f64() / self.window as f64;
+        let left = self.available - self.started.elapsed().as_secs_f64();
+        let more = if per > 0.0 { (left / per).floor() } else { 0.0 };
+        Some(it + (more.max(1.0) as usize))
+    }
 }
 
 /// Measured costs of the warm-up.
@@ -114,12 +166,14 @@ pub fn plan_budget(
         iterations: chosen.iterations,
         max_gaussians: chosen.densify.max_gaussians,
         predicted_seconds: spent + predicted(&chosen, &costs),
+        adjusted_iterations: None,
     };
     Ok((chosen, plan))
 }
 
-/// Times steps of a trainer of `config` at its initial count and at the cap, one
-/// filter refresh and one validation; the trainer is dropped afterwards.
+/// Times steps of a trainer of `config` at its initial count and at twice it, one
+/// filter refresh and one validation, in the representation's dynamic stage; the
+/// trainer is dropped afterwards.
 fn warm_up(
     data: &Dataset,
     config: &TrainConfig,
@@ -127,6 +181,11 @@ fn warm_up(
 ) -> Result<(Costs, [(usize, f64); 2]), Error> {
     let mut warm = config.clone();
     warm.budget = None;
+    // Timed in the dynamic stage, where nearly all of a run's steps are: a static
+    // stage's steps skip the representation's field and networks.
+    if let Some(stage) = warm.model.warm_up_mut() {
+        *stage = 0;
+    }
     let mut t = Trainer::with_plugins(data, warm, plugins)?;
     let c = &mut t.config;
     c.iterations = usize::MAX;
@@ -144,7 +203,8 @@ fn warm_up(
         t0.elapsed().as_secs_f64() / TIMED_STEPS as f64
     };
     let small = (initial, timed(&mut t));
-    let cap = config.densify.max_gaussians.max(2 * initial);
+    // Twice the initial count gives the slope at a fraction of the cap's cost.
+    let cap = 2 * initial.max(1);
     t.check_memory(cap)?;
     resample_rows(&mut t, cap, config.seed);
     let large = (cap, timed(&mut t));

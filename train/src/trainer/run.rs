@@ -13,7 +13,7 @@ use super::{
     Timings, TrainConfig, Trainer, checkpoints_newest_first, load_checkpoint_with_plugins,
     load_newest, repair_run_dir, save_checkpoint, truncate_log,
 };
-use crate::budget::plan_budget;
+use crate::budget::{BudgetPlan, TailControl, plan_budget};
 use crate::data::Dataset;
 use crate::{Error, Plugins, write_atomic};
 use maaf_scene::TrainedScene;
@@ -120,6 +120,7 @@ pub fn train_run_with_plugins(
     } else {
         None
     };
+    let mut tail = None;
     let mut trainer = match found {
         Some((mut t, dir)) => {
             same_settings(&t.config, &config, &dir, out)?;
@@ -144,14 +145,14 @@ pub fn train_run_with_plugins(
             );
             let trainer = Trainer::with_plugins(data, config, plugins)?;
             std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
-            let json = serde_json::to_vec_pretty(&plan).map_err(|e| Error::Input(e.to_string()))?;
-            write_atomic(&out.join(BUDGET_FILE), &json)?;
+            write_plan(out, &plan)?;
+            tail = TailControl::new(&plan, &trainer.config, started).map(|c| (c, plan));
             trainer
         }
         None => Trainer::with_plugins(data, config, plugins)?,
     };
     attach_backdrop(&mut trainer, data, out, plugins)?;
-    run_trainer(trainer, out, resume, (!resume).then_some(data))
+    run_trainer(trainer, out, resume, (!resume).then_some(data), tail)
 }
 
 /// A run without `data.json` (an older run, or the file removed) is checked against
@@ -337,7 +338,7 @@ pub fn branch_run_with_plugins(
             format!(" (starting fresh: {})", fresh.join(", "))
         }
     );
-    run_trainer(trainer, out, false, Some(data))
+    run_trainer(trainer, out, false, Some(data), None)
 }
 
 /// [`train_run`] for a trainer the caller built ([`Trainer::with_model`] for a
@@ -366,7 +367,7 @@ pub fn train_run_with(mut trainer: Trainer, out: &Path, resume: bool) -> Result<
             say_resumed(&trainer, &dir);
         }
     }
-    run_trainer(trainer, out, resume, None)
+    run_trainer(trainer, out, resume, None, None)
 }
 
 fn say_resumed(trainer: &Trainer, dir: &Path) {
@@ -378,14 +379,23 @@ fn say_resumed(trainer: &Trainer, dir: &Path) {
     );
 }
 
+/// `RUN/budget.json`, atomically.
+fn write_plan(out: &Path, plan: &BudgetPlan) -> Result<(), Error> {
+    let json = serde_json::to_vec_pretty(plan).map_err(|e| Error::Input(e.to_string()))?;
+    write_atomic(&out.join(BUDGET_FILE), &json)
+}
+
 /// Trains `trainer` into `out` to its budget. `record` is the data set of a new run
 /// (or branch), recorded as `RUN/data.json` once every check has passed, so a
-/// refused start writes nothing into the run folder.
+/// refused start writes nothing into the run folder. With `tail` (a new run with a
+/// wall-clock budget) the iteration count is set again when densification ends, and
+/// `config.json` and `budget.json` rewritten.
 fn run_trainer(
     mut trainer: Trainer,
     out: &Path,
     resume: bool,
     record: Option<&Dataset>,
+    mut tail: Option<(TailControl, BudgetPlan)>,
 ) -> Result<RunSummary, Error> {
     if trainer.config.backdrop.enabled() && trainer.backdrop().is_none() {
         return Err(Error::Input(format!(
@@ -431,7 +441,7 @@ fn run_trainer(
     };
     let mut log = csv::Writer::from_writer(file);
     let log_error = |e: csv::Error| Error::Input(format!("{}: {e}", log_path.display()));
-    let total = trainer.config.iterations;
+    let mut total = trainer.config.iterations;
     // The bar names the run, so a sequence of trainings (the demo, a suite) says which
     // one is running; progress is info, hidden by `maaf -q`.
     let name = run_name(out);
@@ -503,6 +513,19 @@ fn run_trainer(
                 "{name}: iteration {it}/{total}  loss {loss:.4}  gaussians {}",
                 trainer.num_gaussians()
             );
+        }
+        if let Some((control, plan)) = &mut tail
+            && let Some(iterations) = control.after(it)
+        {
+            log::info!("{name}: budget: {iterations} iterations (planned {total})");
+            total = iterations;
+            trainer.config.iterations = iterations;
+            bar.set_length(total as u64);
+            let config_json = serde_json::to_vec_pretty(&trainer.config)
+                .map_err(|e| Error::Input(e.to_string()))?;
+            write_atomic(&out.join("config.json"), &config_json)?;
+            plan.adjusted_iterations = Some(iterations);
+            write_plan(out, plan)?;
         }
         if it.is_multiple_of(ckpt_every) && it < total {
             save_checkpoint(&trainer, &checkpoint_dir(out, it))?;
