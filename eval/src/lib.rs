@@ -43,7 +43,7 @@ use rayon::prelude::*;
 
 use crate::metrics::regions::{RegionPsnr, region_psnr};
 use crate::metrics::rings::RingErrors;
-use crate::metrics::{ImageMetrics, error_map, image_metrics, mean_metrics};
+use maaf_scene::metrics::{ImageMetrics, error_map, image_metrics, mean_metrics};
 
 pub use eval_json::{
     EvalReport, PoppingResult, RegionSummary, ScaleResult, SkippedScale, TemporalResult,
@@ -145,7 +145,7 @@ fn resolve_scales(
             data.size(split, source)
                 .map_err(|e| format!("source scale {}: {e}", trim_float(source)))
                 .and_then(|(w, h)| {
-                    let window = metrics::ssim_window::SSIM_WINDOW as u32;
+                    let window = maaf_scene::metrics::ssim_window::SSIM_WINDOW as u32;
                     if w < window || h < window {
                         Err(format!(
                             "its {w}x{h} images are smaller than the {window}x{window} SSIM window"

@@ -11,9 +11,8 @@
 
 use maaf_autodiff::{Float, Tensor};
 use maaf_lpips::{Lpips, LpipsError};
+use maaf_scene::metrics::{MetricError, ssim};
 use rayon::prelude::*;
-
-use super::{MetricError, ssim};
 
 /// Why the temporal metrics could not be computed.
 #[derive(Debug, thiserror::Error)]
@@ -137,7 +136,7 @@ pub fn warp_error<T: Float>(frame_t: &Tensor<T>, warped: &Tensor<T>) -> Result<f
 pub struct StepMetrics {
     /// [`warp_error`].
     pub warp_error: f64,
-    /// Evaluation SSIM ([`super::ssim`]) of `Î_{t+1}` against `I_t`.
+    /// Evaluation SSIM ([`ssim`]) of `Î_{t+1}` against `I_t`.
     pub ssim: f64,
     /// LPIPS ([`maaf_lpips::Lpips::distance`]) when a model was given.
     pub lpips: Option<f64>,

@@ -1,17 +1,21 @@
-//! Evaluation end to end on a tiny run of the D-NeRF mutant scene (100x100 training
+//! Evaluation end to end on tiny runs. On the D-NeRF mutant scene (100x100 training
 //! images): eval.json has exactly the contract fields, renders and error maps are
-//! written, bad input fails with one line and overwrites nothing.
+//! written, bad input fails with one line and overwrites nothing. On a generated scene
+//! in the Dynamic 3D Gaussians layout: a frame stride, and PSNR by region from the
+//! temporal-median masks.
 
 mod mutant;
 
 use std::path::Path;
 
+use maaf_data::dynamic3dgs::MASKS_DIR;
+use maaf_data::synthetic::{MultiviewOptions, generate_dynamic3dgs};
+use maaf_data::{Dataset, DatasetOptions};
 use maaf_eval::metrics::rings::RingErrors;
-use maaf_eval::render::record_data;
 use maaf_eval::{EvalOptions, evaluate_run, scale_label};
 use maaf_filter::FilterKind;
 use maaf_scene::TrainConfig;
-use maaf_train::data::{Dataset, DatasetOptions};
+use maaf_scene::run_data::record_data;
 use maaf_train::trainer::train_run;
 
 fn tiny_config() -> TrainConfig {
@@ -274,5 +278,74 @@ fn eval_writes_the_contract_and_refuses_bad_input() {
         before
     );
     assert!(run.join("eval/1x/render_000.png").exists());
+    std::fs::remove_dir_all(&tmp).ok();
+}
+
+#[test]
+fn a_tiny_run_trains_from_the_hull_and_evaluates_a_frame_stride_by_region() {
+    let tmp = std::env::temp_dir().join(format!("maaf_eval_d3dgs_{}", std::process::id()));
+    std::fs::create_dir_all(&tmp).expect("mkdir");
+    let root = tmp.join("scene");
+    let opts = MultiviewOptions {
+        scene: "approach".into(),
+        width: 96,
+        height: 64,
+        cameras: 6,
+        frames: 6,
+        samples: 2,
+        seed: 3,
+        force: false,
+    };
+    generate_dynamic3dgs(&root, &opts, &mut |_, _| {}).expect("generates");
+    // Without the test camera's masks the regions come from the temporal median.
+    std::fs::remove_dir_all(root.join(MASKS_DIR).join("0")).expect("removes");
+    let data = Dataset::open(&root, DatasetOptions::default()).expect("opens");
+    let mut config = TrainConfig {
+        iterations: 20,
+        train_scale: 0.5,
+        init_points: 400,
+        val_every: 0,
+        ..TrainConfig::default()
+    };
+    config.filter.kind = FilterKind::Motion;
+    config.filter.refresh.start = 5;
+    config.filter.refresh.every = 5;
+    config.densify.opacity_reset_every = 0;
+    let run = tmp.join("run");
+    train_run(&data, config, &run, false).expect("trains");
+    let options = EvalOptions {
+        scales: vec![0.5, 1.0, 2.0],
+        frame_stride: 2,
+        save_images: false,
+        ..EvalOptions::default()
+    };
+    let report = evaluate_run(&run, &data, &options).expect("evaluates");
+    assert_eq!(report.frame_stride, 2);
+    assert_eq!(report.scales.len(), 3);
+    assert_eq!((report.scales[2].width, report.scales[2].height), (96, 64));
+    for s in &report.scales {
+        assert!(s.psnr.is_finite(), "{s:?}");
+        assert!(
+            s.regions.is_some(),
+            "regions by the median masks at {}",
+            s.scale
+        );
+    }
+    // Frames 0, 2 and 4 of the one test camera: views 0, 2, 4.
+    let csv = std::fs::read_to_string(run.join("eval/1x/metrics.csv")).expect("csv");
+    let views: Vec<&str> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').next().unwrap_or(""))
+        .collect();
+    assert_eq!(views, ["0", "2", "4"]);
+    let bad = EvalOptions {
+        frame_stride: 0,
+        ..EvalOptions::default()
+    };
+    let err = evaluate_run(&run, &data, &bad)
+        .expect_err("stride 0")
+        .to_string();
+    assert!(err.contains("--frame-stride"), "{err}");
     std::fs::remove_dir_all(&tmp).ok();
 }

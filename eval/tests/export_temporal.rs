@@ -6,14 +6,14 @@
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
+use maaf_data::synthetic::{self, GenerateOptions};
+use maaf_data::{Dataset, DatasetOptions, Split};
 use maaf_eval::export::{export_frame, export_sequence, export_sequence_zip};
 use maaf_eval::{EvalOptions, EvalReport, evaluate_scene};
 use maaf_filter::FilterKind;
 use maaf_scene::TrainConfig;
 use maaf_scene::{ModelRegistry, TrainedScene};
 use maaf_splat::{read_ply, render_gaussians};
-use maaf_train::data::synthetic::{self, GenerateOptions};
-use maaf_train::data::{Dataset, DatasetOptions, Split};
 use maaf_train::trainer::train_run;
 
 struct TempDir(PathBuf);

@@ -6,11 +6,11 @@
 
 mod mutant;
 
+use maaf_data::{Dataset, DatasetOptions};
 use maaf_eval::filter_agreement::{FilterStudy, MOVING, filter_agreement};
 use maaf_filter::{FilterKind, MotionCurves};
 use maaf_scene::TrainedScene;
 use maaf_scene::{TrainConfig, camera_extent};
-use maaf_train::data::{Dataset, DatasetOptions};
 use maaf_train::models::{ModelConfig, SaroConfig};
 use maaf_train::trainer::Trainer;
 
