@@ -390,18 +390,6 @@ impl FilterConfig {
         let [t0, t1] = self.time_range;
         (t - t0) / (t1 - t0)
     }
-
-    /// Nearest time grid index `s* = argmin_s |g_t[s] - t|` (Alg. 1 line 11) for a
-    /// time `t` in the config's time range, clamped to the grid; exact half-way
-    /// ties go to the lower bin, as a first-index argmin would.
-    pub fn nearest_time_bin(&self, t: f32) -> usize {
-        let pos = self.normalise_time(t) * (self.grid_t - 1) as f32;
-        if pos.is_nan() || pos <= 0.0 {
-            return 0;
-        }
-        let s = (pos - 0.5).ceil();
-        (s as usize).min(self.grid_t - 1)
-    }
 }
 
 #[cfg(test)]

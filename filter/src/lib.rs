@@ -75,7 +75,7 @@ pub use config::{FilterConfig, FilterError, FilterKind, MotionEstimator, Refresh
 pub use curves::{FALLBACK, MotionCurves};
 pub use export::{AnalysisExport, EstimatorCurve, GaussianTrace};
 pub use kernels::Kernels;
-pub use mip::{Viewer, static_nu, variance_from_nu};
+pub use mip::{Viewer, static_nu};
 pub use motion::{MotionKdeFilter, WindowMaxFilter};
 pub use observations::{CameraTime, ObservationTable, observed_frames};
 pub use registry::{FilterConstructor, FilterRegistry};

@@ -83,22 +83,3 @@ fn schedule_matches_mip_splatting() {
     };
     assert!(!s.due(650, 1000, true));
 }
-
-#[test]
-fn nearest_time_bin_is_the_argmin() {
-    let cfg = FilterConfig::default();
-    for i in 0..=1000 {
-        let t = i as f32 / 1000.0 * 1.2 - 0.1;
-        let s = cfg.nearest_time_bin(t);
-        let tn = cfg.normalise_time(t);
-        let best = (0..cfg.grid_t)
-            .map(|s| ((s as f32 / 99.0 - tn).abs(), s))
-            .fold((f32::INFINITY, 0), |a, b| if b.0 < a.0 { b } else { a });
-        // Equal distance within f32 rounding may pick either neighbour.
-        let ds = (s as f32 / 99.0 - tn).abs();
-        assert!(
-            s == best.1 || (ds - best.0).abs() < 1e-6,
-            "t {t}: {s} vs {best:?}"
-        );
-    }
-}
