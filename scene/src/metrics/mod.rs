@@ -69,7 +69,7 @@ impl fmt::Display for MetricError {
 impl std::error::Error for MetricError {}
 
 /// `(H, W, C)` of two images of equal shape, or why not.
-fn dims<T: Float>(
+pub fn image_dims<T: Float>(
     render: &Tensor<T>,
     gt: &Tensor<T>,
 ) -> Result<(usize, usize, usize), MetricError> {
@@ -93,7 +93,7 @@ pub fn masked_dims<T: Float>(
     gt: &Tensor<T>,
     mask: &[f32],
 ) -> Result<(usize, usize, usize), MetricError> {
-    let (h, w, c) = dims(render, gt)?;
+    let (h, w, c) = image_dims(render, gt)?;
     if mask.len() != h * w {
         return Err(MetricError::NotAnImage {
             shape: vec![h, w, c, mask.len()],
@@ -104,7 +104,7 @@ pub fn masked_dims<T: Float>(
 
 /// Mean squared error `MSE = (1 / HWC) sum (render - gt)^2`, accumulated in f64.
 pub fn mse<T: Float>(render: &Tensor<T>, gt: &Tensor<T>) -> Result<f64, MetricError> {
-    dims(render, gt)?;
+    image_dims(render, gt)?;
     let total: f64 = render
         .data()
         .iter()
@@ -146,7 +146,7 @@ pub fn psnr<T: Float>(render: &Tensor<T>, gt: &Tensor<T>) -> Result<f64, MetricE
 ///
 /// Needs `H, W >= 11`. Symmetric in its arguments.
 pub fn ssim<T: Float>(render: &Tensor<T>, gt: &Tensor<T>) -> Result<f64, MetricError> {
-    let (h, w, c) = dims(render, gt)?;
+    let (h, w, c) = image_dims(render, gt)?;
     if h < SSIM_WINDOW || w < SSIM_WINDOW {
         return Err(MetricError::TooSmallForSsim {
             height: h,
@@ -221,7 +221,7 @@ pub fn mean_metrics(per_image: &[ImageMetrics]) -> Option<ImageMetrics> {
 /// Per-pixel error map `E[i, j] = (1 / C) sum_c |render[i, j, c] - gt[i, j, c]|`,
 /// shape `[H, W]`, on [0, 1] for images on [0, 1] (for the eval's error images).
 pub fn error_map<T: Float>(render: &Tensor<T>, gt: &Tensor<T>) -> Result<Tensor<T>, MetricError> {
-    let (h, w, c) = dims(render, gt)?;
+    let (h, w, c) = image_dims(render, gt)?;
     let data = render
         .data()
         .chunks_exact(c)
