@@ -4,17 +4,15 @@
 //! moving masks against the generator's exact masks; the visual hull's points on the
 //! movers.
 
-mod common;
-
 use std::path::Path;
 
-use common::TempDir;
 use glam::DVec3;
-use maaf_train::data::dynamic3dgs::{MASKS_DIR, TEST_META, TRAIN_META};
-use maaf_train::data::median_mask::{MEDIAN_THRESHOLD, decode_rgb8};
-use maaf_train::data::synthetic::dynamic3dgs::rig_cameras;
-use maaf_train::data::synthetic::{MultiviewOptions, build_scene, generate_dynamic3dgs};
-use maaf_train::data::{Dataset, DatasetOptions, Format, MaskSource, Split};
+use maaf_data::dynamic3dgs::{MASKS_DIR, TEST_META, TRAIN_META};
+use maaf_data::median_mask::{MEDIAN_THRESHOLD, decode_rgb8};
+use maaf_data::synthetic::dynamic3dgs::rig_cameras;
+use maaf_data::synthetic::{MultiviewOptions, build_scene, generate_dynamic3dgs};
+use maaf_data::{Dataset, DatasetOptions, Format, MaskSource, Split};
+use maaf_io::TempDir;
 use serde_json::Value;
 
 const W: u32 = 96;
@@ -42,8 +40,8 @@ fn generated_at(dir: &Path, cameras: usize, frames: usize, width: u32, height: u
 
 #[test]
 fn opens_a_generated_scene_with_its_cameras_times_and_masks() {
-    let t = TempDir::new("d3dgs-open");
-    let root = t.0.join("scene");
+    let t = TempDir::new("d3dgs-open").expect("temp dir");
+    let root = t.path().join("scene");
     generated(&root, 5, 6);
     let data = Dataset::open(&root, DatasetOptions::default()).expect("opens");
     assert_eq!(data.format(), Format::Dynamic3dgs);
@@ -126,8 +124,8 @@ type Edit = Box<dyn FnOnce(&mut Value)>;
 
 #[test]
 fn bad_meta_files_get_one_line_naming_the_file_and_entry() {
-    let t = TempDir::new("d3dgs-bad");
-    let root = t.0.join("scene");
+    let t = TempDir::new("d3dgs-bad").expect("temp dir");
+    let root = t.path().join("scene");
     generated(&root, 3, 3);
     let cases: Vec<(Edit, &[&str])> = vec![
         (
@@ -185,11 +183,11 @@ fn bad_meta_files_get_one_line_naming_the_file_and_entry() {
 
 #[test]
 fn temporal_median_masks_agree_with_the_exact_masks() {
-    let t = TempDir::new("d3dgs-median");
-    let root = t.0.join("scene");
+    let t = TempDir::new("d3dgs-median").expect("temp dir");
+    let root = t.path().join("scene");
     generated(&root, 2, 24);
     // Keep the exact masks aside; without them the loader subtracts the median.
-    let exact_dir = t.0.join("exact");
+    let exact_dir = t.path().join("exact");
     std::fs::rename(root.join(MASKS_DIR).join("0"), &exact_dir).expect("moves");
     let data = Dataset::open(&root, DatasetOptions::default()).expect("opens");
     assert!(matches!(
@@ -217,14 +215,14 @@ fn temporal_median_masks_agree_with_the_exact_masks() {
     assert!(iou > 0.6, "IoU {iou:.3}");
     // A threshold of 255 finds nothing: the comparison measures the masks.
     let frame = decode_rgb8(&root.join("ims/0/000005.png")).expect("frame");
-    let none = maaf_train::data::median_mask::moving_mask(&frame, &frame, 0).expect("same size");
+    let none = maaf_data::median_mask::moving_mask(&frame, &frame, 0).expect("same size");
     assert!(none.iter().all(|&v| v == 0.0));
 }
 
 #[test]
 fn visual_hull_points_lie_on_the_movers() {
-    let t = TempDir::new("d3dgs-hull");
-    let root = t.0.join("scene");
+    let t = TempDir::new("d3dgs-hull").expect("temp dir");
+    let root = t.path().join("scene");
     generated_at(&root, 12, 4, 192, 128);
     let data = Dataset::open(&root, DatasetOptions::default()).expect("opens");
     let init = data
