@@ -24,12 +24,6 @@ impl<T: Float> Grads<T> {
             .and_then(|&id| self.by_node[id].as_ref())
     }
 
-    /// Removes and returns the gradient of parameter `name`.
-    pub fn take_param(&mut self, name: &str) -> Option<Tensor<T>> {
-        let id = *self.params.get(name)?;
-        self.by_node[id].take()
-    }
-
     /// Names of the parameters registered on the tape, sorted.
     pub fn param_names(&self) -> Vec<&str> {
         let mut names: Vec<&str> = self.params.keys().map(String::as_str).collect();

@@ -160,11 +160,6 @@ impl<T: Float> Tape<T> {
         self.inner.borrow().profile.clone()
     }
 
-    /// Whether validate mode is on.
-    pub fn validating(&self) -> bool {
-        self.inner.borrow().validate
-    }
-
     /// A named leaf that needs a gradient; read it back with [`Grads::param`].
     /// Panics if the name is already used on this tape.
     pub fn param(&self, name: &str, value: Tensor<T>) -> Var<'_, T> {

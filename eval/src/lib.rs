@@ -24,26 +24,27 @@ pub mod export;
 pub mod filter_agreement;
 pub mod flow;
 pub mod images;
+mod measure;
 pub mod metrics;
 pub mod popping;
 pub mod render;
 pub mod report;
+mod scales;
 mod sequence;
 pub mod temporal;
 
 use std::path::Path;
 use std::time::Instant;
 
-use maaf_autodiff::Tensor;
-use maaf_data::{Dataset, Image, Split};
+use maaf_data::{Dataset, Split};
 use maaf_filter::{FilterKind, FilterState};
 use maaf_lpips::{Lpips, Net};
+use maaf_scene::metrics::{ImageMetrics, mean_metrics};
 use maaf_scene::{ModelRegistry, TrainedScene};
-use rayon::prelude::*;
 
-use crate::metrics::regions::{RegionPsnr, region_psnr};
+use crate::measure::{evaluate_scale, metrics_csv};
 use crate::metrics::rings::RingErrors;
-use crate::metrics::{ImageMetrics, error_map, image_metrics, mean_metrics};
+use crate::scales::{checked_scales, strided_views};
 
 pub use eval_json::{
     EvalReport, PoppingResult, RegionSummary, ScaleResult, SkippedScale, TemporalResult,
@@ -51,6 +52,7 @@ pub use eval_json::{
 };
 pub use maaf_scene::{Error, write_atomic};
 pub use render::{load_scene_on, run_camera};
+pub use scales::check_eval_options;
 pub use sequence::{MAX_SEQUENCE_FRAMES, check_frame_count, frame_times};
 
 /// The paper's evaluation scales relative to the training scale: 1/4x, 1/2x (zoom-out),
@@ -94,306 +96,6 @@ impl Default for EvalOptions {
             lpips_net: Net::Alex,
         }
     }
-}
-
-/// One resolved evaluation scale: relative, source-relative, output size.
-#[derive(Clone, Copy, Debug)]
-struct ResolvedScale {
-    relative: f64,
-    source: f64,
-    width: u32,
-    height: u32,
-}
-
-/// Checks every scale against the data before anything is rendered: positive,
-/// finite and not repeated, else an error. A scale whose ground truth cannot be made
-/// (more pixels than the source images, or a downsampling factor that does not divide
-/// them) or cannot be scored (images smaller than the SSIM window) is skipped with its
-/// reason; an error only when every scale is.
-fn resolve_scales(
-    data: &Dataset,
-    split: Split,
-    train_scale: f64,
-    scales: &[f64],
-) -> Result<(Vec<ResolvedScale>, Vec<SkippedScale>), Error> {
-    if scales.is_empty() {
-        return Err(Error::Input("no evaluation scale given".into()));
-    }
-    let meta = data.split(split).map_err(|e| Error::Input(e.to_string()))?;
-    let (sw, sh) = (meta.width, meta.height);
-    let mut out: Vec<ResolvedScale> = Vec::new();
-    let mut skipped = Vec::new();
-    for (i, &s) in scales.iter().enumerate() {
-        if !(s.is_finite() && s > 0.0) {
-            return Err(Error::Input(format!(
-                "scale {s}: must be a positive number (relative to the training scale, e.g. 0.25,0.5,1,2,4)"
-            )));
-        }
-        if scales[..i].iter().any(|r| (r - s).abs() < 1e-9) {
-            return Err(Error::Input(format!("scale {s} is given twice")));
-        }
-        let source = train_scale * s;
-        let size = if source > 1.0 + 1e-9 {
-            Err(format!(
-                "needs {}x{} ground truth but the source images are {sw}x{sh} (training scale {}: at most {}x)",
-                (sw as f64 * source).round(),
-                (sh as f64 * source).round(),
-                trim_float(train_scale),
-                trim_float(1.0 / train_scale)
-            ))
-        } else {
-            data.size(split, source)
-                .map_err(|e| format!("source scale {}: {e}", trim_float(source)))
-                .and_then(|(w, h)| {
-                    let window = metrics::ssim_window::SSIM_WINDOW as u32;
-                    if w < window || h < window {
-                        Err(format!(
-                            "its {w}x{h} images are smaller than the {window}x{window} SSIM window"
-                        ))
-                    } else {
-                        Ok((w, h))
-                    }
-                })
-        };
-        match size {
-            Ok((width, height)) => out.push(ResolvedScale {
-                relative: s,
-                source,
-                width,
-                height,
-            }),
-            Err(reason) => skipped.push(SkippedScale { scale: s, reason }),
-        }
-    }
-    if out.is_empty() {
-        let why: Vec<String> = skipped
-            .iter()
-            .map(|k| format!("{}x {}", trim_float(k.scale), k.reason))
-            .collect();
-        return Err(Error::Input(format!(
-            "{}: none of the scales can be evaluated: {}",
-            data.root().display(),
-            why.join("; ")
-        )));
-    }
-    Ok((out, skipped))
-}
-
-/// Checks `options` against `data` for a run trained at `train_scale`, as an
-/// evaluation does before rendering anything: the split has views, `max_views` and
-/// `frame_stride` are at least 1, and every scale is valid and at least one can be
-/// evaluated ([`resolve_scales`]; the others are skipped).
-/// A caller that plans evaluations (a suite, before training its runs) calls it to
-/// refuse an evaluation that could never run.
-pub fn check_eval_options(
-    data: &Dataset,
-    train_scale: f64,
-    options: &EvalOptions,
-) -> Result<(), Error> {
-    checked_scales(data, train_scale, options).map(|_| ())
-}
-
-/// [`check_eval_options`], returning the resolved scales and the skipped ones.
-fn checked_scales(
-    data: &Dataset,
-    train_scale: f64,
-    options: &EvalOptions,
-) -> Result<(Vec<ResolvedScale>, Vec<SkippedScale>), Error> {
-    let split = options.split;
-    if data.len(split) == 0 {
-        return Err(Error::Input(format!(
-            "{}: the {split:?} split has no views",
-            data.root().display()
-        )));
-    }
-    if options.max_views == Some(0) {
-        return Err(Error::Input("--max-views must be at least 1".into()));
-    }
-    if options.frame_stride == 0 {
-        return Err(Error::Input("--frame-stride must be at least 1".into()));
-    }
-    resolve_scales(data, split, train_scale, &options.scales)
-}
-
-/// The views of `split` at every `stride`-th distinct time (ranked in time order),
-/// in split order, then at most `max` of them.
-fn strided_views(data: &Dataset, split: Split, stride: usize, max: Option<usize>) -> Vec<usize> {
-    let times = data.times(split);
-    let mut distinct = times.clone();
-    distinct.sort_by(f64::total_cmp);
-    distinct.dedup();
-    let mut out: Vec<usize> = (0..times.len())
-        .filter(|&i| {
-            distinct
-                .binary_search_by(|t| t.total_cmp(&times[i]))
-                .is_ok_and(|rank| rank % stride == 0)
-        })
-        .collect();
-    if let Some(n) = max {
-        out.truncate(n);
-    }
-    out
-}
-
-/// Per-view metrics of one scale (written as `RUN/eval/<scale>x/metrics.csv`).
-#[derive(Clone, Debug)]
-struct ViewResult {
-    index: usize,
-    time: f64,
-    metrics: ImageMetrics,
-    /// LPIPS of the view, or why there is none.
-    lpips: Result<f64, String>,
-    /// Wall seconds spent in LPIPS for this view.
-    lpips_seconds: f64,
-    /// PSNR by region, when the data set has the view's moving-object mask.
-    regions: Option<RegionPsnr>,
-    /// Squared error by distance from the silhouette, when the view has an alpha
-    /// coverage.
-    rings: Option<RingErrors>,
-}
-
-/// `metrics.csv` of one scale: `view,time,psnr,ssim,lpips`, one row per view (LPIPS
-/// empty where it was not computed).
-fn metrics_csv(views: &[ViewResult]) -> Result<Vec<u8>, Error> {
-    let bad = |e: String| Error::Input(format!("metrics.csv: {e}"));
-    let mut w = csv::Writer::from_writer(Vec::new());
-    w.write_record(["view", "time", "psnr", "ssim", "lpips"])
-        .map_err(|e| bad(e.to_string()))?;
-    for v in views {
-        let lpips = v
-            .lpips
-            .as_ref()
-            .map_or(String::new(), |l| format!("{l:.6}"));
-        w.write_record([
-            v.index.to_string(),
-            v.time.to_string(),
-            format!("{:.6}", v.metrics.psnr),
-            format!("{:.6}", v.metrics.ssim),
-            lpips,
-        ])
-        .map_err(|e| bad(e.to_string()))?;
-    }
-    w.into_inner().map_err(|e| bad(e.to_string()))
-}
-
-/// Renders, measures and (optionally) saves the views `indices` at one scale into `dir`.
-#[allow(clippy::too_many_arguments)]
-fn evaluate_scale(
-    scene: &TrainedScene,
-    data: &Dataset,
-    split: Split,
-    indices: &[usize],
-    scale: &ResolvedScale,
-    options: &EvalOptions,
-    lpips: &Result<Lpips, String>,
-    dir: &Path,
-) -> Result<Vec<ViewResult>, Error> {
-    let views = indices
-        .iter()
-        .map(|&i| data.view(split, i, scale.source))
-        .collect::<Result<Vec<_>, _>>()
-        .map_err(|e| Error::Input(e.to_string()))?;
-    let settings = eval_settings(scene, data);
-    // The model is not `Sync`: views are rendered one after the other (the renderer
-    // is parallel inside), then metrics and PNG encoding run in parallel over a
-    // chunk of views (bounded memory: one chunk of float images at a time).
-    let mut results = Vec::with_capacity(views.len());
-    for chunk in views.chunks(8) {
-        let rendered: Vec<Tensor<f32>> = chunk
-            .iter()
-            .map(|v| scene.render_with(&v.camera, v.time, &settings))
-            .collect();
-        let masks: Vec<Option<Image>> = chunk
-            .iter()
-            .map(|v| match split {
-                Split::Test => data.moving_mask(v.index, scale.source),
-                _ => Ok(None),
-            })
-            .collect::<Result<_, _>>()
-            .map_err(|e| Error::Input(e.to_string()))?;
-        let part: Vec<ViewResult> = chunk
-            .par_iter()
-            .zip(rendered.par_iter().zip(masks.par_iter()))
-            .map(|(v, (image, mask))| {
-                measure_view(v, image, mask.as_ref(), scale, options, lpips, dir)
-            })
-            .collect::<Result<_, _>>()?;
-        results.extend(part);
-    }
-    Ok(results)
-}
-
-/// Metrics of one rendered view (LPIPS when the model loaded), plus its PNGs when
-/// asked (render, error map and ground truth, for the report's pictures).
-fn measure_view(
-    v: &maaf_data::View,
-    image: &Tensor<f32>,
-    mask: Option<&Image>,
-    scale: &ResolvedScale,
-    options: &EvalOptions,
-    lpips: &Result<Lpips, String>,
-    dir: &Path,
-) -> Result<ViewResult, Error> {
-    let gt = v.image.to_tensor();
-    let metrics = image_metrics(image, &gt).map_err(|e| {
-        Error::Input(format!(
-            "view {} at scale {}: {e}",
-            v.index,
-            scale_label(scale.relative)
-        ))
-    })?;
-    let regions = mask
-        .map(|m| region_psnr(image, &gt, &m.data))
-        .transpose()
-        .map_err(|e| {
-            Error::Input(format!(
-                "view {} at scale {}: moving mask: {e}",
-                v.index,
-                scale_label(scale.relative)
-            ))
-        })?;
-    let rings = v
-        .coverage
-        .as_ref()
-        .map(|c| RingErrors::of_view(image, &gt, &c.data))
-        .transpose()
-        .map_err(|e| {
-            Error::Input(format!(
-                "view {} at scale {}: alpha coverage: {e}",
-                v.index,
-                scale_label(scale.relative)
-            ))
-        })?;
-    let start = Instant::now();
-    let lpips = match lpips {
-        Ok(model) => model.distance(image, &gt).map_err(|e| e.to_string()),
-        Err(reason) => Err(reason.clone()),
-    };
-    let lpips_seconds = start.elapsed().as_secs_f64();
-    if options.save_images {
-        let err = error_map(image, &gt).map_err(|e| Error::Input(e.to_string()))?;
-        images::save_png(
-            &images::to_rgb8(image)?,
-            &dir.join(format!("render_{:03}.png", v.index)),
-        )?;
-        images::save_png(
-            &images::error_to_rgb8(&err)?,
-            &dir.join(format!("error_{:03}.png", v.index)),
-        )?;
-        images::save_png(
-            &images::to_rgb8(&gt)?,
-            &dir.join(format!("gt_{:03}.png", v.index)),
-        )?;
-    }
-    Ok(ViewResult {
-        index: v.index,
-        time: v.time,
-        metrics,
-        lpips,
-        lpips_seconds,
-        regions,
-        rings,
-    })
 }
 
 /// Where [`evaluate_run`] writes the nu(t) traces of a motion-filter run

@@ -8,9 +8,9 @@ use maaf_data::downsample::{composite_premultiplied, premultiply};
 use maaf_data::synthetic::build_scene;
 use maaf_data::synthetic::render::{forward_flow, render_rgba};
 use maaf_data::synthetic::rig::{camera_at, video_position};
-use maaf_eval::metrics::ssim;
 use maaf_eval::metrics::temporal::{TemporalError, temporal_metrics, warp_error, warp_forward};
 use maaf_lpips::{Lpips, Net};
+use maaf_scene::metrics::ssim;
 
 /// A deterministic pseudo-random value on [0, 1] for integer coordinates (a hash), so
 /// that content entering the image is unrelated to what was there.

@@ -118,8 +118,9 @@ impl MotionCurves {
         t0 + (t1 - t0) * s as f32 / (self.grid_t - 1) as f32
     }
 
-    /// Nearest time bin of `t` (Alg. 1 line 11); no interpolation between bins, as
-    /// in the paper.
+    /// Nearest time bin `s* = argmin_s |g_t[s] - t|` of `t` (Alg. 1 line 11), clamped
+    /// to the grid; exact half-way ties go to the lower bin, as a first-index argmin
+    /// would. No interpolation between bins, as in the paper.
     pub fn bin_of(&self, t: f32) -> usize {
         let [t0, t1] = self.time_range;
         let pos = (t - t0) / (t1 - t0) * (self.grid_t - 1) as f32;
@@ -127,12 +128,6 @@ impl MotionCurves {
             return 0;
         }
         (((pos - 0.5).ceil()) as usize).min(self.grid_t - 1)
-    }
-
-    /// nu of every Gaussian at time `t` (nearest bin).
-    pub fn nu_at(&self, t: f32) -> Vec<f32> {
-        let s = self.bin_of(t);
-        (0..self.x_max.len()).map(|n| self.nu(n, s)).collect()
     }
 
     /// Bytes of state per Gaussian: `T` codes + `x_max` + fallback.
@@ -156,5 +151,31 @@ impl PerGaussian for MotionCurves {
         self.codes = codes;
         self.x_max.select_rows(index);
         self.fallback.select_rows(index);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bin_of_is_the_nearest_bin() {
+        let cfg = FilterConfig::default();
+        let curves = MotionCurves::from_codes(&cfg, vec![FALLBACK; cfg.grid_t], vec![1.0])
+            .expect("one observed Gaussian");
+        for i in 0..=1000 {
+            let t = i as f32 / 1000.0 * 1.2 - 0.1;
+            let s = curves.bin_of(t);
+            let tn = cfg.normalise_time(t);
+            let best = (0..cfg.grid_t)
+                .map(|s| ((s as f32 / 99.0 - tn).abs(), s))
+                .fold((f32::INFINITY, 0), |a, b| if b.0 < a.0 { b } else { a });
+            // Equal distance within f32 rounding may pick either neighbour.
+            let ds = (s as f32 / 99.0 - tn).abs();
+            assert!(
+                s == best.1 || (ds - best.0).abs() < 1e-6,
+                "t {t}: {s} vs {best:?}"
+            );
+        }
     }
 }

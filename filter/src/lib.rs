@@ -8,8 +8,8 @@
 //!   [`MotionEstimator::WindowMax`] (maaf's), the windowed maximum of f/d in the same
 //!   storage.
 //! * [`SamplingFilter`]: the filter as a trait (what computes a [`FilterState`]);
-//!   built in: [`NoFilter`], [`StaticFilter`], [`MotionKdeFilter`],
-//!   [`WindowMaxFilter`], by config name from [`FilterRegistry`].
+//!   built in: [`NoFilter`], [`StaticFilter`], [`MotionFilter`] (with either
+//!   estimator), by config name from [`FilterRegistry`].
 //! * [`FilterState::variance_at`]: the per-Gaussian variance `s3d / nu^2` that the
 //!   renderer's `apply_3d_filter` adds. Nothing here touches a tape.
 //! * [`reference::algorithm1`]: the literal, slow Algorithm 1 (test oracle).
@@ -75,8 +75,8 @@ pub use config::{FilterConfig, FilterError, FilterKind, MotionEstimator, Refresh
 pub use curves::{FALLBACK, MotionCurves};
 pub use export::{AnalysisExport, EstimatorCurve, GaussianTrace};
 pub use kernels::Kernels;
-pub use mip::{Viewer, static_nu, variance_from_nu};
-pub use motion::{MotionKdeFilter, WindowMaxFilter};
+pub use mip::{Viewer, static_nu};
+pub use motion::MotionFilter;
 pub use observations::{CameraTime, ObservationTable, observed_frames};
 pub use registry::{FilterConstructor, FilterRegistry};
 pub use sampling::{FilterInputs, NoFilter, SamplingFilter, StaticFilter};

@@ -130,12 +130,6 @@ pub(crate) fn fill_unseen(nu: &mut [f32]) -> Result<(), FilterError> {
     Ok(())
 }
 
-/// The 3D filter variance `s3d / nu^2` (world units squared) per Gaussian, the
-/// input of the renderer's `apply_3d_filter` (docs/conventions.md).
-pub fn variance_from_nu(nu: &[f32], s3d: f32) -> Vec<f32> {
-    nu.iter().map(|&n| s3d / (n * n)).collect()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -175,7 +169,11 @@ mod tests {
         // Gaussian 0: max(100/2, 300/4) = 75; Gaussian 1: max(100/3, 300/5) = 60;
         // Gaussian 2 is off-screen everywhere: smallest seen = 60.
         assert_eq!(nu, vec![75.0, 60.0, 60.0]);
-        let var = variance_from_nu(&nu, cfg.s3d);
+        let var = crate::FilterState::Mip3d {
+            s3d: cfg.s3d,
+            nu: nu.clone(),
+        }
+        .variance_at(0.0);
         assert!((var[0] - 0.2 / 5625.0).abs() < 1e-12);
         let err = static_nu(&[[50.0, 0.0, 0.0]], &cams, &cfg).expect_err("unseen");
         assert!(matches!(err, FilterError::NothingVisible));

@@ -1,7 +1,7 @@
 //! The motion-aware filter's refresh: nu_k(t) from the recorded observations by the
 //! configured estimator, the paper's KDE (`kde.rs`) or maaf's windowed maximum
-//! (`window_max.rs`), stored as [`MotionCurves`] (`curves.rs`); and the two
-//! [`SamplingFilter`]s that use it.
+//! (`window_max.rs`), stored as [`MotionCurves`] (`curves.rs`); and the
+//! [`SamplingFilter`] that uses it, [`MotionFilter`].
 
 use crate::config::{FilterConfig, FilterError, MotionEstimator};
 use crate::curves::MotionCurves;
@@ -26,65 +26,40 @@ impl MotionCurves {
     }
 }
 
-/// The paper's motion-aware filter (`filter.kind = "motion"`, `estimator = "kde"`):
-/// nu_k(t) by the KDE of Algorithm 1 over the recorded observations.
-#[derive(Clone, Copy, Debug, Default)]
-pub struct MotionKdeFilter;
+/// The motion-aware filter: nu_k(t) from the recorded observations by its
+/// estimator, the paper's KDE of Algorithm 1 (`filter.kind = "motion"`, registered as
+/// `motion`) or maaf's windowed maximum, the largest f/d observed within `h_t` of t
+/// (`estimator = "window_max"`, registered as `window_max`; `window_max.rs`).
+#[derive(Clone, Copy, Debug)]
+pub struct MotionFilter(pub MotionEstimator);
 
-/// maaf's windowed maximum (`filter.kind = "motion"`, `estimator = "window_max"`):
-/// nu_k(t) = the largest f/d observed within `h_t` of t (`window_max.rs`).
-#[derive(Clone, Copy, Debug, Default)]
-pub struct WindowMaxFilter;
-
-/// The motion filter's state from the trainer's observations by `estimator`.
-fn motion_state(
-    inputs: &dyn FilterInputs,
-    cfg: &FilterConfig,
-    estimator: MotionEstimator,
-) -> Result<FilterState, FilterError> {
-    let cfg = FilterConfig {
-        estimator,
-        ..cfg.clone()
-    };
-    let curves = MotionCurves::refresh(inputs.observations(), &cfg)?;
-    Ok(FilterState::Motion {
-        s3d: cfg.s3d,
-        curves,
-    })
-}
-
-impl SamplingFilter for MotionKdeFilter {
+impl SamplingFilter for MotionFilter {
     fn name(&self) -> &str {
-        "motion"
+        match self.0 {
+            MotionEstimator::Kde => "motion",
+            MotionEstimator::WindowMax => "window_max",
+        }
     }
 
     fn observes(&self) -> bool {
         true
     }
 
+    /// The curves of the observations by this filter's estimator, whatever
+    /// `cfg.estimator` says.
     fn compute(
         &self,
         inputs: &dyn FilterInputs,
         cfg: &FilterConfig,
     ) -> Result<FilterState, FilterError> {
-        motion_state(inputs, cfg, MotionEstimator::Kde)
-    }
-}
-
-impl SamplingFilter for WindowMaxFilter {
-    fn name(&self) -> &str {
-        "window_max"
-    }
-
-    fn observes(&self) -> bool {
-        true
-    }
-
-    fn compute(
-        &self,
-        inputs: &dyn FilterInputs,
-        cfg: &FilterConfig,
-    ) -> Result<FilterState, FilterError> {
-        motion_state(inputs, cfg, MotionEstimator::WindowMax)
+        let cfg = FilterConfig {
+            estimator: self.0,
+            ..cfg.clone()
+        };
+        let curves = MotionCurves::refresh(inputs.observations(), &cfg)?;
+        Ok(FilterState::Motion {
+            s3d: cfg.s3d,
+            curves,
+        })
     }
 }

@@ -4,8 +4,8 @@
 
 use std::sync::Arc;
 
-use crate::config::{FilterConfig, FilterError};
-use crate::motion::{MotionKdeFilter, WindowMaxFilter};
+use crate::config::{FilterConfig, FilterError, MotionEstimator};
+use crate::motion::MotionFilter;
 use crate::sampling::{NoFilter, SamplingFilter, StaticFilter};
 
 /// Builds a filter from the run's filter config.
@@ -37,10 +37,14 @@ impl FilterRegistry {
             .push(("none".into(), Arc::new(|_| Box::new(NoFilter))));
         r.entries
             .push(("mip3d".into(), Arc::new(|_| Box::new(StaticFilter))));
-        r.entries
-            .push(("motion".into(), Arc::new(|_| Box::new(MotionKdeFilter))));
-        r.entries
-            .push(("window_max".into(), Arc::new(|_| Box::new(WindowMaxFilter))));
+        r.entries.push((
+            "motion".into(),
+            Arc::new(|_| Box::new(MotionFilter(MotionEstimator::Kde))),
+        ));
+        r.entries.push((
+            "window_max".into(),
+            Arc::new(|_| Box::new(MotionFilter(MotionEstimator::WindowMax))),
+        ));
         r
     }
 
@@ -100,7 +104,7 @@ impl FilterRegistry {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::{FilterKind, MotionEstimator};
+    use crate::config::FilterKind;
 
     #[test]
     fn the_config_selects_each_builtin_by_name() {

@@ -1,8 +1,7 @@
 //! The sampling-rate filter as a trait: what turns the training cameras, the
 //! canonical centres and the recorded observations into a [`FilterState`]. The
 //! built-in implementations are [`NoFilter`], [`StaticFilter`] (this file) and the
-//! motion-aware [`crate::MotionKdeFilter`] / [`crate::WindowMaxFilter`]
-//! (`motion.rs`); [`crate::FilterRegistry`] builds one by its config name. A user's
+//! motion-aware [`crate::MotionFilter`] with either estimator (`motion.rs`); [`crate::FilterRegistry`] builds one by its config name. A user's
 //! filter implements [`SamplingFilter`] and returns one of the states the renderer
 //! already folds (a static nu per Gaussian, or curves nu(t)).
 

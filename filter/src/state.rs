@@ -33,6 +33,12 @@ pub enum FilterState {
     },
 }
 
+/// The 3D filter variance `s3d / nu^2` (world units squared) of a sampling rate `nu`:
+/// what `apply_3d_filter` adds to a Gaussian's covariance (docs/conventions.md).
+fn variance(s3d: f32, nu: f32) -> f32 {
+    s3d / (nu * nu)
+}
+
 impl FilterState {
     /// Which filter this is.
     pub fn kind(&self) -> FilterKind {
@@ -50,14 +56,11 @@ impl FilterState {
     pub fn variance_at(&self, t: f32) -> Vec<f32> {
         match self {
             FilterState::None { rows } => vec![0.0; *rows],
-            FilterState::Mip3d { s3d, nu } => nu.iter().map(|&n| s3d / (n * n)).collect(),
+            FilterState::Mip3d { s3d, nu } => nu.iter().map(|&n| variance(*s3d, n)).collect(),
             FilterState::Motion { s3d, curves } => {
                 let s = curves.bin_of(t);
                 (0..curves.rows())
-                    .map(|n| {
-                        let nu = curves.nu(n, s);
-                        s3d / (nu * nu)
-                    })
+                    .map(|n| variance(*s3d, curves.nu(n, s)))
                     .collect()
             }
         }
@@ -74,7 +77,7 @@ impl FilterState {
                     let nu = (0..curves.grid_t())
                         .map(|s| curves.nu(n, s))
                         .fold(f32::INFINITY, f32::min);
-                    s3d / (nu * nu)
+                    variance(*s3d, nu)
                 })
                 .collect(),
             FilterState::None { .. } | FilterState::Mip3d { .. } => self.variance_at(0.0),

@@ -20,7 +20,8 @@
 //! ([`remove_dead_temps`]). [`lock`] keeps one writer per run folder; [`memory`]
 //! checks a user-sized allocation against the memory available before it is made;
 //! [`process`] tells whether a temporary's owner still runs and ties child processes
-//! to their parent.
+//! to their parent. [`TempDir`] is the scratch folder the tests of every crate write
+//! into.
 
 use std::fs::{self, File};
 use std::io::{self, Write};
@@ -32,11 +33,13 @@ pub mod lock;
 pub mod memory;
 mod name;
 pub mod process;
+mod scratch;
 
 pub use dir::{readable_dir, recover_dir, recover_parked_in, replace_dir, write_dir};
 use fault::Step;
 pub use lock::{LockError, RunLock};
 pub use name::{is_plugin_name, unknown_name};
+pub use scratch::TempDir;
 
 /// Marker every temporary name contains (`.NAME.maaf-tmp-PID`).
 pub const TEMP_MARK: &str = ".maaf-tmp-";

@@ -12,6 +12,11 @@
 //! [`TrainedScene::render`] draws any camera at any time through the training
 //! pipeline ([`crate::forward::forward`]). Evaluation, rendering and export work on
 //! this type; a trainer becomes one with `maaf_train::trainer::Trainer::into_scene`.
+//!
+//! What the trainer and evaluation share about a run besides the scene: the data set
+//! it was trained on ([`run_data`]: `RUN/data.json`, checked before a resume or an
+//! evaluation) and the image metrics a render is scored with ([`metrics`]: PSNR,
+//! SSIM).
 //! `docs/architecture.md` says where this crate sits.
 
 pub mod backdrop;
@@ -21,9 +26,11 @@ pub mod config;
 mod error;
 pub mod forward;
 mod init;
+pub mod metrics;
 mod observed;
 mod record;
 mod registry;
+pub mod run_data;
 mod run_dir;
 mod term_name;
 mod timings;

@@ -7,8 +7,8 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use maaf_autodiff::Tensor;
-use maaf_eval::metrics::{psnr, ssim};
 use maaf_lpips::{Lpips, Net};
+use maaf_scene::metrics::{psnr, ssim};
 use maaf_train::data::downsample::{composite_premultiplied, premultiply};
 use maaf_train::data::image::decode_rgba;
 use serde_json::json;

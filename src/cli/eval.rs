@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::bail;
-use maaf_eval::render::recorded_data;
+use maaf_scene::run_data::recorded_data;
 use maaf_scene::{ModelRegistry, SceneRecord, TrainedScene};
 use maaf_train::data::{Dataset, DatasetOptions, Split};
 

@@ -3,9 +3,9 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
-use maaf_eval::metrics::psnr;
-use maaf_eval::render::recorded_data;
 use maaf_filter::{FilterConfig, FilterKind, MotionEstimator};
+use maaf_scene::metrics::psnr;
+use maaf_scene::run_data::recorded_data;
 use maaf_scene::{TrainConfig, TrainedScene, WallBudget};
 use maaf_train::Plugins;
 use maaf_train::data::{Dataset, DatasetOptions, Split};

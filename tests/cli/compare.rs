@@ -68,8 +68,8 @@ fn tensor(name: &str) -> maaf::autodiff::Tensor<f32> {
 fn json_output_has_the_eval_psnr_ssim_and_the_reference_lpips() {
     let v = compare_json("blur_a.png", "blur_b.png", &[], None);
     let (ta, tb) = (tensor("blur_a.png"), tensor("blur_b.png"));
-    let psnr = maaf::eval::metrics::psnr(&ta, &tb).expect("psnr");
-    let ssim = maaf::eval::metrics::ssim(&ta, &tb).expect("ssim");
+    let psnr = maaf::scene::metrics::psnr(&ta, &tb).expect("psnr");
+    let ssim = maaf::scene::metrics::ssim(&ta, &tb).expect("ssim");
     assert!(
         (v["psnr"].as_f64().expect("psnr") - psnr).abs() < 1e-9,
         "{v}"

@@ -45,7 +45,7 @@ fn a_run_renders_exports_and_evaluates_after_its_data_folder_moved() {
     };
     let scored = scales_of(&run);
 
-    let recorded = maaf::eval::render::recorded_data(&run)
+    let recorded = maaf::scene::run_data::recorded_data(&run)
         .expect("data.json")
         .expect("recorded")
         .root;

@@ -1,8 +1,9 @@
 //! maaf-train: the training loop, the objective's terms, the step benchmark and
 //! sweeps, on the data sets of `maaf-data` and the representations of `maaf-models`
 //! (re-exported as [`data`] and [`models`], the types the trainer's API takes). What a
-//! trained run is (`maaf-scene`: `TrainConfig`, `TrainedScene`) and its evaluation
-//! (`maaf-eval`) live below it, each type at its one path there.
+//! trained run is (`maaf-scene`: `TrainConfig`, `TrainedScene`, the run's data
+//! fingerprint, the image metrics of its validation) lives below it, each type at its
+//! one path there; evaluation (`maaf-eval`) is a sibling the trainer never uses.
 //! `docs/architecture.md` says how the modules fit and where things plug in.
 
 pub mod bench;

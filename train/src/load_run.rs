@@ -1,12 +1,12 @@
 //! Loading a trained run back into a [`Trainer`] on its data set, for what continues
 //! stepping it (`maaf bench`); evaluation and rendering load a
-//! [`maaf_scene::TrainedScene`] instead ([`maaf_eval::load_scene_on`]).
+//! [`maaf_scene::TrainedScene`] instead (`maaf_eval::load_scene_on`).
 
 use std::path::Path;
 
 use maaf_data::{Dataset, Split};
-use maaf_eval::render::{DataFingerprint, recorded_data};
 use maaf_scene::model_dir;
+use maaf_scene::run_data::{DataFingerprint, recorded_data};
 
 use crate::trainer::{Trainer, load_checkpoint_with_plugins};
 use crate::{Error, Plugins};

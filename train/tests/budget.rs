@@ -4,11 +4,9 @@
 //! and the run ends in the neighbourhood of its budget. The figure itself (how near, on real scenes) is a benchmark
 //! (docs/results/budget.md); the bound here is loose, for a loaded test machine.
 
-mod common;
-
 use std::time::Instant;
 
-use common::TempDir;
+use maaf_io::TempDir;
 use maaf_scene::TrainConfig;
 use maaf_train::budget::BudgetPlan;
 use maaf_train::data::synthetic::{GenerateOptions, generate};
@@ -17,8 +15,8 @@ use maaf_train::trainer::{BUDGET_FILE, train_run};
 
 #[test]
 fn a_budgeted_run_records_its_plan_and_ends_near_its_budget() {
-    let t = TempDir::new("budget");
-    let root = t.0.join("scene");
+    let t = TempDir::new("budget").expect("temp dir");
+    let root = t.path().join("scene");
     let opts = GenerateOptions {
         size: 64,
         frames: Some(6),
@@ -38,7 +36,7 @@ fn a_budgeted_run_records_its_plan_and_ends_near_its_budget() {
         ..TrainConfig::default()
     };
     config.densify.max_gaussians = 4000;
-    let run = t.0.join("run");
+    let run = t.path().join("run");
     let start = Instant::now();
     let summary = train_run(&data, config.clone(), &run, false).expect("trains");
     let wall = start.elapsed().as_secs_f64();

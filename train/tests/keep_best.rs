@@ -3,11 +3,9 @@
 //! chooses exactly what an uninterrupted run does, and a data set without validation
 //! views is refused (its test views would both choose and measure the model).
 
-mod common;
-
 use std::path::Path;
 
-use common::TempDir;
+use maaf_io::TempDir;
 use maaf_scene::TrainConfig;
 use maaf_train::data::synthetic::{
     GenerateOptions, MultiviewOptions, generate, generate_dynamic3dgs,
@@ -86,9 +84,9 @@ fn bytes(dir: &Path) -> Vec<u8> {
 
 #[test]
 fn the_model_is_the_state_with_the_best_validation_and_the_last_is_kept() {
-    let t = TempDir::new("keep-best");
-    let data = scene(&t.0.join("scene"));
-    let run = t.0.join("run");
+    let t = TempDir::new("keep-best").expect("temp dir");
+    let data = scene(&t.path().join("scene"));
+    let run = t.path().join("run");
     let summary = train_run(&data, config(60), &run, false).expect("trains");
 
     let vals = validations(&run);
@@ -121,7 +119,7 @@ fn the_model_is_the_state_with_the_best_validation_and_the_last_is_kept() {
 
     // Killed after its last validation, before its final save: a resume from the
     // checkpoint at 45 replays to the same choice and the same last state.
-    let cut = t.0.join("cut");
+    let cut = t.path().join("cut");
     copy_dir(&run, &cut);
     for gone in ["model", "summary.json", "checkpoints/iter_000060"] {
         let path = cut.join(gone);
@@ -148,8 +146,8 @@ fn the_model_is_the_state_with_the_best_validation_and_the_last_is_kept() {
 
 #[test]
 fn keep_best_is_refused_without_validation_views_or_validations() {
-    let t = TempDir::new("keep-best-refused");
-    let root = t.0.join("video");
+    let t = TempDir::new("keep-best-refused").expect("temp dir");
+    let root = t.path().join("video");
     let opts = MultiviewOptions {
         scene: "approach".into(),
         width: 48,
@@ -162,7 +160,7 @@ fn keep_best_is_refused_without_validation_views_or_validations() {
     };
     generate_dynamic3dgs(&root, &opts, &mut |_, _| {}).expect("generates");
     let data = Dataset::open(&root, DatasetOptions::default()).expect("opens");
-    let err = train_run(&data, config(10), &t.0.join("run"), false)
+    let err = train_run(&data, config(10), &t.path().join("run"), false)
         .expect_err("no validation views")
         .to_string();
     assert!(

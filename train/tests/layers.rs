@@ -7,12 +7,10 @@
 //! rectangle of the whole view; the colour correction is learned and saved; a
 //! `val_meta.json` gives a validation split.
 
-mod common;
-
 use std::path::Path;
 
-use common::TempDir;
 use maaf_autodiff::{Tape, Tensor};
+use maaf_io::TempDir;
 use maaf_scene::forward::forward;
 use maaf_scene::{LossRegion, ModelRegistry, TrainConfig, TrainedScene};
 use maaf_splat::{RenderSettings, Window};
@@ -61,8 +59,8 @@ fn layered_config(iterations: usize) -> TrainConfig {
 
 #[test]
 fn a_layered_run_trains_its_layer_first_and_renders_over_it() {
-    let t = TempDir::new("layers");
-    let (root, run) = (t.0.join("scene"), t.0.join("run"));
+    let t = TempDir::new("layers").expect("temp dir");
+    let (root, run) = (t.path().join("scene"), t.path().join("run"));
     generated(&root);
     let data = Dataset::open(&root, DatasetOptions::default()).expect("opens");
     train_run(&data, layered_config(12), &run, false).expect("trains");
@@ -164,8 +162,8 @@ fn a_layered_run_trains_its_layer_first_and_renders_over_it() {
 
 #[test]
 fn a_val_meta_file_gives_a_validation_split() {
-    let t = TempDir::new("layers-val");
-    let root = t.0.join("scene");
+    let t = TempDir::new("layers-val").expect("temp dir");
+    let root = t.path().join("scene");
     generated(&root);
     std::fs::copy(root.join("test_meta.json"), root.join("val_meta.json")).expect("copies");
     let data = Dataset::open(&root, DatasetOptions::default()).expect("opens");
@@ -179,8 +177,8 @@ fn a_val_meta_file_gives_a_validation_split() {
 
 #[test]
 fn loss_regions_need_training_masks() {
-    let t = TempDir::new("layers-masks");
-    let root = t.0.join("scene");
+    let t = TempDir::new("layers-masks").expect("temp dir");
+    let root = t.path().join("scene");
     generated(&root);
     std::fs::remove_dir_all(root.join("seg")).expect("drops the masks");
     let data = Dataset::open(&root, DatasetOptions::default()).expect("opens");
@@ -188,7 +186,7 @@ fn loss_regions_need_training_masks() {
         loss_region: LossRegion::Background,
         ..layered_config(5)
     };
-    let err = match train_run(&data, config, &t.0.join("run"), false) {
+    let err = match train_run(&data, config, &t.path().join("run"), false) {
         Ok(_) => panic!("trained without masks"),
         Err(e) => e.to_string(),
     };

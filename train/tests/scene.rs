@@ -5,10 +5,9 @@
 //! unregistered representation is refused with one line naming the run, the name and
 //! what is registered.
 
-use std::path::PathBuf;
-
 use maaf_autodiff::Tensor;
 use maaf_filter::FilterKind;
+use maaf_io::TempDir;
 use maaf_scene::TrainConfig;
 use maaf_scene::forward::forward;
 use maaf_scene::{ModelRegistry, TrainedScene};
@@ -16,14 +15,6 @@ use maaf_train::data::synthetic::{self, GenerateOptions};
 use maaf_train::data::{Background, Dataset, DatasetOptions, Split, WHITE};
 use maaf_train::models::ModelConfig;
 use maaf_train::trainer::{Trainer, save_checkpoint};
-
-struct TempDir(PathBuf);
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
 
 /// 25 iterations of `kind` with `filter` (refreshed at 10 and 20, dynamic from 10).
 fn config(kind: &str, filter: FilterKind) -> TrainConfig {
@@ -71,9 +62,8 @@ fn bits(t: &Tensor<f32>) -> Vec<u32> {
 
 #[test]
 fn a_loaded_scene_renders_bit_identically_to_its_trainer() {
-    let tmp = TempDir(std::env::temp_dir().join(format!("maaf_scene_{}", std::process::id())));
-    std::fs::create_dir_all(&tmp.0).expect("temp dir");
-    let data_dir = tmp.0.join("data");
+    let tmp = TempDir::new("scene").expect("temp dir");
+    let data_dir = tmp.path().join("data");
     let opts = GenerateOptions {
         size: 64,
         frames: Some(6),
@@ -93,7 +83,7 @@ fn a_loaded_scene_renders_bit_identically_to_its_trainer() {
         for _ in 0..25 {
             trainer.step();
         }
-        let dir = tmp.0.join(kind).join("model");
+        let dir = tmp.path().join(kind).join("model");
         save_checkpoint(&trainer, &dir).expect("save");
         // The data folder is not read: the scene comes from the checkpoint alone.
         let scene = TrainedScene::from_checkpoint(&dir, &ModelRegistry::builtin(), None)
@@ -126,7 +116,7 @@ fn a_loaded_scene_renders_bit_identically_to_its_trainer() {
     // A representation nobody registered: one line naming the run, the name and the
     // registered ones.
     let err = TrainedScene::from_checkpoint(
-        &tmp.0.join("saro").join("model"),
+        &tmp.path().join("saro").join("model"),
         &ModelRegistry::empty(),
         None,
     )
@@ -145,10 +135,11 @@ fn a_loaded_scene_renders_bit_identically_to_its_trainer() {
     deform_only.register("deform", |c, init| {
         maaf_train::models::build_model(&c.model, init)
     });
-    let err = TrainedScene::from_checkpoint(&tmp.0.join("saro").join("model"), &deform_only, None)
-        .err()
-        .expect("refused")
-        .to_string();
+    let err =
+        TrainedScene::from_checkpoint(&tmp.path().join("saro").join("model"), &deform_only, None)
+            .err()
+            .expect("refused")
+            .to_string();
     assert!(err.contains("(registered: deform)"), "{err}");
 
     // A trainer refuses a data set opened on another background than its config's;
@@ -168,7 +159,7 @@ fn a_loaded_scene_renders_bit_identically_to_its_trainer() {
         ..config("saro", FilterKind::None)
     };
     let trainer = Trainer::new(&white, on_white).expect("trainer");
-    let dir = tmp.0.join("white").join("model");
+    let dir = tmp.path().join("white").join("model");
     save_checkpoint(&trainer, &dir).expect("save");
     let state = dir.join("state.json");
     let mut json: serde_json::Value =

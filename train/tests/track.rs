@@ -6,13 +6,11 @@
 //! uninterrupted one, and a checkpoint loads without the data set and renders as its
 //! trainer.
 
-mod common;
-
 use std::path::Path;
 
-use common::TempDir;
 use glam::DVec3;
 use maaf_filter::FilterKind;
+use maaf_io::TempDir;
 use maaf_scene::{ModelRegistry, TrainConfig, TrainedScene};
 use maaf_train::data::synthetic::scene::Shape;
 use maaf_train::data::synthetic::{MultiviewOptions, build_scene, generate_multiview};
@@ -70,8 +68,8 @@ fn config(iterations: usize, share: f64, filter: FilterKind) -> TrainConfig {
 
 #[test]
 fn each_iteration_trains_on_its_frame_and_meets_every_camera_once_a_pass() {
-    let t = TempDir::new("track-views");
-    let data = glide(&t.0.join("glide"));
+    let t = TempDir::new("track-views").expect("temp dir");
+    let data = glide(&t.path().join("glide"));
     let trainer = Trainer::new(&data, config(200, 0.1, FilterKind::None)).expect("trainer");
     // Frame 0 takes 20 iterations, each later frame 20.
     let times = data.times(maaf_train::data::Split::Train);
@@ -100,8 +98,8 @@ fn mean(rows: &[usize], f: impl Fn(usize) -> DVec3) -> Option<DVec3> {
 
 #[test]
 fn gaussians_follow_the_movers_and_static_ones_stay() {
-    let t = TempDir::new("track-follow");
-    let data = glide(&t.0.join("glide"));
+    let t = TempDir::new("track-follow").expect("temp dir");
+    let data = glide(&t.path().join("glide"));
     let mut trainer = Trainer::new(&data, config(600, 0.4, FilterKind::None)).expect("trainer");
     for _ in 0..600 {
         trainer.step();
@@ -195,8 +193,8 @@ fn state(t: &Trainer) -> Vec<(String, Vec<u32>)> {
 
 #[test]
 fn a_resumed_run_is_bit_identical_and_a_loaded_one_renders_as_its_trainer() {
-    let t = TempDir::new("track-resume");
-    let data = glide(&t.0.join("glide"));
+    let t = TempDir::new("track-resume").expect("temp dir");
+    let data = glide(&t.path().join("glide"));
     // Frame 0 takes iterations 1..=20, frame 1 21..=23, frame 2 24..=26, frames 3-9 two
     // each; the motion filter observes every frame.
     let cfg = config(40, 0.5, FilterKind::Motion);
@@ -212,7 +210,7 @@ fn a_resumed_run_is_bit_identical_and_a_loaded_one_renders_as_its_trainer() {
         for _ in 0..stop {
             first.step();
         }
-        let dir = t.0.join(format!("iter_{stop}"));
+        let dir = t.path().join(format!("iter_{stop}"));
         save_checkpoint(&first, &dir).expect("checkpoint");
         let scene = TrainedScene::from_checkpoint(&dir, &ModelRegistry::builtin(), None)
             .expect("loads without the data set");

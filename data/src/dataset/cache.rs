@@ -1,7 +1,7 @@
-//! The image cache of [`Dataset`]: decoding each view once, box-downsampling it to every
-//! requested factor (premultiplied, then composited on the background; the alpha kept as
-//! the view's coverage when the source has any transparency) in parallel, and handing
-//! out cached views.
+//! The views of a [`Dataset`] and their image cache: decoding each view once,
+//! box-downsampling it to every requested factor (premultiplied, then composited on the
+//! background; the alpha kept as the view's coverage when the source has any
+//! transparency) in parallel, and handing out cached views.
 
 use std::sync::Arc;
 
@@ -12,6 +12,64 @@ use crate::dnerf::Split;
 use crate::downsample::{box_downsample, composite_premultiplied, premultiply};
 use crate::error::DataError;
 use crate::image::{Image, decode_rgba};
+
+impl Dataset {
+    /// One view at `scale`; decodes its image only if this (view, scale) is not cached.
+    pub fn view(&self, split: Split, index: usize, scale: f64) -> Result<View, DataError> {
+        let k = self.factor(split, scale)?;
+        self.load(split, &[index], &[k])?;
+        self.cached_view(split, index, k)
+    }
+
+    /// All views of a split at `scale` (decoded in parallel on first use, then cached).
+    pub fn views(&self, split: Split, scale: f64) -> Result<Vec<View>, DataError> {
+        let k = self.factor(split, scale)?;
+        let all: Vec<usize> = (0..self.len(split)).collect();
+        self.load(split, &all, &[k])?;
+        all.into_iter()
+            .map(|i| self.cached_view(split, i, k))
+            .collect()
+    }
+
+    /// Training views at `scale`.
+    pub fn train_views(&self, scale: f64) -> Result<Vec<View>, DataError> {
+        self.views(Split::Train, scale)
+    }
+
+    /// Test views at `scale`.
+    pub fn test_views(&self, scale: f64) -> Result<Vec<View>, DataError> {
+        self.views(Split::Test, scale)
+    }
+
+    /// Decodes the views `indices` of `split` once each and fills the cache for all
+    /// `scales` at once (the multi-scale evaluation asks for several scales of the same
+    /// test images).
+    pub fn preload(
+        &self,
+        split: Split,
+        indices: &[usize],
+        scales: &[f64],
+    ) -> Result<(), DataError> {
+        let ks = scales
+            .iter()
+            .map(|&s| self.factor(split, s))
+            .collect::<Result<Vec<u32>, _>>()?;
+        self.load(split, indices, &ks)
+    }
+
+    /// Drops every cached image of `split` (the trainer keeps its own copy of the
+    /// training images; a later request decodes them again).
+    pub fn evict(&self, split: Split) {
+        if let Ok(mut cache) = self.cache.lock() {
+            cache.retain(|(s, _, _), _| *s != split);
+        }
+    }
+
+    /// Number of (view, scale) images currently cached.
+    pub fn cached_images(&self) -> usize {
+        self.cache.lock().map_or(0, |c| c.len())
+    }
+}
 
 impl Dataset {
     /// The cached image of view `index` at factor `k` as a [`View`] with its camera

@@ -15,9 +15,16 @@
 //! fy, cx, cy all divided by `k`; with pixel centres at `x + 0.5`, source pixel centre
 //! `u` maps to `u / k` exactly). Scales above 1 (zoom-in beyond the source) have no
 //! ground truth and are refused.
+//!
+//! This file holds the type and what it says of its splits; opening a folder is
+//! `open.rs`, the views and their cache `cache.rs`, the test views' moving masks and
+//! the training views' foreground masks `masks.rs`, and the points a run starts from
+//! `initial_cloud.rs`.
 
 mod cache;
+mod initial_cloud;
 mod masks;
+mod open;
 
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
@@ -25,17 +32,16 @@ use std::sync::{Arc, Mutex};
 
 use maaf_splat::Camera;
 
-use super::bounds::{Aabb, bounds_from_cameras};
-use super::dnerf::{Split, SplitMeta, read_split};
-use super::dynamic3dgs::{TRAIN_META, read_dynamic3dgs};
+use super::bounds::Aabb;
+use super::dnerf::{Split, SplitMeta};
 use super::error::DataError;
 use super::flow::{downsample_flow, read_flow};
 use super::image::Image;
 use super::median_mask::Rgb8;
-use super::n3dv::{POSES_BOUNDS, read_plenoptic};
-use super::points::{POINTS_FILE, read_points};
-use super::visual_hull::{HullOptions, HullStep, HullView, hull_cloud};
-use crate::{Background, PointCloud};
+use crate::Background;
+
+pub use initial_cloud::InitialCloud;
+pub use masks::MaskSource;
 
 /// Options for [`Dataset::open`].
 #[derive(Clone, Debug, PartialEq)]
@@ -91,35 +97,6 @@ pub enum Format {
     Dynamic3dgs,
 }
 
-/// The points a run starts from ([`Dataset::initial_cloud`]).
-#[derive(Clone, Debug)]
-pub struct InitialCloud {
-    /// The points.
-    pub cloud: PointCloud,
-    /// How many of them (the first ones) lie on visual hulls; 0 for a shipped cloud.
-    pub hull_points: usize,
-    /// One line saying where the points come from.
-    pub description: String,
-    /// One line to print as a warning: the visual hull put no point into the cloud.
-    pub warning: Option<String>,
-}
-
-/// Where the moving-pixel masks of the `test` views come from.
-#[derive(Clone, Debug, Default)]
-pub enum MaskSource {
-    /// The data set has none.
-    #[default]
-    None,
-    /// One coverage file per test view (8-bit grey, `None` where a view has none).
-    Files(Vec<Option<PathBuf>>),
-    /// Background subtraction against each test camera's temporal median
-    /// ([`super::median_mask`]); `camera[i]` is the camera group of test view `i`.
-    TemporalMedian {
-        /// Camera group of every test view.
-        camera: Vec<usize>,
-    },
-}
-
 /// A data set (D-NeRF or Plenoptic Video): parsed metadata of its splits plus a
 /// per-scale image cache.
 #[derive(Debug)]
@@ -166,203 +143,6 @@ pub fn scale_factor(scale: f64, width: u32, height: u32) -> Result<u32, String> 
 }
 
 impl Dataset {
-    /// Opens a data folder. A folder with `transforms_train.json` is D-NeRF: it reads
-    /// `transforms_train.json` and `transforms_test.json` (required),
-    /// `transforms_val.json` and `transforms_video.json` (optional; skipped when absent,
-    /// checked when present). Otherwise a folder with `poses_bounds.npy` is Plenoptic
-    /// Video ([`read_plenoptic`]), and one with `train_meta.json` the Dynamic 3D
-    /// Gaussians layout ([`read_dynamic3dgs`]). Every image header is read; no image is
-    /// decoded.
-    pub fn open(root: &Path, options: DatasetOptions) -> Result<Self, DataError> {
-        Self::open_capped(root, options, None)
-    }
-
-    /// [`Dataset::open`], keeping at most `max_train_times` distinct time stamps of the
-    /// `train` split (every view at a kept time), evenly spread over the sorted distinct
-    /// times: indices `round(j (n - 1) / (m - 1))`, `j = 0..m`, of the `n` times (the
-    /// first when `m <= 1`). Times stay as stored. This bounds the memory of
-    /// [`Dataset::train_views`] for multi-view videos (cameras x frames views, `12 W H`
-    /// bytes each at the loaded scale); `None` keeps everything, as [`Dataset::open`].
-    pub fn open_capped(
-        root: &Path,
-        options: DatasetOptions,
-        max_train_times: Option<usize>,
-    ) -> Result<Self, DataError> {
-        if !root.is_dir() {
-            return Err(DataError::request(root, "data folder does not exist"));
-        }
-        let dnerf = root.join(Split::Train.json_name());
-        let mut train_masks = HashMap::new();
-        let (format, mut splits, masks) = if !dnerf.exists() && root.join(POSES_BOUNDS).exists() {
-            let p = read_plenoptic(root)?;
-            (Format::Plenoptic, p.splits, MaskSource::Files(p.masks))
-        } else if !dnerf.exists() && root.join(TRAIN_META).exists() {
-            let d = read_dynamic3dgs(root)?;
-            for v in &d.train.views {
-                if let Some(m) = &v.mask {
-                    train_masks.insert(v.image.clone(), m.clone());
-                }
-            }
-            let masks = if d.test.views.iter().all(|v| v.mask.is_some()) {
-                MaskSource::Files(d.test.views.iter().map(|v| v.mask.clone()).collect())
-            } else {
-                let ids = d.test.cameras();
-                MaskSource::TemporalMedian {
-                    camera: d
-                        .test
-                        .views
-                        .iter()
-                        .map(|v| ids.iter().position(|&c| c == v.cam_id).unwrap_or(0))
-                        .collect(),
-                }
-            };
-            (Format::Dynamic3dgs, d.splits(), masks)
-        } else if dnerf.exists() || root.join(Split::Test.json_name()).exists() {
-            let mut splits = BTreeMap::new();
-            for split in Split::ALL {
-                let required = matches!(split, Split::Train | Split::Test);
-                if !required && !root.join(split.json_name()).exists() {
-                    continue;
-                }
-                splits.insert(split, read_split(root, split)?);
-            }
-            (Format::DNerf, splits, MaskSource::None)
-        } else {
-            return Err(DataError::request(
-                root,
-                "neither transforms_train.json (D-NeRF), poses_bounds.npy (Plenoptic Video) nor train_meta.json (Dynamic 3D Gaussians) found",
-            ));
-        };
-        check_splits(&splits)?;
-        if let (Some(m), Some(train)) = (max_train_times, splits.get_mut(&Split::Train)) {
-            keep_times(train, m);
-        }
-        let train = &splits[&Split::Train];
-        let bounds = match train.scene_bounds {
-            Some(b) => b,
-            None => {
-                let cams: Vec<Camera> = train.frames.iter().map(|f| f.camera.clone()).collect();
-                bounds_from_cameras(&cams)
-                    .ok_or_else(|| DataError::field(&train.json, "frames", "is empty"))?
-            }
-        };
-        Ok(Dataset {
-            root: root.to_path_buf(),
-            format,
-            background: options.background,
-            splits,
-            bounds,
-            masks,
-            train_masks,
-            cache: Mutex::new(HashMap::new()),
-            medians: Mutex::new(HashMap::new()),
-        })
-    }
-
-    /// The initial point cloud the folder ships (`points3d.ply`,
-    /// [`super::points`]), read now; `None` when there is none.
-    pub fn point_cloud(&self) -> Result<Option<PointCloud>, DataError> {
-        let path = self.root.join(POINTS_FILE);
-        if path.exists() {
-            read_points(&path).map(Some)
-        } else {
-            Ok(None)
-        }
-    }
-
-    /// The points a run starts from when the folder ships a point cloud or can carve
-    /// one, with a line saying which: `points3d.ply` subsampled to `budget`; else, when
-    /// the training images have foreground masks (the Dynamic 3D Gaussians layout),
-    /// [`hull_cloud`] over at most `HullOptions::steps` evenly spread training times with
-    /// `hull_fraction` of the budget on the hulls and the rest static, with `shell` on
-    /// the capture dome's wall and floor ([`crate::shell`]), or with `first_time` the
-    /// whole hull share on the earliest training time (a model that starts from one
-    /// frame); `None` otherwise (the trainer then draws random points).
-    pub fn initial_cloud(
-        &self,
-        budget: usize,
-        hull_fraction: f64,
-        shell: bool,
-        first_time: bool,
-        seed: u64,
-    ) -> Result<Option<InitialCloud>, DataError> {
-        if let Some(cloud) = self.point_cloud()? {
-            let n = cloud.len();
-            let cloud = cloud.subsample(budget, seed);
-            let description = format!("{} of the {n} points of {POINTS_FILE}", cloud.len());
-            return Ok(Some(InitialCloud {
-                cloud,
-                hull_points: 0,
-                description,
-                warning: None,
-            }));
-        }
-        if self.train_masks.is_empty() {
-            return Ok(None);
-        }
-        let start = std::time::Instant::now();
-        let train = self.split(Split::Train)?;
-        let mut times: Vec<f64> = train.frames.iter().map(|f| f.time).collect();
-        times.sort_by(f64::total_cmp);
-        times.dedup();
-        if first_time {
-            times.truncate(1);
-        }
-        let options = HullOptions {
-            dynamic_fraction: hull_fraction,
-            shell,
-            ..HullOptions::default()
-        };
-        let picked = spread(&times, options.steps);
-        let steps: Vec<HullStep> = picked
-            .iter()
-            .map(|&time| HullStep {
-                time,
-                views: train
-                    .frames
-                    .iter()
-                    .filter(|f| f.time == time)
-                    .filter_map(|f| {
-                        self.train_mask(&f.file).map(|m| HullView {
-                            camera: f.camera.clone(),
-                            image: f.file.clone(),
-                            mask: m.to_path_buf(),
-                        })
-                    })
-                    .collect(),
-            })
-            .collect();
-        let mut centres: Vec<glam::DVec3> =
-            train.frames.iter().map(|f| f.camera.center()).collect();
-        centres.dedup();
-        let (cloud, dynamic) = hull_cloud(&steps, &centres, budget, &options, seed)?;
-        let description = format!(
-            "{} points: {dynamic} on the visual hulls of the foreground masks at {} times (at most {:.0} % of the budget), {} static {} ({:.1} s)",
-            cloud.len(),
-            steps.len(),
-            100.0 * options.dynamic_fraction,
-            cloud.len() - dynamic,
-            if shell {
-                "on the capture dome's wall and floor (random in the box where rays miss it)"
-            } else {
-                "at random in the box of the cameras and the hulls"
-            },
-            start.elapsed().as_secs_f64()
-        );
-        let warning = (dynamic == 0 && hull_fraction > 0.0 && budget > 0).then(|| {
-            format!(
-                "the visual hull of the foreground masks put no point into the initial cloud (no region is seen in the foreground of {} cameras at once: small or coarse masks?); training starts from random static points only",
-                options.min_views
-            )
-        });
-        Ok(Some(InitialCloud {
-            cloud,
-            hull_points: dynamic,
-            description,
-            warning,
-        }))
-    }
-
     /// The format the folder was read as.
     pub fn format(&self) -> Format {
         self.format
@@ -456,65 +236,9 @@ impl Dataset {
     }
 
     /// Scene bounds for initialisation: the training json's `scene_bounds` when present,
-    /// else [`bounds_from_cameras`] of the training cameras.
+    /// else [`bounds_from_cameras`](crate::bounds::bounds_from_cameras) of the training cameras.
     pub fn scene_bounds(&self) -> Aabb {
         self.bounds
-    }
-
-    /// One view at `scale`; decodes its image only if this (view, scale) is not cached.
-    pub fn view(&self, split: Split, index: usize, scale: f64) -> Result<View, DataError> {
-        let k = self.factor(split, scale)?;
-        self.load(split, &[index], &[k])?;
-        self.cached_view(split, index, k)
-    }
-
-    /// All views of a split at `scale` (decoded in parallel on first use, then cached).
-    pub fn views(&self, split: Split, scale: f64) -> Result<Vec<View>, DataError> {
-        let k = self.factor(split, scale)?;
-        let all: Vec<usize> = (0..self.len(split)).collect();
-        self.load(split, &all, &[k])?;
-        all.into_iter()
-            .map(|i| self.cached_view(split, i, k))
-            .collect()
-    }
-
-    /// Training views at `scale`.
-    pub fn train_views(&self, scale: f64) -> Result<Vec<View>, DataError> {
-        self.views(Split::Train, scale)
-    }
-
-    /// Test views at `scale`.
-    pub fn test_views(&self, scale: f64) -> Result<Vec<View>, DataError> {
-        self.views(Split::Test, scale)
-    }
-
-    /// Decodes the views `indices` of `split` once each and fills the cache for all
-    /// `scales` at once (the multi-scale evaluation asks for several scales of the same
-    /// test images).
-    pub fn preload(
-        &self,
-        split: Split,
-        indices: &[usize],
-        scales: &[f64],
-    ) -> Result<(), DataError> {
-        let ks = scales
-            .iter()
-            .map(|&s| self.factor(split, s))
-            .collect::<Result<Vec<u32>, _>>()?;
-        self.load(split, indices, &ks)
-    }
-
-    /// Drops every cached image of `split` (the trainer keeps its own copy of the
-    /// training images; a later request decodes them again).
-    pub fn evict(&self, split: Split) {
-        if let Ok(mut cache) = self.cache.lock() {
-            cache.retain(|(s, _, _), _| *s != split);
-        }
-    }
-
-    /// Number of (view, scale) images currently cached.
-    pub fn cached_images(&self) -> usize {
-        self.cache.lock().map_or(0, |c| c.len())
     }
 
     /// Forward flow of `video` frame `index` at `scale` (`[H, W, 3]`: dx, dy in pixels of
@@ -537,61 +261,6 @@ impl Dataset {
             });
         }
         Ok(downsample_flow(&full, k))
-    }
-
-    /// Moving-object coverage of `test` frame `index` at `scale` (`[H, W, 1]`, the
-    /// fraction of each pixel that sees a moving object, box-averaged over the `k x k`
-    /// source pixels), or `None` when the data set has no masks. Generated scenes ship
-    /// exact masks (`cam00/masks/`, or `seg/` of every camera in the Dynamic 3D
-    /// Gaussians layout); real Dynamic 3D Gaussians test cameras get theirs by
-    /// background subtraction ([`MaskSource::TemporalMedian`]).
-    pub fn moving_mask(&self, index: usize, scale: f64) -> Result<Option<Image>, DataError> {
-        let k = self.factor(Split::Test, scale)?;
-        let frame = self.frame(Split::Test, index)?;
-        let full = match &self.masks {
-            MaskSource::None => return Ok(None),
-            MaskSource::Files(files) => match files.get(index) {
-                Some(Some(path)) => masks::read_coverage(path, &frame.camera)?,
-                _ => return Ok(None),
-            },
-            MaskSource::TemporalMedian { camera } => {
-                let group = camera.get(index).copied().unwrap_or(0);
-                masks::median_coverage(self, group, camera, &frame.file)?
-            }
-        };
-        masks::downsample_coverage(full, k, scale, &frame.file)
-    }
-
-    /// Where the test views' moving masks come from.
-    pub fn mask_source(&self) -> &MaskSource {
-        &self.masks
-    }
-
-    /// Foreground coverage of `train` view `index` at `scale` (`[H, W, 1]`, the
-    /// fraction of each pixel its mask file calls foreground, box-averaged over the
-    /// `k x k` source pixels), or `None` when the view has no mask file (only the
-    /// Dynamic 3D Gaussians layout's `seg/` gives training views masks).
-    pub fn train_foreground(&self, index: usize, scale: f64) -> Result<Option<Image>, DataError> {
-        let k = self.factor(Split::Train, scale)?;
-        let frame = self.frame(Split::Train, index)?;
-        let Some(path) = self.train_mask(&frame.file) else {
-            return Ok(None);
-        };
-        let full = masks::read_coverage(path, &frame.camera)?;
-        let binary = Image {
-            data: full
-                .data
-                .iter()
-                .map(|&v| f32::from(u8::from(v > 0.5)))
-                .collect(),
-            ..full
-        };
-        masks::downsample_coverage(binary, k, scale, path)
-    }
-
-    /// The foreground mask file of a training image, when the data set has one.
-    pub fn train_mask(&self, image: &Path) -> Option<&Path> {
-        self.train_masks.get(image).map(PathBuf::as_path)
     }
 
     fn frame(&self, split: Split, index: usize) -> Result<&super::dnerf::Frame, DataError> {
@@ -618,50 +287,4 @@ fn spread(values: &[f64], m: usize) -> Vec<f64> {
             .map(|j| values[(j as f64 * (n - 1) as f64 / (m - 1) as f64).round() as usize])
             .collect(),
     }
-}
-
-/// What every loader's splits must satisfy, checked once for all formats: every
-/// frame's camera passes [`Camera::validate`] (positive finite focal lengths, a field
-/// of view below [`maaf_splat::camera::MAX_FOV_DEGREES`], a finite pose within
-/// [`maaf_splat::camera::MAX_TRANSLATION`]; a loader may build cameras field by
-/// field), and every split's images have the training images' size (evaluation
-/// scales, `1x` included, are relative to the training images).
-fn check_splits(splits: &BTreeMap<Split, SplitMeta>) -> Result<(), DataError> {
-    let train = splits
-        .get(&Split::Train)
-        .ok_or_else(|| DataError::request(Path::new(&Split::Train.json_name()), "missing"))?;
-    for meta in splits.values() {
-        for (i, frame) in meta.frames.iter().enumerate() {
-            frame
-                .camera
-                .validate(&frame.file.display().to_string())
-                .map_err(|e| {
-                    DataError::field(&meta.json, format!("frames[{i}] camera"), e.to_string())
-                })?;
-        }
-        if (meta.width, meta.height) != (train.width, train.height) {
-            return Err(DataError::field(
-                &meta.json,
-                "frames",
-                format!(
-                    "its images are {}x{} but the training images are {}x{}: every split must have the training images' size",
-                    meta.width, meta.height, train.width, train.height
-                ),
-            ));
-        }
-    }
-    Ok(())
-}
-
-/// Keeps the views of `meta` at no more than `m` of its distinct times, evenly spread
-/// (see [`Dataset::open_capped`]).
-fn keep_times(meta: &mut SplitMeta, m: usize) {
-    let mut times: Vec<f64> = meta.frames.iter().map(|f| f.time).collect();
-    times.sort_by(f64::total_cmp);
-    times.dedup();
-    if m >= times.len() {
-        return;
-    }
-    let kept = spread(&times, m);
-    meta.frames.retain(|f| kept.contains(&f.time));
 }

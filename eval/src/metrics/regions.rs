@@ -13,9 +13,8 @@
 //! a view without pixels in a region has no value there.
 
 use maaf_autodiff::{Float, Tensor};
+use maaf_scene::metrics::{MetricError, masked_dims};
 use serde::{Deserialize, Serialize};
-
-use super::{MetricError, masked_dims};
 
 /// The three regions, in [`RegionPsnr`] order.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

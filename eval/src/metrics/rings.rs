@@ -24,9 +24,8 @@
 //! ([`crate::report::rings::RingSharesAt::of_sums`]).
 
 use maaf_autodiff::{Float, Tensor};
+use maaf_scene::metrics::{MetricError, masked_dims};
 use serde::{Deserialize, Serialize};
-
-use super::{MetricError, masked_dims};
 
 /// The five rings, in [`RingErrors`] order.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -11,9 +11,8 @@
 
 use maaf_autodiff::{Float, Tensor};
 use maaf_lpips::{Lpips, LpipsError};
+use maaf_scene::metrics::{MetricError, image_dims, ssim};
 use rayon::prelude::*;
-
-use super::{MetricError, ssim};
 
 /// Why the temporal metrics could not be computed.
 #[derive(Debug, thiserror::Error)]
@@ -66,7 +65,7 @@ pub fn warp_forward<T: Float>(
     frame_t: &Tensor<T>,
     flow: &Tensor<T>,
 ) -> Result<Tensor<T>, TemporalError> {
-    let (h, w, c) = frame_dims(frame_next, frame_t)?;
+    let (h, w, c) = image_dims(frame_next, frame_t)?;
     if flow.shape() != [h, w, 3] {
         return Err(TemporalError::FlowShape {
             index: 0,
@@ -96,30 +95,12 @@ pub fn warp_forward<T: Float>(
     Ok(Tensor::from_vec(out, &[h, w, c]))
 }
 
-/// `(H, W, C)` of two frames of the same shape.
-fn frame_dims<T: Float>(
-    a: &Tensor<T>,
-    b: &Tensor<T>,
-) -> Result<(usize, usize, usize), MetricError> {
-    let s = b.shape();
-    if s.len() != 3 || s.contains(&0) {
-        return Err(MetricError::NotAnImage { shape: s.to_vec() });
-    }
-    if a.shape() != s {
-        return Err(MetricError::ShapeMismatch {
-            render: a.shape().to_vec(),
-            gt: s.to_vec(),
-        });
-    }
-    Ok((s[0], s[1], s[2]))
-}
-
 /// Flow warping error of one step (paper supplementary, Eq. "E_warp"):
 /// `E_warp(I_t, I_{t+1}) = (1 / N) sum_{i=1..N} |I_t^(i) - Î_{t+1}^(i)|_2^2`, `N = H W`
 /// pixels and `|.|_2^2` the squared norm over the `C` channels, i.e. `C` times the
 /// per-value mean squared error. Accumulated in f64.
 pub fn warp_error<T: Float>(frame_t: &Tensor<T>, warped: &Tensor<T>) -> Result<f64, TemporalError> {
-    let (h, w, _) = frame_dims(warped, frame_t)?;
+    let (h, w, _) = image_dims(warped, frame_t)?;
     let total: f64 = frame_t
         .data()
         .iter()
@@ -137,7 +118,7 @@ pub fn warp_error<T: Float>(frame_t: &Tensor<T>, warped: &Tensor<T>) -> Result<f
 pub struct StepMetrics {
     /// [`warp_error`].
     pub warp_error: f64,
-    /// Evaluation SSIM ([`super::ssim`]) of `Î_{t+1}` against `I_t`.
+    /// Evaluation SSIM ([`ssim`]) of `Î_{t+1}` against `I_t`.
     pub ssim: f64,
     /// LPIPS ([`maaf_lpips::Lpips::distance`]) when a model was given.
     pub lpips: Option<f64>,

@@ -14,6 +14,7 @@
 pub mod charts;
 pub mod curves;
 mod gap;
+mod nu_chart;
 pub mod published;
 pub mod regions;
 pub mod rings;
@@ -313,7 +314,7 @@ pub fn write_report(runs: &[PathBuf], out: &Path) -> Result<ReportOutput, Error>
     match runs.iter().find(|r| r.analysis.is_some()) {
         Some(r) => {
             let nu_png = out.join("nu_t.png");
-            charts::nu_over_time(r, &nu_png)?;
+            nu_chart::nu_over_time(r, &nu_png)?;
             charts.push(nu_png);
         }
         None => chart_notes.push(

@@ -131,11 +131,6 @@ impl GroupFlow {
         self.nodes.len()
     }
 
-    /// Time of knot k, `k / (K - 1)`.
-    pub fn knot_time(&self, k: usize) -> f64 {
-        k as f64 / (self.knots - 1) as f64
-    }
-
     /// Rotation and translation of group `g` at `time` (clamped to \[0, 1]):
     /// slerp and lerp between the two knots around it.
     pub fn motion(&self, g: usize, time: f64) -> (DQuat, DVec3) {

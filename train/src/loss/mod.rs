@@ -42,9 +42,6 @@ use std::collections::BTreeMap;
 use crate::Error;
 use crate::models::Representation;
 
-/// SaRO-GS / 3DGS weight of D-SSIM in the photometric loss (`lambda_dssim`).
-pub const LAMBDA_DSSIM: f64 = 0.2;
-
 /// A weighted sum of named terms (module docs).
 pub struct Objective<T: Float> {
     terms: Vec<Box<dyn Term<T>>>,
@@ -99,8 +96,9 @@ impl<T: Float> Objective<T> {
         }
     }
 
-    /// `(1 - lambda) L1 + lambda D-SSIM`, the 3DGS photometric loss (`lambda = 0.2`,
-    /// [`LAMBDA_DSSIM`]), as the two terms `l1` and `dssim`.
+    /// `(1 - lambda) L1 + lambda D-SSIM`, the 3DGS photometric loss (`lambda = 0.2` in
+    /// 3DGS and SaRO-GS, the default of `TrainConfig::lambda_dssim`), as the two terms
+    /// `l1` and `dssim`.
     pub fn photometric(lambda: f64) -> Self {
         Self::new()
             .with(L1 {

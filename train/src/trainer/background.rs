@@ -67,7 +67,8 @@ mod tests {
     /// (an independent path: the data set opened on that background), and without
     /// `random_background` the stored image on the data set's background.
     #[test]
-    fn view_target_is_the_image_composited_on_the_drawn_background() {
+    #[ignore = "needs the shared D-NeRF scenes at ../shared/data/dnerf (README)"]
+    fn dnerf_view_target_is_the_image_composited_on_the_drawn_background() {
         let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/dnerf/mutant");
         assert!(
             root.join("transforms_train.json").is_file(),

@@ -111,7 +111,7 @@ pub fn train_run_with_plugins(
     plugins.check(&config, &what)?;
     if resume {
         check_unrecorded_data(out, data)?;
-        maaf_eval::render::check_and_record_data(out, data)?;
+        maaf_scene::run_data::check_and_record_data(out, data)?;
     }
     repair_run_dir(out)?;
     let budget = config.iterations;
@@ -157,18 +157,18 @@ pub fn train_run_with_plugins(
 
 /// A run without `data.json` (an older run, or the file removed) is checked against
 /// what its newest readable checkpoint records
-/// ([`maaf_eval::render::check_checkpoint_data`]), so other data with the same view
+/// ([`maaf_scene::run_data::check_checkpoint_data`]), so other data with the same view
 /// count is refused rather than resumed, and other data with another view count is
 /// refused rather than started over on top of the checkpoints.
 fn check_unrecorded_data(out: &Path, data: &Dataset) -> Result<(), Error> {
-    if maaf_eval::render::recorded_data(out)?.is_some() {
+    if maaf_scene::run_data::recorded_data(out)?.is_some() {
         return Ok(());
     }
     let newest = checkpoints_newest_first(out)
         .into_iter()
         .find(|(dir, _)| maaf_scene::Opened::open(dir).is_ok());
     match newest {
-        Some((dir, _)) => maaf_eval::render::check_checkpoint_data(&dir, data),
+        Some((dir, _)) => maaf_scene::run_data::check_checkpoint_data(&dir, data),
         None => Ok(()),
     }
 }
@@ -296,7 +296,7 @@ pub fn branch_run(
 
 /// [`branch_run`] with the registries of `plugins` ([`train_run_with_plugins`]).
 /// Unless `other_data`, `data` must be the data set the checkpoint was trained on
-/// ([`maaf_eval::render::check_checkpoint_data`]: its run's `data.json`, else its
+/// ([`maaf_scene::run_data::check_checkpoint_data`]: its run's `data.json`, else its
 /// scene record); `other_data` branches onto another data set on purpose.
 pub fn branch_run_with_plugins(
     data: &Dataset,
@@ -308,7 +308,7 @@ pub fn branch_run_with_plugins(
 ) -> Result<RunSummary, Error> {
     let _lock = lock_run(out)?;
     if !other_data {
-        maaf_eval::render::check_checkpoint_data(from, data).map_err(|e| match e {
+        maaf_scene::run_data::check_checkpoint_data(from, data).map_err(|e| match e {
             Error::Input(m) => {
                 Error::Input(format!("{m} (to branch onto it on purpose: --other-data)"))
             }
@@ -409,7 +409,7 @@ fn run_trainer(
     }
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     if let Some(data) = record {
-        maaf_eval::render::record_data(out, data)?;
+        maaf_scene::run_data::record_data(out, data)?;
     }
     let model_dir = out.join("model");
     let config_json =

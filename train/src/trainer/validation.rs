@@ -9,7 +9,7 @@ use maaf_splat::Camera;
 use super::Trainer;
 use crate::Error;
 use crate::data::{Dataset, Split};
-use maaf_eval::metrics::psnr;
+use maaf_scene::metrics::psnr;
 use maaf_scene::render_over;
 
 /// A held-back view at the training scale.

@@ -29,10 +29,10 @@
 //! both inputs need a gradient). See crates.md section 3.
 //!
 //! Note this is the *training* convention. The evaluation metric
-//! ([`maaf_eval::metrics::ssim`]) follows scikit-image and crops the border instead.
+//! ([`maaf_scene::metrics::ssim`]) follows scikit-image and crops the border instead.
 
 use maaf_autodiff::{BackwardCtx, Float, Op, Tensor, Var};
-pub use maaf_eval::metrics::ssim_window::{
+pub use maaf_scene::metrics::ssim_window::{
     SSIM_C1, SSIM_C2, SSIM_SIGMA, SSIM_WINDOW, blur_same, gaussian_taps,
 };
 use rayon::prelude::*;

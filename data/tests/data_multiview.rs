@@ -3,17 +3,13 @@
 //! at pixel centres, the movers' distance to the cameras changes several-fold, and the
 //! folder is written atomically.
 
-mod common;
-
-use common::TempDir;
-use maaf_train::data::downsample::{composite_premultiplied, premultiply};
-use maaf_train::data::synthetic::render::{forward_flow, render_layers, trace_pixel};
-use maaf_train::data::synthetic::rig::{arc_positions, camera_wh};
-use maaf_train::data::synthetic::write::image_salt;
-use maaf_train::data::synthetic::{
-    MultiviewOptions, build_scene, generate_multiview, scene_bounds,
-};
-use maaf_train::data::{Dataset, DatasetOptions, Format, Split};
+use maaf_data::downsample::{composite_premultiplied, premultiply};
+use maaf_data::synthetic::render::{forward_flow, render_layers, trace_pixel};
+use maaf_data::synthetic::rig::{arc_positions, camera_wh};
+use maaf_data::synthetic::write::image_salt;
+use maaf_data::synthetic::{MultiviewOptions, build_scene, generate_multiview, scene_bounds};
+use maaf_data::{Dataset, DatasetOptions, Format, Split};
+use maaf_io::TempDir;
 
 fn tiny() -> MultiviewOptions {
     MultiviewOptions {
@@ -29,8 +25,8 @@ fn tiny() -> MultiviewOptions {
 
 #[test]
 fn loader_round_trips_the_generated_scene() {
-    let t = TempDir::new("rt");
-    let out = t.0.join("scene");
+    let t = TempDir::new("rt").expect("temp dir");
+    let out = t.path().join("scene");
     let opts = tiny();
     let summary = generate_multiview(&out, &opts, &mut |_, _| {}).expect("generates");
     assert_eq!(summary.counts, [8, 0, 4, 4]);
@@ -220,8 +216,8 @@ fn movers_change_distance_several_fold_for_every_camera() {
 
 #[test]
 fn writes_atomically_and_refuses_bad_options() {
-    let t = TempDir::new("atomic");
-    let out = t.0.join("scene");
+    let t = TempDir::new("atomic").expect("temp dir");
+    let out = t.path().join("scene");
     generate_multiview(&out, &tiny(), &mut |_, _| {}).expect("first");
     let err = generate_multiview(&out, &tiny(), &mut |_, _| {}).expect_err("exists");
     assert!(err.to_string().contains("already exists"), "{err}");
@@ -231,7 +227,7 @@ fn writes_atomically_and_refuses_bad_options() {
         ..tiny()
     };
     generate_multiview(&out, &again, &mut |_, _| {}).expect("forced");
-    let entries: Vec<String> = std::fs::read_dir(&t.0)
+    let entries: Vec<String> = std::fs::read_dir(t.path())
         .expect("list")
         .map(|e| e.expect("entry").file_name().to_string_lossy().to_string())
         .collect();
@@ -280,7 +276,7 @@ fn writes_atomically_and_refuses_bad_options() {
             "unknown scene",
         ),
     ] {
-        let target = t.0.join("bad");
+        let target = t.path().join("bad");
         let err = generate_multiview(&target, &bad, &mut |_, _| {}).expect_err("refused");
         assert!(err.to_string().contains(want), "{err}");
         assert!(!target.exists());

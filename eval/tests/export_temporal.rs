@@ -4,25 +4,18 @@
 //! --temporal` fills the temporal fields with exact and model flow.
 
 use std::io::Read;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
+use maaf_data::synthetic::{self, GenerateOptions};
+use maaf_data::{Dataset, DatasetOptions, Split};
 use maaf_eval::export::{export_frame, export_sequence, export_sequence_zip};
 use maaf_eval::{EvalOptions, EvalReport, evaluate_scene};
 use maaf_filter::FilterKind;
+use maaf_io::TempDir;
 use maaf_scene::TrainConfig;
 use maaf_scene::{ModelRegistry, TrainedScene};
 use maaf_splat::{read_ply, render_gaussians};
-use maaf_train::data::synthetic::{self, GenerateOptions};
-use maaf_train::data::{Dataset, DatasetOptions, Split};
 use maaf_train::trainer::train_run;
-
-struct TempDir(PathBuf);
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
 
 fn tiny_config() -> TrainConfig {
     let mut c = TrainConfig {
@@ -135,9 +128,8 @@ fn zip_holds_the_folder_version(scene: &TrainedScene, tmp: &Path) {
 
 #[test]
 fn export_matches_render_and_temporal_eval_fills_the_fields() {
-    let tmp = TempDir(std::env::temp_dir().join(format!("maaf_export_{}", std::process::id())));
-    std::fs::create_dir_all(&tmp.0).expect("temp dir");
-    let data_dir = tmp.0.join("data");
+    let tmp = TempDir::new("export").expect("temp dir");
+    let data_dir = tmp.path().join("data");
     let opts = GenerateOptions {
         size: 128,
         frames: Some(6),
@@ -150,13 +142,13 @@ fn export_matches_render_and_temporal_eval_fills_the_fields() {
     };
     synthetic::generate(&data_dir, &opts, &mut |_, _| {}).expect("generate");
     let data = Dataset::open(&data_dir, DatasetOptions::default()).expect("open");
-    let run = tmp.0.join("run");
+    let run = tmp.path().join("run");
     train_run(&data, tiny_config(), &run, false).expect("train");
     let scene = TrainedScene::load(&run, &ModelRegistry::builtin()).expect("load");
 
     // One frame: render-ply of the export equals the run's own render at that time.
     let t = 0.37;
-    let ply = tmp.0.join("frame.ply");
+    let ply = tmp.path().join("frame.ply");
     export_frame(&scene, t, &ply).expect("export");
     let g = read_ply(&ply).expect("read back");
     // Every Gaussian but those the renderer culls at t (opacity at most 1/255).
@@ -197,7 +189,7 @@ fn export_matches_render_and_temporal_eval_fills_the_fields() {
     assert!(moved > 1e-2, "t = 0.9 looks like t = 0.37 ({moved})");
 
     // A sequence: every frame, times evenly spaced over the data set's range.
-    let seq = tmp.0.join("seq");
+    let seq = tmp.path().join("seq");
     let paths = export_sequence(&scene, (0.0, 1.0), 3, &seq).expect("sequence");
     assert_eq!(paths.len(), 3);
     assert_eq!(paths[1], seq.join("frame_0001.ply"));
@@ -207,7 +199,7 @@ fn export_matches_render_and_temporal_eval_fills_the_fields() {
     let mid = read_ply(&paths[1]).expect("frame 1");
     let direct = maaf_eval::export::frame_gaussians(&scene, 0.5);
     assert_eq!(mid.means, direct.means);
-    zip_holds_the_folder_version(&scene, &tmp.0);
+    zip_holds_the_folder_version(&scene, tmp.path());
 
     // Temporal evaluation: exact flow from the video split first, model flow second.
     let options = EvalOptions {

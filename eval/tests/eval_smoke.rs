@@ -1,23 +1,26 @@
-//! Evaluation end to end on a tiny run of the D-NeRF mutant scene (100x100 training
-//! images): eval.json has exactly the contract fields, renders and error maps are
-//! written, bad input fails with one line and overwrites nothing.
-
-mod mutant;
+//! Evaluation end to end on tiny runs. On a generated scene in the D-NeRF layout
+//! (200x200 RGBA images, trained at 100x100): eval.json has exactly the contract fields, renders and error maps are
+//! written, bad input fails with one line and overwrites nothing. On a generated scene
+//! in the Dynamic 3D Gaussians layout: a frame stride, and PSNR by region from the
+//! temporal-median masks.
 
 use std::path::Path;
 
+use maaf_data::dynamic3dgs::MASKS_DIR;
+use maaf_data::synthetic::{GenerateOptions, MultiviewOptions, generate, generate_dynamic3dgs};
+use maaf_data::{Dataset, DatasetOptions};
 use maaf_eval::metrics::rings::RingErrors;
-use maaf_eval::render::record_data;
 use maaf_eval::{EvalOptions, evaluate_run, scale_label};
 use maaf_filter::FilterKind;
+use maaf_io::TempDir;
 use maaf_scene::TrainConfig;
-use maaf_train::data::{Dataset, DatasetOptions};
+use maaf_scene::run_data::record_data;
 use maaf_train::trainer::train_run;
 
 fn tiny_config() -> TrainConfig {
     let mut c = TrainConfig {
         iterations: 30,
-        train_scale: 0.125,
+        train_scale: 0.5,
         init_points: 500,
         seed: 5,
         ..TrainConfig::default()
@@ -59,10 +62,20 @@ fn fewer_training_views(root: &Path, keep: usize, out: &Path) {
 
 #[test]
 fn eval_writes_the_contract_and_refuses_bad_input() {
-    let root = mutant::mutant_root();
-    let data = Dataset::open(&root, DatasetOptions::default()).expect("mutant");
-    let tmp = std::env::temp_dir().join(format!("maaf_eval_{}", std::process::id()));
-    let run = tmp.join("run");
+    let tmp = TempDir::new("eval-smoke").expect("temp dir");
+    let root = tmp.path().join("scene");
+    let opts = GenerateOptions {
+        size: 200,
+        frames: Some(40),
+        samples: 2,
+        test_frames: 2,
+        val_frames: 2,
+        video_frames: 2,
+        ..GenerateOptions::default()
+    };
+    generate(&root, &opts, &mut |_, _| {}).expect("generates");
+    let data = Dataset::open(&root, DatasetOptions::default()).expect("opens");
+    let run = tmp.path().join("run");
     let summary = train_run(&data, tiny_config(), &run, false).expect("train");
     record_data(&run, &data).expect("data.json");
     // The summary's CPU time is counted and bounded by the timed phases' wall time
@@ -173,7 +186,7 @@ fn eval_writes_the_contract_and_refuses_bad_input() {
         );
         assert!(s["warp_error"].is_null() && s["flow"].is_null());
         assert_eq!(s["temporal"], serde_json::json!([]));
-        // A D-NeRF scene has no moving masks: no PSNR by region.
+        // A D-NeRF layout has no moving masks: no PSNR by region.
         assert!(s["regions"].is_null(), "{s}");
         // It has alpha: squared error by ring over every pixel of the two views, whose
         // pooled MSE is the mean of the per-view MSEs that metrics.csv's PSNRs give.
@@ -222,7 +235,7 @@ fn eval_writes_the_contract_and_refuses_bad_input() {
         assert!(!m.contains('\n'), "multi-line error: {m}");
         m
     };
-    // Zoom-in beyond the 800x800 source: 0.125 * 16 = 2.
+    // Zoom-in beyond the 200x200 source: 0.5 * 16 = 8.
     let e = evaluate_run(
         &run,
         &data,
@@ -234,19 +247,19 @@ fn eval_writes_the_contract_and_refuses_bad_input() {
     .expect_err("16x");
     let m = one_line(&e);
     assert!(
-        m.contains("none of the scales") && m.contains("1600x1600") && m.contains("800x800"),
+        m.contains("none of the scales") && m.contains("1600x1600") && m.contains("200x200"),
         "{m}"
     );
-    // Not an integer factor of the source.
+    // Not an integer factor of the source: 0.5 * 0.6 = 1 / 3.33.
     let e = evaluate_run(
         &run,
         &data,
         &EvalOptions {
-            scales: vec![3.0],
+            scales: vec![0.6],
             ..EvalOptions::default()
         },
     )
-    .expect_err("3x");
+    .expect_err("0.6x");
     one_line(&e);
     let e = evaluate_run(
         &run,
@@ -259,12 +272,12 @@ fn eval_writes_the_contract_and_refuses_bad_input() {
     .expect_err("negative");
     one_line(&e);
     // A run without a model.
-    let empty = tmp.join("empty");
+    let empty = tmp.path().join("empty");
     std::fs::create_dir_all(&empty).expect("mkdir");
     let e = evaluate_run(&empty, &data, &options).expect_err("no model");
     assert!(one_line(&e).contains("no trained model"));
     // A data set that does not match the run (fewer training views).
-    let other_root = tmp.join("fewer");
+    let other_root = tmp.path().join("fewer");
     fewer_training_views(&root, 20, &other_root);
     let other = Dataset::open(&other_root, DatasetOptions::default()).expect("subset");
     let e = evaluate_run(&run, &other, &options).expect_err("mismatch");
@@ -274,5 +287,71 @@ fn eval_writes_the_contract_and_refuses_bad_input() {
         before
     );
     assert!(run.join("eval/1x/render_000.png").exists());
-    std::fs::remove_dir_all(&tmp).ok();
+}
+
+#[test]
+fn a_tiny_run_trains_from_the_hull_and_evaluates_a_frame_stride_by_region() {
+    let tmp = TempDir::new("eval-d3dgs").expect("temp dir");
+    let root = tmp.path().join("scene");
+    let opts = MultiviewOptions {
+        scene: "approach".into(),
+        width: 96,
+        height: 64,
+        cameras: 6,
+        frames: 6,
+        samples: 2,
+        seed: 3,
+        force: false,
+    };
+    generate_dynamic3dgs(&root, &opts, &mut |_, _| {}).expect("generates");
+    // Without the test camera's masks the regions come from the temporal median.
+    std::fs::remove_dir_all(root.join(MASKS_DIR).join("0")).expect("removes");
+    let data = Dataset::open(&root, DatasetOptions::default()).expect("opens");
+    let mut config = TrainConfig {
+        iterations: 20,
+        train_scale: 0.5,
+        init_points: 400,
+        val_every: 0,
+        ..TrainConfig::default()
+    };
+    config.filter.kind = FilterKind::Motion;
+    config.filter.refresh.start = 5;
+    config.filter.refresh.every = 5;
+    config.densify.opacity_reset_every = 0;
+    let run = tmp.path().join("run");
+    train_run(&data, config, &run, false).expect("trains");
+    let options = EvalOptions {
+        scales: vec![0.5, 1.0, 2.0],
+        frame_stride: 2,
+        save_images: false,
+        ..EvalOptions::default()
+    };
+    let report = evaluate_run(&run, &data, &options).expect("evaluates");
+    assert_eq!(report.frame_stride, 2);
+    assert_eq!(report.scales.len(), 3);
+    assert_eq!((report.scales[2].width, report.scales[2].height), (96, 64));
+    for s in &report.scales {
+        assert!(s.psnr.is_finite(), "{s:?}");
+        assert!(
+            s.regions.is_some(),
+            "regions by the median masks at {}",
+            s.scale
+        );
+    }
+    // Frames 0, 2 and 4 of the one test camera: views 0, 2, 4.
+    let csv = std::fs::read_to_string(run.join("eval/1x/metrics.csv")).expect("csv");
+    let views: Vec<&str> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').next().unwrap_or(""))
+        .collect();
+    assert_eq!(views, ["0", "2", "4"]);
+    let bad = EvalOptions {
+        frame_stride: 0,
+        ..EvalOptions::default()
+    };
+    let err = evaluate_run(&run, &data, &bad)
+        .expect_err("stride 0")
+        .to_string();
+    assert!(err.contains("--frame-stride"), "{err}");
 }

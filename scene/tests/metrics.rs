@@ -1,8 +1,8 @@
-//! Evaluation metrics pinned against scikit-image 0.26 (fixtures generated once by
+//! Image metrics pinned against scikit-image 0.26 (fixtures generated once by
 //! `fixtures/make_metric_fixtures.py`; no Python at test time).
 
 use maaf_autodiff::Tensor;
-use maaf_eval::metrics::{
+use maaf_scene::metrics::{
     ImageMetrics, MetricError, error_map, image_metrics, mean_metrics, psnr, ssim,
 };
 

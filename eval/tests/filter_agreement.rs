@@ -1,27 +1,38 @@
-//! `eval::filter_agreement` on a fresh SaRO model of the mutant scene (100x100
-//! training images): its observations are the canonical centres' projections, so
+//! `eval::filter_agreement` on a fresh SaRO model of a generated scene in the D-NeRF
+//! layout (100 views of 100x100 pixels, one camera per time): its observations are the canonical centres' projections, so
 //! neither estimator may exceed Mip-Splatting's static nu, and the pairs it counts
 //! are exactly the drawn (Gaussian, time bin) pairs. The nu(t) chart's export picks
 //! its Gaussians by drawn-centre motion, checked against an independent loop.
 
-mod mutant;
-
+use maaf_data::synthetic::{GenerateOptions, generate};
+use maaf_data::{Dataset, DatasetOptions};
 use maaf_eval::filter_agreement::{FilterStudy, MOVING, filter_agreement};
 use maaf_filter::{FilterKind, MotionCurves};
+use maaf_io::TempDir;
 use maaf_scene::TrainedScene;
 use maaf_scene::{TrainConfig, camera_extent};
-use maaf_train::data::{Dataset, DatasetOptions};
 use maaf_train::models::{ModelConfig, SaroConfig};
 use maaf_train::trainer::Trainer;
 
-/// A SaRO motion run on mutant at 100x100 (400 Gaussians) after `steps` iterations,
-/// dynamic from the first one when `static_iterations` is 0, as the trained scene it
-/// holds.
-fn mutant_run(static_iterations: usize, steps: usize) -> TrainedScene {
-    let root = mutant::mutant_root();
-    let data = Dataset::open(&root, DatasetOptions::default()).expect("mutant");
+/// A SaRO motion run on the generated scene (400 Gaussians) after `steps`
+/// iterations, dynamic from the first one when `static_iterations` is 0, as the
+/// trained scene it holds.
+fn tiny_run(static_iterations: usize, steps: usize) -> TrainedScene {
+    let tmp = TempDir::new("filter-agreement").expect("temp dir");
+    let root = tmp.path().join("scene");
+    let opts = GenerateOptions {
+        size: 100,
+        frames: Some(100),
+        samples: 2,
+        test_frames: 2,
+        val_frames: 0,
+        video_frames: 2,
+        ..GenerateOptions::default()
+    };
+    generate(&root, &opts, &mut |_, _| {}).expect("generates");
+    let data = Dataset::open(&root, DatasetOptions::default()).expect("opens");
     let mut config = TrainConfig {
-        train_scale: 0.125,
+        train_scale: 1.0,
         init_points: 400,
         seed: 2,
         model: ModelConfig::Saro(SaroConfig {
@@ -41,7 +52,7 @@ fn mutant_run(static_iterations: usize, steps: usize) -> TrainedScene {
 
 #[test]
 fn agreement_counts_drawn_pairs_and_never_exceeds_the_static_nu_of_a_static_model() {
-    let scene = mutant_run(SaroConfig::default().static_iterations, 0);
+    let scene = tiny_run(SaroConfig::default().static_iterations, 0);
     let agreement = filter_agreement(&scene).expect("a motion run");
 
     // Independent count of the drawn pairs at the curves' bin times.
@@ -84,7 +95,7 @@ fn agreement_counts_drawn_pairs_and_never_exceeds_the_static_nu_of_a_static_mode
         "{}",
         agreement.summary()
     );
-    // One camera per time (D-NeRF): a +-h_t window holds 15 of the 150 views, so
+    // One camera per time (D-NeRF): a +-h_t window holds 10 of the 100 views, so
     // the windowed maximum is below the static nu for most drawn pairs.
     let window = &agreement.ratios[1];
     assert!(window.p50 < 1.0, "{window:?}");
@@ -93,7 +104,7 @@ fn agreement_counts_drawn_pairs_and_never_exceeds_the_static_nu_of_a_static_mode
 #[test]
 fn the_nu_t_chart_shows_the_least_and_the_most_moving_drawn_gaussian() {
     // A few dynamic iterations give the residual MLP something to move.
-    let scene = mutant_run(0, 20);
+    let scene = tiny_run(0, 20);
     let curves = MotionCurves::refresh(&scene.observations, &scene.config.filter).expect("curves");
     // The chart's Gaussians: the least and the most moving of those drawn at a
     // quarter of the bins and observed in a quarter of the frames, by an independent

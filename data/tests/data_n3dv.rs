@@ -2,13 +2,11 @@
 //! gives the expected camera centres, viewing directions, focal (half-size frames) and
 //! times; every bad input gets one line naming the file and field.
 
-mod common;
-
 use std::path::Path;
 
-use common::TempDir;
 use glam::DVec3;
-use maaf_train::data::{DataError, Dataset, DatasetOptions, Format, Split};
+use maaf_data::{DataError, Dataset, DatasetOptions, Format, Split};
+use maaf_io::TempDir;
 use npyz::WriterBuilder;
 
 /// A hand-made camera: centre and LLFF axes (down, right, back) in world coordinates.
@@ -90,12 +88,12 @@ fn write_frames(root: &Path, c: usize, n: usize, w: u32, h: u32) {
 }
 
 fn hand_scene(tag: &str) -> TempDir {
-    let t = TempDir::new(tag);
+    let t = TempDir::new(tag).expect("temp dir");
     let cams = hand_cams();
     let rows: Vec<Vec<f64>> = cams.iter().map(row).collect();
-    write_npy_f64(&t.0.join("poses_bounds.npy"), &rows, 17);
+    write_npy_f64(&t.path().join("poses_bounds.npy"), &rows, 17);
     for c in 0..cams.len() {
-        write_frames(&t.0, c, 3, FRAME_W, FRAME_H);
+        write_frames(t.path(), c, 3, FRAME_W, FRAME_H);
     }
     t
 }
@@ -143,7 +141,7 @@ fn check_hand_cameras(data: &Dataset) {
 #[test]
 fn hand_written_poses_bounds_gives_centres_directions_focal_and_times() {
     let t = hand_scene("hand");
-    let data = Dataset::open(&t.0, DatasetOptions::default()).expect("opens");
+    let data = Dataset::open(t.path(), DatasetOptions::default()).expect("opens");
     assert_eq!(data.format(), Format::Plenoptic);
     assert_eq!(data.len(Split::Train), 6);
     assert_eq!(data.len(Split::Test), 3);
@@ -176,8 +174,8 @@ fn float32_and_fortran_order_tables_read_the_same() {
     w.extend(rows.iter().flatten().map(|&x| x as f32))
         .expect("data");
     w.finish().expect("finish");
-    std::fs::write(t.0.join("poses_bounds.npy"), out).expect("write");
-    check_hand_cameras(&Dataset::open(&t.0, DatasetOptions::default()).expect("f32 opens"));
+    std::fs::write(t.path().join("poses_bounds.npy"), out).expect("write");
+    check_hand_cameras(&Dataset::open(t.path(), DatasetOptions::default()).expect("f32 opens"));
 
     // Fortran order: column by column.
     let mut out = Vec::new();
@@ -191,27 +189,27 @@ fn float32_and_fortran_order_tables_read_the_same() {
     w.extend((0..17).flat_map(|c| rows.iter().map(move |r| r[c])))
         .expect("data");
     w.finish().expect("finish");
-    std::fs::write(t.0.join("poses_bounds.npy"), out).expect("write");
-    check_hand_cameras(&Dataset::open(&t.0, DatasetOptions::default()).expect("fortran opens"));
+    std::fs::write(t.path().join("poses_bounds.npy"), out).expect("write");
+    check_hand_cameras(&Dataset::open(t.path(), DatasetOptions::default()).expect("fortran opens"));
 }
 
 #[test]
 fn capped_open_keeps_evenly_spread_times() {
-    let t = TempDir::new("cap");
+    let t = TempDir::new("cap").expect("temp dir");
     let cams = hand_cams();
     write_npy_f64(
-        &t.0.join("poses_bounds.npy"),
+        &t.path().join("poses_bounds.npy"),
         &cams.iter().map(row).collect::<Vec<_>>(),
         17,
     );
     for c in 0..3 {
-        write_frames(&t.0, c, 5, FRAME_W, FRAME_H);
+        write_frames(t.path(), c, 5, FRAME_W, FRAME_H);
     }
-    let data = Dataset::open_capped(&t.0, DatasetOptions::default(), Some(3)).expect("opens");
+    let data = Dataset::open_capped(t.path(), DatasetOptions::default(), Some(3)).expect("opens");
     // 5 frames: t = 0, .2, .4, .6, .8; keep indices 0, 2, 4 for both training cameras.
     assert_eq!(data.times(Split::Train), vec![0.0, 0.4, 0.8, 0.0, 0.4, 0.8]);
     assert_eq!(data.len(Split::Test), 5, "only train is capped");
-    let all = Dataset::open_capped(&t.0, DatasetOptions::default(), None).expect("opens");
+    let all = Dataset::open_capped(t.path(), DatasetOptions::default(), None).expect("opens");
     assert_eq!(all.len(Split::Train), 10);
 }
 
@@ -227,7 +225,7 @@ fn with_rows(tag: &str, edit: impl Fn(&mut Vec<Vec<f64>>)) -> TempDir {
     let mut rows: Vec<Vec<f64>> = hand_cams().iter().map(row).collect();
     edit(&mut rows);
     let cols = rows[0].len() as u64;
-    write_npy_f64(&t.0.join("poses_bounds.npy"), &rows, cols);
+    write_npy_f64(&t.path().join("poses_bounds.npy"), &rows, cols);
     t
 }
 
@@ -241,37 +239,37 @@ fn assert_all(msg: &str, parts: &[&str]) {
 fn bad_tables_name_the_file_and_field() {
     let t = with_rows("shape", |rows| rows.iter_mut().for_each(|r| r.truncate(16)));
     assert_all(
-        &open_err(&t.0),
+        &open_err(t.path()),
         &["poses_bounds.npy", "`shape`", "(N, 17)", "16"],
     );
 
     let t = with_rows("rigid", |rows| rows[1][0] = 2.0);
     assert_all(
-        &open_err(&t.0),
+        &open_err(t.path()),
         &["poses_bounds.npy", "`rows[1].c2w`", "not a rotation"],
     );
 
     let t = with_rows("hwf", |rows| rows[2][14] = -3.0);
     assert_all(
-        &open_err(&t.0),
+        &open_err(t.path()),
         &["poses_bounds.npy", "`rows[2].hwf`", "must all be positive"],
     );
 
     let t = with_rows("nan", |rows| rows[0][3] = f64::NAN);
-    assert_all(&open_err(&t.0), &["`rows[0][3]`", "not finite"]);
+    assert_all(&open_err(t.path()), &["`rows[0][3]`", "not finite"]);
 
     let t = with_rows("rows", |rows| {
         rows.pop();
     });
     assert_all(
-        &open_err(&t.0),
+        &open_err(t.path()),
         &["poses_bounds.npy", "2 rows but", "3 camera folders"],
     );
 
     let t = hand_scene("garbage");
-    std::fs::write(t.0.join("poses_bounds.npy"), b"not numpy").expect("write");
+    std::fs::write(t.path().join("poses_bounds.npy"), b"not numpy").expect("write");
     assert_all(
-        &open_err(&t.0),
+        &open_err(t.path()),
         &["poses_bounds.npy", "not a readable .npy array"],
     );
 
@@ -285,8 +283,11 @@ fn bad_tables_name_the_file_and_field() {
         .expect("header");
     w.extend(std::iter::repeat_n(1, 51)).expect("data");
     w.finish().expect("finish");
-    std::fs::write(t.0.join("poses_bounds.npy"), out).expect("write");
-    assert_all(&open_err(&t.0), &["`dtype`", "float64 or float32", "i4"]);
+    std::fs::write(t.path().join("poses_bounds.npy"), out).expect("write");
+    assert_all(
+        &open_err(t.path()),
+        &["`dtype`", "float64 or float32", "i4"],
+    );
 }
 
 #[test]
@@ -294,59 +295,66 @@ fn bad_frame_folders_name_the_folder_or_file() {
     // Frames whose aspect does not match [H, W] (32 x 32 against 40 x 64).
     let t = hand_scene("aspect");
     for c in 0..3 {
-        write_frames(&t.0, c, 3, 32, 32);
+        write_frames(t.path(), c, 3, 32, 32);
     }
     assert_all(
-        &open_err(&t.0),
+        &open_err(t.path()),
         &["poses_bounds.npy", "`rows[0].hwf`", "aspect"],
     );
 
     let t = hand_scene("noimages");
-    std::fs::remove_dir_all(t.0.join("cam01/images")).expect("rm");
-    assert_all(&open_err(&t.0), &["cam01/images", "cannot list frames"]);
+    std::fs::remove_dir_all(t.path().join("cam01/images")).expect("rm");
+    assert_all(&open_err(t.path()), &["cam01/images", "cannot list frames"]);
 
     let t = hand_scene("count");
-    std::fs::remove_file(t.0.join("cam02/images/0002.png")).expect("rm");
+    std::fs::remove_file(t.path().join("cam02/images/0002.png")).expect("rm");
     assert_all(
-        &open_err(&t.0),
+        &open_err(t.path()),
         &["cam02/images", "has 2 frames but", "has 3"],
     );
 
     let t = hand_scene("size");
     image::RgbImage::new(16, 10)
-        .save(t.0.join("cam01/images/0001.png"))
+        .save(t.path().join("cam01/images/0001.png"))
         .expect("png");
     assert_all(
-        &open_err(&t.0),
+        &open_err(t.path()),
         &["cam01/images/0001.png", "16x10", "one size"],
     );
 
     let t = hand_scene("decode");
-    std::fs::write(t.0.join("cam02/images/0000.png"), b"\x89PNG broken").expect("write");
+    std::fs::write(t.path().join("cam02/images/0000.png"), b"\x89PNG broken").expect("write");
     assert_all(
-        &open_err(&t.0),
+        &open_err(t.path()),
         &["cam02/images/0000.png", "does not decode"],
     );
 
     let t = hand_scene("nocams");
     for c in 0..3 {
-        std::fs::remove_dir_all(t.0.join(format!("cam{c:02}"))).expect("rm");
+        std::fs::remove_dir_all(t.path().join(format!("cam{c:02}"))).expect("rm");
     }
     assert_all(
-        &open_err(&t.0),
+        &open_err(t.path()),
         &["no camera folders", "cam00/images/0000.png"],
     );
 
     let t = hand_scene("onecam");
-    write_npy_f64(&t.0.join("poses_bounds.npy"), &[row(&hand_cams()[0])], 17);
+    write_npy_f64(
+        &t.path().join("poses_bounds.npy"),
+        &[row(&hand_cams()[0])],
+        17,
+    );
     for c in 1..3 {
-        std::fs::remove_dir_all(t.0.join(format!("cam{c:02}"))).expect("rm");
+        std::fs::remove_dir_all(t.path().join(format!("cam{c:02}"))).expect("rm");
     }
-    assert_all(&open_err(&t.0), &["poses_bounds.npy", "only one camera"]);
-
-    let t = TempDir::new("empty");
     assert_all(
-        &open_err(&t.0),
+        &open_err(t.path()),
+        &["poses_bounds.npy", "only one camera"],
+    );
+
+    let t = TempDir::new("empty").expect("temp dir");
+    assert_all(
+        &open_err(t.path()),
         &["neither transforms_train.json", "poses_bounds.npy"],
     );
 }

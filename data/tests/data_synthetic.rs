@@ -1,19 +1,17 @@
 //! The synthetic generator: round trip through the loader, exact flow, atomic writes,
 //! converged supersampling, and the claims the scene makes (f/d changes several-fold).
 
-mod common;
-
 use std::path::Path;
 
-use common::TempDir;
+use maaf_data::downsample::{box_downsample, composite_premultiplied, premultiply};
+use maaf_data::inspect::inspect;
+use maaf_data::synthetic::render::{pixel_ray, render_rgba, trace_pixel};
+use maaf_data::synthetic::rig;
+use maaf_data::synthetic::write::image_salt;
+use maaf_data::synthetic::{GenerateOptions, Rig, build_scene, generate};
+use maaf_data::{Dataset, DatasetOptions, Split};
+use maaf_io::TempDir;
 use maaf_splat::Camera;
-use maaf_train::data::downsample::{box_downsample, composite_premultiplied, premultiply};
-use maaf_train::data::inspect::inspect;
-use maaf_train::data::synthetic::render::{pixel_ray, render_rgba, trace_pixel};
-use maaf_train::data::synthetic::rig;
-use maaf_train::data::synthetic::write::image_salt;
-use maaf_train::data::synthetic::{GenerateOptions, Rig, build_scene, generate};
-use maaf_train::data::{Dataset, DatasetOptions, Split};
 
 fn tiny_options(size: u32) -> GenerateOptions {
     GenerateOptions {
@@ -39,13 +37,13 @@ fn entries(dir: &Path) -> Vec<String> {
 
 #[test]
 fn generated_scene_round_trips_through_the_loader() {
-    let t = TempDir::new("roundtrip");
-    let out = t.0.join("dolly");
+    let t = TempDir::new("roundtrip").expect("temp dir");
+    let out = t.path().join("dolly");
     let opts = tiny_options(32);
     let summary = generate(&out, &opts, &mut |_, _| {}).expect("generates");
     assert_eq!(summary.counts, [3, 1, 2, 11]);
     // Only the data set is left in the parent: no temporary folder.
-    assert_eq!(entries(&t.0), vec!["dolly".to_string()]);
+    assert_eq!(entries(t.path()), vec!["dolly".to_string()]);
 
     let data = Dataset::open(&out, DatasetOptions::default()).expect("loads");
     assert_eq!(data.len(Split::Train), 3);
@@ -117,8 +115,8 @@ fn generated_scene_round_trips_through_the_loader() {
 /// within one pixel of `x + flow`.
 #[test]
 fn flow_moves_a_textured_point_to_where_it_is_rendered_next() {
-    let t = TempDir::new("flow");
-    let out = t.0.join("dolly");
+    let t = TempDir::new("flow").expect("temp dir");
+    let out = t.path().join("dolly");
     let size = 96;
     generate(&out, &tiny_options(size), &mut |_, _| {}).expect("generates");
     let data = Dataset::open(&out, DatasetOptions::default()).expect("loads");
@@ -219,8 +217,8 @@ fn flow_moves_a_textured_point_to_where_it_is_rendered_next() {
 
 #[test]
 fn generation_writes_nothing_on_error() {
-    let t = TempDir::new("atomic");
-    let out = t.0.join("dolly");
+    let t = TempDir::new("atomic").expect("temp dir");
+    let out = t.path().join("dolly");
     let bad = GenerateOptions {
         size: 30,
         ..tiny_options(32)
@@ -240,24 +238,28 @@ fn generation_writes_nothing_on_error() {
         err.to_string().contains("unknown scene") && err.to_string().contains("dolly"),
         "{err}"
     );
-    assert!(entries(&t.0).is_empty(), "{:?}", entries(&t.0));
+    assert!(entries(t.path()).is_empty(), "{:?}", entries(t.path()));
     // An existing folder is never touched without --force.
     std::fs::create_dir_all(&out).expect("mkdir");
     std::fs::write(out.join("keep.txt"), "mine").expect("write");
     let err = generate(&out, &tiny_options(16), &mut |_, _| {}).expect_err("exists");
     assert!(err.to_string().contains("already exists"), "{err}");
     assert_eq!(entries(&out), vec!["keep.txt".to_string()]);
-    assert_eq!(entries(&t.0), vec!["dolly".to_string()]);
+    assert_eq!(entries(t.path()), vec!["dolly".to_string()]);
     // Missing parent: refused before anything is created.
-    let err = generate(&t.0.join("no/such/dir"), &tiny_options(16), &mut |_, _| {})
-        .expect_err("no parent");
+    let err = generate(
+        &t.path().join("no/such/dir"),
+        &tiny_options(16),
+        &mut |_, _| {},
+    )
+    .expect_err("no parent");
     assert!(err.to_string().contains("parent folder"), "{err}");
 }
 
 #[test]
 fn ring_rig_has_fixed_cameras_at_every_time() {
-    let t = TempDir::new("ring");
-    let out = t.0.join("ring");
+    let t = TempDir::new("ring").expect("temp dir");
+    let out = t.path().join("ring");
     let opts = GenerateOptions {
         rig: Rig::Ring,
         ring_cameras: 3,

@@ -4,17 +4,15 @@
 //! moving masks against the generator's exact masks; the visual hull's points on the
 //! movers.
 
-mod common;
-
 use std::path::Path;
 
-use common::TempDir;
 use glam::DVec3;
-use maaf_train::data::dynamic3dgs::{MASKS_DIR, TEST_META, TRAIN_META};
-use maaf_train::data::median_mask::{MEDIAN_THRESHOLD, decode_rgb8};
-use maaf_train::data::synthetic::dynamic3dgs::rig_cameras;
-use maaf_train::data::synthetic::{MultiviewOptions, build_scene, generate_dynamic3dgs};
-use maaf_train::data::{Dataset, DatasetOptions, Format, MaskSource, Split};
+use maaf_data::dynamic3dgs::{MASKS_DIR, TEST_META, TRAIN_META};
+use maaf_data::median_mask::{MEDIAN_THRESHOLD, decode_rgb8};
+use maaf_data::synthetic::dynamic3dgs::rig_cameras;
+use maaf_data::synthetic::{MultiviewOptions, build_scene, generate_dynamic3dgs};
+use maaf_data::{Dataset, DatasetOptions, Format, MaskSource, Split};
+use maaf_io::TempDir;
 use serde_json::Value;
 
 const W: u32 = 96;
@@ -42,8 +40,8 @@ fn generated_at(dir: &Path, cameras: usize, frames: usize, width: u32, height: u
 
 #[test]
 fn opens_a_generated_scene_with_its_cameras_times_and_masks() {
-    let t = TempDir::new("d3dgs-open");
-    let root = t.0.join("scene");
+    let t = TempDir::new("d3dgs-open").expect("temp dir");
+    let root = t.path().join("scene");
     generated(&root, 5, 6);
     let data = Dataset::open(&root, DatasetOptions::default()).expect("opens");
     assert_eq!(data.format(), Format::Dynamic3dgs);
@@ -126,8 +124,8 @@ type Edit = Box<dyn FnOnce(&mut Value)>;
 
 #[test]
 fn bad_meta_files_get_one_line_naming_the_file_and_entry() {
-    let t = TempDir::new("d3dgs-bad");
-    let root = t.0.join("scene");
+    let t = TempDir::new("d3dgs-bad").expect("temp dir");
+    let root = t.path().join("scene");
     generated(&root, 3, 3);
     let cases: Vec<(Edit, &[&str])> = vec![
         (
@@ -185,11 +183,11 @@ fn bad_meta_files_get_one_line_naming_the_file_and_entry() {
 
 #[test]
 fn temporal_median_masks_agree_with_the_exact_masks() {
-    let t = TempDir::new("d3dgs-median");
-    let root = t.0.join("scene");
+    let t = TempDir::new("d3dgs-median").expect("temp dir");
+    let root = t.path().join("scene");
     generated(&root, 2, 24);
     // Keep the exact masks aside; without them the loader subtracts the median.
-    let exact_dir = t.0.join("exact");
+    let exact_dir = t.path().join("exact");
     std::fs::rename(root.join(MASKS_DIR).join("0"), &exact_dir).expect("moves");
     let data = Dataset::open(&root, DatasetOptions::default()).expect("opens");
     assert!(matches!(
@@ -217,14 +215,14 @@ fn temporal_median_masks_agree_with_the_exact_masks() {
     assert!(iou > 0.6, "IoU {iou:.3}");
     // A threshold of 255 finds nothing: the comparison measures the masks.
     let frame = decode_rgb8(&root.join("ims/0/000005.png")).expect("frame");
-    let none = maaf_train::data::median_mask::moving_mask(&frame, &frame, 0).expect("same size");
+    let none = maaf_data::median_mask::moving_mask(&frame, &frame, 0).expect("same size");
     assert!(none.iter().all(|&v| v == 0.0));
 }
 
 #[test]
 fn visual_hull_points_lie_on_the_movers() {
-    let t = TempDir::new("d3dgs-hull");
-    let root = t.0.join("scene");
+    let t = TempDir::new("d3dgs-hull").expect("temp dir");
+    let root = t.path().join("scene");
     generated_at(&root, 12, 4, 192, 128);
     let data = Dataset::open(&root, DatasetOptions::default()).expect("opens");
     let init = data
@@ -257,66 +255,4 @@ fn visual_hull_points_lie_on_the_movers() {
     eprintln!("hull points on movers: {hull:.3}; random points: {random:.3}");
     assert!(hull > 0.8, "{hull:.3} of the hull points lie on movers");
     assert!(random < 0.2, "random static points: {random:.3}");
-}
-
-#[test]
-fn a_tiny_run_trains_from_the_hull_and_evaluates_a_frame_stride_by_region() {
-    use maaf_eval::{EvalOptions, evaluate_run};
-    use maaf_filter::FilterKind;
-    use maaf_scene::TrainConfig;
-    use maaf_train::trainer::train_run;
-
-    let t = TempDir::new("d3dgs-run");
-    let root = t.0.join("scene");
-    generated(&root, 6, 6);
-    // Without the test camera's masks the regions come from the temporal median.
-    std::fs::remove_dir_all(root.join(MASKS_DIR).join("0")).expect("removes");
-    let data = Dataset::open(&root, DatasetOptions::default()).expect("opens");
-    let mut config = TrainConfig {
-        iterations: 20,
-        train_scale: 0.5,
-        init_points: 400,
-        val_every: 0,
-        ..TrainConfig::default()
-    };
-    config.filter.kind = FilterKind::Motion;
-    config.filter.refresh.start = 5;
-    config.filter.refresh.every = 5;
-    config.densify.opacity_reset_every = 0;
-    let run = t.0.join("run");
-    train_run(&data, config, &run, false).expect("trains");
-    let options = EvalOptions {
-        scales: vec![0.5, 1.0, 2.0],
-        frame_stride: 2,
-        save_images: false,
-        ..EvalOptions::default()
-    };
-    let report = evaluate_run(&run, &data, &options).expect("evaluates");
-    assert_eq!(report.frame_stride, 2);
-    assert_eq!(report.scales.len(), 3);
-    assert_eq!((report.scales[2].width, report.scales[2].height), (W, H));
-    for s in &report.scales {
-        assert!(s.psnr.is_finite(), "{s:?}");
-        assert!(
-            s.regions.is_some(),
-            "regions by the median masks at {}",
-            s.scale
-        );
-    }
-    // Frames 0, 2 and 4 of the one test camera: views 0, 2, 4.
-    let csv = std::fs::read_to_string(run.join("eval/1x/metrics.csv")).expect("csv");
-    let views: Vec<&str> = csv
-        .lines()
-        .skip(1)
-        .map(|l| l.split(',').next().unwrap_or(""))
-        .collect();
-    assert_eq!(views, ["0", "2", "4"]);
-    let bad = EvalOptions {
-        frame_stride: 0,
-        ..EvalOptions::default()
-    };
-    let err = evaluate_run(&run, &data, &bad)
-        .expect_err("stride 0")
-        .to_string();
-    assert!(err.contains("--frame-stride"), "{err}");
 }
