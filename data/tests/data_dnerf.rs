@@ -93,13 +93,8 @@ fn views_are_decoded_once_per_scale() {
     let t = TempDir::new("dnerf-views").expect("temp dir");
     let dir = t.path().join("scene");
     let opts = GenerateOptions {
-        size: 200,
-        frames: Some(4),
-        samples: 1,
         test_frames: 4,
-        val_frames: 0,
-        video_frames: 2,
-        ..GenerateOptions::default()
+        ..GenerateOptions::small(200, 4)
     };
     generate(&dir, &opts, &mut |_, _| {}).expect("generates");
     let data = Dataset::open(&dir, DatasetOptions { background: WHITE }).expect("opens");

@@ -15,14 +15,10 @@ use maaf_splat::Camera;
 
 fn tiny_options(size: u32) -> GenerateOptions {
     GenerateOptions {
-        size,
-        frames: Some(3),
-        test_frames: 2,
-        val_frames: 1,
         video_frames: 11,
         samples: 2,
         seed: 7,
-        ..GenerateOptions::default()
+        ..GenerateOptions::small(size, 3)
     }
 }
 

@@ -64,16 +64,7 @@ fn fewer_training_views(root: &Path, keep: usize, out: &Path) {
 fn eval_writes_the_contract_and_refuses_bad_input() {
     let tmp = TempDir::new("eval-smoke").expect("temp dir");
     let root = tmp.path().join("scene");
-    let opts = GenerateOptions {
-        size: 200,
-        frames: Some(40),
-        samples: 2,
-        test_frames: 2,
-        val_frames: 2,
-        video_frames: 2,
-        ..GenerateOptions::default()
-    };
-    generate(&root, &opts, &mut |_, _| {}).expect("generates");
+    generate(&root, &GenerateOptions::small(200, 40), &mut |_, _| {}).expect("generates");
     let data = Dataset::open(&root, DatasetOptions::default()).expect("opens");
     let run = tmp.path().join("run");
     let summary = train_run(&data, tiny_config(), &run, false).expect("train");

@@ -131,14 +131,9 @@ fn export_matches_render_and_temporal_eval_fills_the_fields() {
     let tmp = TempDir::new("export").expect("temp dir");
     let data_dir = tmp.path().join("data");
     let opts = GenerateOptions {
-        size: 128,
-        frames: Some(6),
-        test_frames: 2,
-        val_frames: 1,
         video_frames: 5,
-        samples: 1,
         seed: 2,
-        ..GenerateOptions::default()
+        ..GenerateOptions::small(128, 6)
     };
     synthetic::generate(&data_dir, &opts, &mut |_, _| {}).expect("generate");
     let data = Dataset::open(&data_dir, DatasetOptions::default()).expect("open");

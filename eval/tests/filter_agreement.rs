@@ -20,16 +20,7 @@ use maaf_train::trainer::Trainer;
 fn tiny_run(static_iterations: usize, steps: usize) -> TrainedScene {
     let tmp = TempDir::new("filter-agreement").expect("temp dir");
     let root = tmp.path().join("scene");
-    let opts = GenerateOptions {
-        size: 100,
-        frames: Some(100),
-        samples: 2,
-        test_frames: 2,
-        val_frames: 0,
-        video_frames: 2,
-        ..GenerateOptions::default()
-    };
-    generate(&root, &opts, &mut |_, _| {}).expect("generates");
+    generate(&root, &GenerateOptions::small(100, 100), &mut |_, _| {}).expect("generates");
     let data = Dataset::open(&root, DatasetOptions::default()).expect("opens");
     let mut config = TrainConfig {
         train_scale: 1.0,

@@ -65,14 +65,8 @@ fn a_loaded_scene_renders_bit_identically_to_its_trainer() {
     let tmp = TempDir::new("scene").expect("temp dir");
     let data_dir = tmp.path().join("data");
     let opts = GenerateOptions {
-        size: 64,
-        frames: Some(6),
-        test_frames: 2,
-        val_frames: 1,
-        video_frames: 2,
-        samples: 1,
         seed: 4,
-        ..GenerateOptions::default()
+        ..GenerateOptions::small(64, 6)
     };
     synthetic::generate(&data_dir, &opts, &mut |_, _| {}).expect("generate");
     let data = Dataset::open(&data_dir, DatasetOptions::default()).expect("open");

@@ -100,6 +100,23 @@ impl Default for GenerateOptions {
     }
 }
 
+impl GenerateOptions {
+    /// A small scene for tests and quick checks: `size` x `size` images, `frames`
+    /// training times, one sample per pixel, 2 test views, 1 validation view and a
+    /// 2-frame video; the rest as [`Default`].
+    pub fn small(size: u32, frames: usize) -> Self {
+        GenerateOptions {
+            size,
+            frames: Some(frames),
+            samples: 1,
+            test_frames: 2,
+            val_frames: 1,
+            video_frames: 2,
+            ..GenerateOptions::default()
+        }
+    }
+}
+
 /// Most training times, test, validation or video views of a generated split
 /// (four-digit frame numbers; a count sizes the plan of every view before any is
 /// rendered).

@@ -27,13 +27,10 @@ fn scene() -> (TempDir, Dataset) {
     let tmp = TempDir::new("train-smoke").expect("temp dir");
     let root = tmp.path().join("scene");
     let opts = GenerateOptions {
-        size: 100,
-        frames: Some(60),
         samples: 2,
         test_frames: 4,
         val_frames: 4,
-        video_frames: 2,
-        ..GenerateOptions::default()
+        ..GenerateOptions::small(100, 60)
     };
     generate(&root, &opts, &mut |_, _| {}).expect("generates");
     // Without the generator's surface points a run starts from random points in the
