@@ -18,14 +18,8 @@ fn a_budgeted_run_records_its_plan_and_ends_near_its_budget() {
     let t = TempDir::new("budget").expect("temp dir");
     let root = t.path().join("scene");
     let opts = GenerateOptions {
-        size: 64,
-        frames: Some(6),
-        test_frames: 2,
-        val_frames: 1,
-        video_frames: 2,
-        samples: 1,
         seed: 2,
-        ..GenerateOptions::default()
+        ..GenerateOptions::small(64, 6)
     };
     generate(&root, &opts, &mut |_, _| {}).expect("generates");
     let data = Dataset::open(&root, DatasetOptions::default()).expect("opens");

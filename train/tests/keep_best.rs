@@ -16,14 +16,9 @@ use maaf_train::trainer::{BEST_DIR, checkpoint_dir, checkpoint_iteration, train_
 /// A 48x48 D-NeRF-layout scene of 6 training frames and 3 validation views.
 fn scene(dir: &Path) -> Dataset {
     let opts = GenerateOptions {
-        size: 48,
-        frames: Some(6),
-        test_frames: 2,
         val_frames: 3,
-        video_frames: 2,
-        samples: 1,
         seed: 4,
-        ..GenerateOptions::default()
+        ..GenerateOptions::small(48, 6)
     };
     generate(dir, &opts, &mut |_, _| {}).expect("generates");
     Dataset::open(dir, DatasetOptions::default()).expect("opens")
