@@ -72,6 +72,22 @@ pub fn write_dir<E>(
     result
 }
 
+/// Copies the folder tree `from` into `to` (created if needed), file by file; not
+/// atomic by itself: wrap it in [`write_dir`] for a folder that must appear whole.
+pub fn copy_tree(from: &Path, to: &Path) -> io::Result<()> {
+    fs::create_dir_all(to)?;
+    for entry in fs::read_dir(from)? {
+        let entry = entry?;
+        let target = to.join(entry.file_name());
+        if entry.file_type()?.is_dir() {
+            copy_tree(&entry.path(), &target)?;
+        } else {
+            fs::copy(entry.path(), &target)?;
+        }
+    }
+    Ok(())
+}
+
 /// Atomically exchanges the names `a` and `b`; `Ok(false)` where the system or file
 /// system cannot.
 #[cfg(target_os = "linux")]

@@ -35,7 +35,7 @@ mod name;
 pub mod process;
 mod scratch;
 
-pub use dir::{readable_dir, recover_dir, recover_parked_in, replace_dir, write_dir};
+pub use dir::{copy_tree, readable_dir, recover_dir, recover_parked_in, replace_dir, write_dir};
 use fault::Step;
 pub use lock::{LockError, RunLock};
 pub use name::{is_plugin_name, unknown_name};

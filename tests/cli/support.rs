@@ -216,15 +216,7 @@ impl Fixture {
 
 /// Copies a folder tree.
 pub fn copy_dir(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).expect("mkdir");
-    for e in std::fs::read_dir(from).expect("ls").flatten() {
-        let target = to.join(e.file_name());
-        if e.path().is_dir() {
-            copy_dir(&e.path(), &target);
-        } else {
-            std::fs::copy(e.path(), target).expect("copy");
-        }
-    }
+    maaf_io::copy_tree(from, to).expect("copies the folder");
 }
 
 /// A Panoptic-layout scene (`generate --rig multiview --layout dynamic3dgs`, one

@@ -60,19 +60,6 @@ fn validations(run: &Path) -> Vec<(usize, f64)> {
         .collect()
 }
 
-fn copy_dir(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).expect("mkdir");
-    for entry in std::fs::read_dir(from).expect("read dir") {
-        let entry = entry.expect("entry");
-        let target = to.join(entry.file_name());
-        if entry.path().is_dir() {
-            copy_dir(&entry.path(), &target);
-        } else {
-            std::fs::copy(entry.path(), &target).expect("copy");
-        }
-    }
-}
-
 fn bytes(dir: &Path) -> Vec<u8> {
     std::fs::read(dir.join("tensors.safetensors")).expect("tensors")
 }
@@ -115,7 +102,7 @@ fn the_model_is_the_state_with_the_best_validation_and_the_last_is_kept() {
     // Killed after its last validation, before its final save: a resume from the
     // checkpoint at 45 replays to the same choice and the same last state.
     let cut = t.path().join("cut");
-    copy_dir(&run, &cut);
+    maaf_io::copy_tree(&run, &cut).expect("copies the run");
     for gone in ["model", "summary.json", "checkpoints/iter_000060"] {
         let path = cut.join(gone);
         if path.is_dir() {

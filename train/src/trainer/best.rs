@@ -106,13 +106,7 @@ impl BestSoFar {
             Error::Input(format!("{}: the best state is missing", self.dir.display()))
         })?;
         maaf_io::write_dir(model, Error::io, |tmp| {
-            let files = std::fs::read_dir(&from).map_err(|e| Error::io(&from, e))?;
-            for file in files {
-                let file = file.map_err(|e| Error::io(&from, e))?;
-                let to = tmp.join(file.file_name());
-                std::fs::copy(file.path(), &to).map_err(|e| Error::io(&to, e))?;
-            }
-            Ok(())
+            maaf_io::copy_tree(&from, tmp).map_err(|e| Error::io(&from, e))
         })
     }
 }
