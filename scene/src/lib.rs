@@ -32,6 +32,7 @@ mod record;
 mod registry;
 pub mod run_data;
 mod run_dir;
+pub mod run_log;
 mod term_name;
 mod timings;
 

@@ -16,40 +16,7 @@ use crate::Error;
 /// validation value; empty when the log is missing or has no `val_psnr` column
 /// (runs from before it existed).
 pub fn validation_curve(run: &Path) -> Result<Vec<(f64, f64)>, Error> {
-    let path = run.join("log.csv");
-    if !path.is_file() {
-        return Ok(Vec::new());
-    }
-    let bad = |e: csv::Error| Error::Input(format!("{}: {e}", path.display()));
-    let mut reader = csv::ReaderBuilder::new()
-        .flexible(true)
-        .from_path(&path)
-        .map_err(bad)?;
-    let header = reader.headers().map_err(bad)?.clone();
-    let column = |name: &str| header.iter().position(|h| h == name);
-    let (Some(t), Some(v)) = (column("elapsed_seconds"), column("val_psnr")) else {
-        return Ok(Vec::new());
-    };
-    let mut points = Vec::new();
-    for (k, row) in reader.records().enumerate() {
-        let row = row.map_err(bad)?;
-        let cell = |i: usize| row.get(i).unwrap_or("");
-        if cell(v).is_empty() {
-            continue;
-        }
-        let parse = |i: usize| {
-            cell(i).parse::<f64>().map_err(|_| {
-                Error::Input(format!(
-                    "{}: line {}: `{}` is not a number",
-                    path.display(),
-                    k + 2,
-                    cell(i)
-                ))
-            })
-        };
-        points.push((parse(t)?, parse(v)?));
-    }
-    Ok(points)
+    maaf_scene::run_log::logged_pairs(&run.join("log.csv"), "elapsed_seconds", "val_psnr")
 }
 
 /// Draws the validation PSNR of every run against its training time into `path`;

@@ -39,31 +39,16 @@ impl BestSoFar {
     /// reaches it again).
     pub(super) fn resume(run: &Path, log: &Path) -> Result<Self, Error> {
         let dir = run.join(BEST_DIR);
-        let bytes = match std::fs::read(log) {
-            Ok(bytes) => bytes,
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Vec::new(),
-            Err(e) => return Err(Error::io(log, e)),
-        };
-        let bad = |e: csv::Error| Error::Input(format!("{}: {e}", log.display()));
-        let mut reader = csv::Reader::from_reader(bytes.as_slice());
-        let column = reader
-            .headers()
-            .map_err(bad)?
-            .iter()
-            .position(|h| h == "val_psnr");
+        // The best of the logged values; the earlier of two equal ones.
         let mut chosen: Option<Chosen> = None;
-        if let Some(column) = column {
-            for row in reader.records() {
-                let row = row.map_err(bad)?;
-                let value = |k: usize| row.get(k).and_then(|v| v.parse::<f64>().ok());
-                if let (Some(it), Some(p)) = (value(0), value(column))
-                    && chosen.is_none_or(|c| p > c.val_psnr)
-                {
-                    chosen = Some(Chosen {
-                        iteration: it as usize,
-                        val_psnr: p,
-                    });
-                }
+        for (iteration, val_psnr) in
+            maaf_scene::run_log::logged_pairs(log, "iteration", "val_psnr")?
+        {
+            if chosen.is_none_or(|c| val_psnr > c.val_psnr) {
+                chosen = Some(Chosen {
+                    iteration: iteration as usize,
+                    val_psnr,
+                });
             }
         }
         let saved = maaf_io::readable_dir(&dir).and_then(|d| super::checkpoint_iteration(&d).ok());
