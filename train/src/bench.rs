@@ -25,6 +25,7 @@ use crate::models::DeformConfig;
 use crate::models::ModelConfig;
 use crate::models::saro::SaroConfig;
 use crate::trainer::{DensifyPlan, Trainer};
+use maaf_scene::TrainConfig;
 
 /// Throughput of this machine measured in the run: the library's f32 GEMM and a large
 /// memory copy.
@@ -183,7 +184,13 @@ fn resize_for_bench(trainer: &mut Trainer, gaussians: usize, opts: &StepBenchOpt
     resample_rows(trainer, gaussians, opts.seed);
     let c = &mut trainer.config;
     c.batch = opts.batch.unwrap_or(c.batch);
-    c.iterations = trainer.iteration + opts.warmup + opts.iterations + 1;
+    hold_schedule(c, trainer.iteration + opts.warmup + opts.iterations + 1);
+}
+
+/// A schedule that only steps, for timing steps at a fixed Gaussian count: `iterations`
+/// in all, no densification, opacity reset or filter refresh.
+pub(crate) fn hold_schedule(c: &mut TrainConfig, iterations: usize) {
+    c.iterations = iterations;
     c.densify.from = usize::MAX;
     c.densify.opacity_reset_every = 0;
     c.filter.refresh.start = u64::MAX;

@@ -19,7 +19,7 @@ use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 
-use crate::bench::resample_rows;
+use crate::bench::{hold_schedule, resample_rows};
 use crate::data::Dataset;
 use crate::trainer::Trainer;
 use crate::{Error, Plugins};
@@ -187,12 +187,7 @@ fn warm_up(
         *stage = 0;
     }
     let mut t = Trainer::with_plugins(data, warm, plugins)?;
-    let c = &mut t.config;
-    c.iterations = usize::MAX;
-    c.densify.from = usize::MAX;
-    c.densify.opacity_reset_every = 0;
-    c.filter.refresh.start = u64::MAX;
-    c.filter.refresh.after_densify = false;
+    hold_schedule(&mut t.config, usize::MAX);
     let initial = t.num_gaussians();
     let timed = |t: &mut Trainer| {
         t.step();
