@@ -379,6 +379,12 @@ fn say_resumed(trainer: &Trainer, dir: &Path) {
     );
 }
 
+/// `RUN/config.json`, atomically.
+fn write_config(out: &Path, config: &TrainConfig) -> Result<(), Error> {
+    let json = serde_json::to_vec_pretty(config).map_err(|e| Error::Input(e.to_string()))?;
+    write_atomic(&out.join("config.json"), &json)
+}
+
 /// `RUN/budget.json`, atomically.
 fn write_plan(out: &Path, plan: &BudgetPlan) -> Result<(), Error> {
     let json = serde_json::to_vec_pretty(plan).map_err(|e| Error::Input(e.to_string()))?;
@@ -412,9 +418,7 @@ fn run_trainer(
         maaf_scene::run_data::record_data(out, data)?;
     }
     let model_dir = out.join("model");
-    let config_json =
-        serde_json::to_vec_pretty(&trainer.config).map_err(|e| Error::Input(e.to_string()))?;
-    write_atomic(&out.join("config.json"), &config_json)?;
+    write_config(out, &trainer.config)?;
     let log_path = out.join("log.csv");
     let current = LogLayout::of(&trainer.objective);
     let layout = if resume {
@@ -521,9 +525,7 @@ fn run_trainer(
             total = iterations;
             trainer.config.iterations = iterations;
             bar.set_length(total as u64);
-            let config_json = serde_json::to_vec_pretty(&trainer.config)
-                .map_err(|e| Error::Input(e.to_string()))?;
-            write_atomic(&out.join("config.json"), &config_json)?;
+            write_config(out, &trainer.config)?;
             plan.adjusted_iterations = Some(iterations);
             write_plan(out, plan)?;
         }
