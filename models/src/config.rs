@@ -97,6 +97,11 @@ impl Serialize for ModelConfig {
     }
 }
 
+/// An iteration count scaled by `s` (a budget's schedule): `round(n s)`, at least 1.
+pub fn scaled_count(n: usize, s: f64) -> usize {
+    ((n as f64) * s).round().max(1.0) as usize
+}
+
 impl ModelConfig {
     /// The built-in kinds.
     pub const KINDS: [&'static str; 3] = ["saro", "deform", "track"];
@@ -193,7 +198,7 @@ impl ModelConfig {
     /// iteration. The tracking model's schedule is a share of the run already; a
     /// registered representation's options are its own and are left as they are.
     pub fn scale_schedule(&mut self, s: f64) {
-        let scaled = |n: &mut usize| *n = ((*n as f64) * s).round().max(1.0) as usize;
+        let scaled = |n: &mut usize| *n = scaled_count(*n, s);
         match self {
             ModelConfig::Saro(c) => {
                 scaled(&mut c.static_iterations);

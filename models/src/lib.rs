@@ -42,7 +42,7 @@ use maaf_splat::GaussianVars;
 use crate::params::{BoundParams, ParamStore};
 
 pub use canonical::{Canonical, CanonicalIds};
-pub use config::{ModelConfig, ModelInit, build_model};
+pub use config::{ModelConfig, ModelInit, build_model, scaled_count};
 pub use deform::{DeformConfig, DeformModel};
 pub use hooks::{TrainingHooks, TrainingTime};
 pub use init::{InitialGaussians, knn_mean_sq_dist, rgb_to_sh_dc};

@@ -8,6 +8,7 @@ use std::str::FromStr;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
 use crate::TrainConfig;
+use maaf_models::scaled_count;
 
 /// A wall time, written `90s`, `10m`, `1.5h` or `1h30m` (a bare number is seconds).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -20,6 +21,10 @@ impl WallBudget {
     pub fn seconds(self) -> f64 {
         self.seconds
     }
+
+    fn positive(seconds: f64) -> Option<Self> {
+        (seconds.is_finite() && seconds > 0.0).then_some(WallBudget { seconds })
+    }
 }
 
 impl FromStr for WallBudget {
@@ -29,13 +34,13 @@ impl FromStr for WallBudget {
     fn from_str(text: &str) -> Result<Self, String> {
         let bad =
             || format!("budget `{text}`: expected a wall time such as 90s, 10m, 1.5h or 1h30m");
-        let text_trim = text.trim();
-        if let Ok(seconds) = text_trim.parse::<f64>() {
+        let trimmed = text.trim();
+        if let Ok(seconds) = trimmed.parse::<f64>() {
             return Self::positive(seconds).ok_or_else(bad);
         }
         let mut seconds = 0.0;
         let mut number = String::new();
-        for c in text_trim.chars() {
+        for c in trimmed.chars() {
             let unit = match c {
                 'h' => 3600.0,
                 'm' => 60.0,
@@ -54,12 +59,6 @@ impl FromStr for WallBudget {
             return Err(bad());
         }
         Self::positive(seconds).ok_or_else(bad)
-    }
-}
-
-impl WallBudget {
-    fn positive(seconds: f64) -> Option<Self> {
-        (seconds.is_finite() && seconds > 0.0).then_some(WallBudget { seconds })
     }
 }
 
@@ -91,11 +90,6 @@ impl<'de> Deserialize<'de> for WallBudget {
     }
 }
 
-/// `round(n s)`, at least 1.
-fn times(n: usize, s: f64) -> usize {
-    ((n as f64) * s).round().max(1.0) as usize
-}
-
 impl TrainConfig {
     /// The schedule scaled by `s` (0.5: half as long): the iterations and every window
     /// counted in iterations (densification from and until, the opacity reset period,
@@ -108,23 +102,23 @@ impl TrainConfig {
     pub fn scaled_schedule(&self, s: f64) -> TrainConfig {
         let mut c = self.clone();
         c.budget = None;
-        c.iterations = times(c.iterations, s).max(2);
-        c.sh_degree_every = times(c.sh_degree_every, s);
-        c.checkpoint_every = times(c.checkpoint_every, s);
+        c.iterations = scaled_count(c.iterations, s).max(2);
+        c.sh_degree_every = scaled_count(c.sh_degree_every, s);
+        c.checkpoint_every = scaled_count(c.checkpoint_every, s);
         if c.val_every > 0 {
-            c.val_every = times(c.val_every, s).div_ceil(c.log_every) * c.log_every;
+            c.val_every = scaled_count(c.val_every, s).div_ceil(c.log_every) * c.log_every;
         }
         let d = &mut c.densify;
-        d.from = times(d.from, s);
-        d.until = times(d.until, s).max(d.from);
+        d.from = scaled_count(d.from, s);
+        d.until = scaled_count(d.until, s).max(d.from);
         if d.opacity_reset_every > 0 {
-            d.opacity_reset_every = times(d.opacity_reset_every, s);
+            d.opacity_reset_every = scaled_count(d.opacity_reset_every, s);
         }
-        d.max_gaussians = times(d.max_gaussians, s).max(c.init_points);
+        d.max_gaussians = scaled_count(d.max_gaussians, s).max(c.init_points);
         let p = &mut c.prune;
-        p.from = times(p.from, s);
-        p.until = times(p.until, s).max(p.from);
-        c.filter.refresh.start = times(c.filter.refresh.start as usize, s) as u64;
+        p.from = scaled_count(p.from, s);
+        p.until = scaled_count(p.until, s).max(p.from);
+        c.filter.refresh.start = scaled_count(c.filter.refresh.start as usize, s) as u64;
         c.model.scale_schedule(s);
         c
     }
