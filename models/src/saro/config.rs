@@ -111,6 +111,12 @@ pub struct SaroConfig {
     /// (`use_intergral_afterdensify`: false in the D-NeRF configs, true in the
     /// Neural 3D Video ones).
     pub adaptive_after_densify: bool,
+    /// Apply the adaptive scale to the log-scale's learning rate while densifying
+    /// (SaRO-GS `scale_intergral`, true in its D-NeRF runs). Off, the scale keeps its
+    /// plain learning rate while centre, opacity, temporal centre, rotation and SH DC
+    /// still get the adaptive one: a log-scale step of `lr * I_max / I` (up to ~350x
+    /// the plain rate at the shortest lifespans) moves the scale by `e^1` per step.
+    pub adaptive_log_scale: bool,
     /// Weight of L_SR (`lambda_dscale_reg` 8e-6): the one place it is set; the model
     /// declares the `l_sr` term with it ([`crate::Representation::regularisers`]).
     pub lambda_sr: f64,
@@ -132,6 +138,7 @@ impl Default for SaroConfig {
             static_iterations: 1000,
             adaptive_every: 0,
             adaptive_after_densify: false,
+            adaptive_log_scale: true,
             lambda_sr: 8e-6,
             lr: SaroLr::default(),
         }

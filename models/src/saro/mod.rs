@@ -364,13 +364,14 @@ impl<T: Float> Representation<T> for SaroModel<T> {
 impl<T: Float> TrainingHooks<T> for SaroModel<T> {
     /// The adaptive scale for centre, opacity, temporal centre, rotation and SH DC
     /// (while densifying, or always with `adaptive_after_densify`) and for the
-    /// log-scale (while densifying only: SaRO-GS stops it then "to ensure stability").
+    /// log-scale (while densifying only: SaRO-GS stops it then "to ensure stability";
+    /// never with `adaptive_log_scale` off).
     fn lr_row_scale(&self, name: &str, densifying: bool) -> Option<Arc<[T]>> {
         let on = match name {
             "xyz" | "opacity" | "t_centre" | "rotation" | "sh_dc" => {
                 densifying || self.config.adaptive_after_densify
             }
-            "log_scale" => densifying,
+            "log_scale" => densifying && self.config.adaptive_log_scale,
             _ => false,
         };
         self.adaptive.clone().filter(|_| on)

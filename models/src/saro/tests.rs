@@ -330,6 +330,9 @@ fn adaptive_scale_is_the_longest_integral_over_each_and_follows_the_schedule() {
     model.config.adaptive_after_densify = true;
     assert!(model.lr_row_scale("xyz", false).is_some());
     assert!(model.lr_row_scale("log_scale", false).is_none());
+    model.config.adaptive_log_scale = false;
+    assert!(model.lr_row_scale("log_scale", true).is_none());
+    assert!(model.lr_row_scale("xyz", true).is_some());
     // Densification carries each row's scale to its clones; a checkpoint buffer
     // restores it; the static stage and `adaptive_every = 0` turn it off.
     (&mut model as &mut dyn Representation<_>).select_rows(&[7, 0, 0]);
