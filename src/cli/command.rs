@@ -1,6 +1,7 @@
 //! The command line: every subcommand and its dispatch (docs/cli.md).
 
 use clap::{Parser, Subcommand};
+use maaf_eval::MetricRegistry;
 use maaf_train::Plugins;
 
 use crate::cli;
@@ -79,8 +80,8 @@ enum Command {
 
 /// Runs the parsed command; `plugins` are the terms, representations, filters and
 /// strategies a run may name (the other commands load runs through its
-/// representations).
-pub(super) fn run(cli: Cli, plugins: &Plugins) -> anyhow::Result<()> {
+/// representations), `metrics` the per-image metrics `eval` adds.
+pub(super) fn run(cli: Cli, plugins: &Plugins, metrics: &MetricRegistry) -> anyhow::Result<()> {
     let models = &plugins.models;
     match cli.command {
         Command::Demo(args) => cli::demo::run(&args)?,
@@ -88,7 +89,7 @@ pub(super) fn run(cli: Cli, plugins: &Plugins) -> anyhow::Result<()> {
         Command::Inspect(args) => cli::inspect::run(&args)?,
         Command::Train(args) => cli::train::run(&args, plugins)?,
         Command::RenderPly(args) => cli::render_ply::run(&args)?,
-        Command::Eval(args) => cli::eval::run(&args, models)?,
+        Command::Eval(args) => cli::eval::run(&args, models, metrics)?,
         Command::Render(args) => cli::render::run(&args, models)?,
         Command::RenderVideo(args) => cli::render::run_video(&args, models)?,
         Command::Cameras(args) => cli::cameras::run(&args)?,

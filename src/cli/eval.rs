@@ -9,7 +9,7 @@ use maaf_scene::{ModelRegistry, SceneRecord, TrainedScene};
 use maaf_train::data::{Dataset, DatasetOptions, Split};
 
 use super::Background;
-use maaf_eval::{EvalOptions, evaluate_run_with, scale_label};
+use maaf_eval::{EvalOptions, MetricRegistry, evaluate_run_with, scale_label};
 use maaf_lpips::Net;
 
 /// [`maaf_eval::DEFAULT_SCALES`] as `--scales` takes them (comma-separated), so `--help` shows
@@ -58,10 +58,16 @@ pub struct EvalArgs {
     /// lpips/tools/fetch_vgg_weights.sh`; 13x AlexNet's time at 800x800).
     #[arg(long, default_value = "alex")]
     pub lpips_net: Net,
+    /// Per-image metrics of one's own to compute, comma-separated: names a program
+    /// registers (maaf::cli::Maaf::metric, docs/extending.md; plain maaf has none)
+    /// [default: every registered one].
+    #[arg(long, value_delimiter = ',')]
+    pub metrics: Option<Vec<String>>,
 }
 
 impl EvalArgs {
-    /// The evaluation these arguments ask for.
+    /// The evaluation these arguments ask for, without metrics of one's own
+    /// ([`EvalArgs::with_metrics`] adds them).
     pub fn options(&self) -> EvalOptions {
         EvalOptions {
             scales: self.scales.clone(),
@@ -71,7 +77,23 @@ impl EvalArgs {
             save_images: !self.no_images,
             temporal: self.temporal,
             lpips_net: self.lpips_net,
+            metrics: Vec::new(),
         }
+    }
+
+    /// [`EvalArgs::options`] with the metrics of `registry` that `--metrics` names
+    /// (every one without it); an unknown name is refused, naming the registered ones.
+    pub fn with_metrics(&self, registry: &MetricRegistry) -> anyhow::Result<EvalOptions> {
+        let metrics = registry
+            .build(self.metrics.as_deref())
+            .map_err(|e| match self.metrics {
+                Some(_) => anyhow::anyhow!("--metrics: {e}"),
+                None => anyhow::anyhow!("{e}"),
+            })?;
+        Ok(EvalOptions {
+            metrics,
+            ..self.options()
+        })
     }
 }
 
@@ -161,12 +183,17 @@ pub fn read_lock(run: &Path) -> anyhow::Result<Option<maaf_io::RunLock>> {
     Ok(maaf_io::RunLock::shared(run)?)
 }
 
-/// Runs `maaf eval`.
-pub fn run(args: &EvalArgs, models: &ModelRegistry) -> anyhow::Result<()> {
+/// Runs `maaf eval`, with the metrics of one's own in `metrics`.
+pub fn run(
+    args: &EvalArgs,
+    models: &ModelRegistry,
+    metrics: &MetricRegistry,
+) -> anyhow::Result<()> {
+    let options = args.with_metrics(metrics)?;
     // A folder without a model is named as such before its data set is looked for.
     maaf_scene::model_dir(&args.run)?;
     let data = open_run_data(&args.run, args.data.as_deref(), args.background)?;
-    let report = evaluate_run_with(&args.run, &data, &args.options(), models)?;
+    let report = evaluate_run_with(&args.run, &data, &options, models)?;
     println!(
         "{} / {} at training scale {}: {} Gaussians, {:.1} MB (+{:.1} MB filter)",
         report.model,
@@ -177,11 +204,19 @@ pub fn run(args: &EvalArgs, models: &ModelRegistry) -> anyhow::Result<()> {
         report.filter_bytes as f64 / 1e6
     );
     let opt = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.4}"));
-    println!("| scale | size | PSNR | SSIM | LPIPS | W-Temporal Error | W-SSIM | W-LPIPS | flow |");
-    println!("|---|---|---|---|---|---|---|---|---|");
+    let extra: Vec<&String> = report.extra_metrics.keys().collect();
+    let columns = |cells: Vec<String>| cells.iter().map(|c| format!(" {c} |")).collect::<String>();
+    println!(
+        "| scale | size | PSNR | SSIM | LPIPS | W-Temporal Error | W-SSIM | W-LPIPS | flow |{}",
+        columns(extra.iter().map(|n| n.to_string()).collect())
+    );
+    println!(
+        "|---|---|---|---|---|---|---|---|---|{}",
+        "---|".repeat(extra.len())
+    );
     for s in &report.scales {
         println!(
-            "| {} | {}x{} | {:.2} | {:.4} | {} | {} | {} | {} | {} |",
+            "| {} | {}x{} | {:.2} | {:.4} | {} | {} | {} | {} | {} |{}",
             scale_label(s.scale),
             s.width,
             s.height,
@@ -191,13 +226,20 @@ pub fn run(args: &EvalArgs, models: &ModelRegistry) -> anyhow::Result<()> {
             opt(s.warp_error),
             opt(s.w_ssim),
             opt(s.w_lpips),
-            s.flow.as_deref().unwrap_or("-")
+            s.flow.as_deref().unwrap_or("-"),
+            columns(
+                extra
+                    .iter()
+                    .map(|n| opt(s.extra.get(*n).copied()))
+                    .collect()
+            )
         );
     }
     println!(
-        "| avg | | {:.2} | {:.4} | | | | | |",
+        "| avg | | {:.2} | {:.4} | | | | | |{}",
         report.mean_psnr(),
-        report.mean_ssim()
+        report.mean_ssim(),
+        " |".repeat(extra.len())
     );
     if let Some(note) = report.scales.iter().find_map(|s| s.lpips_note.as_ref()) {
         println!("LPIPS missing at some scale: {note}");

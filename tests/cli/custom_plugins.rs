@@ -3,7 +3,9 @@
 //! `custom_strategy.rs`, `custom_representation.rs`), named in a plain training
 //! config: each program trains, is killed mid-run, `maaf` itself refuses to resume
 //! the run (one line naming the run, the name and what it knows), the program
-//! resumes it to the uninterrupted run's tensors, and the run is evaluated.
+//! resumes it to the uninterrupted run's tensors, and the run is evaluated. An image
+//! metric of one's own (`examples/custom_metric.rs`) evaluates a run, and its values
+//! are recomputed from the saved PNGs.
 
 use std::path::{Path, PathBuf};
 
@@ -255,4 +257,110 @@ fn a_representation_of_ones_own_trains_from_a_config_with_its_options_and_resume
         let settings = format!(r#""model": {{"kind": "tiny_deform", {options}}}"#);
         refused_config(&program, &fx, "bad", &settings, &[needle]);
     }
+}
+
+/// The mean absolute error of two saved 8-bit PNGs over pixels and RGB channels,
+/// computed here without the example's code.
+fn png_mae(render: &Path, gt: &Path) -> f64 {
+    let read = |p: &Path| {
+        maaf::train::data::image::decode_rgba(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+    };
+    let (r, g) = (read(render), read(gt));
+    assert_eq!((r.width, r.height), (g.width, g.height));
+    let sum: f64 = r
+        .data
+        .chunks_exact(4)
+        .zip(g.data.chunks_exact(4))
+        .flat_map(|(a, b)| (0..3).map(move |c| f64::from((a[c] - b[c]).abs())))
+        .sum();
+    sum / (3 * r.pixels()) as f64
+}
+
+#[test]
+fn a_metric_of_ones_own_is_in_eval_json_metrics_csv_and_the_report() {
+    let fx = fixture("plugin_metric");
+    let trained = fx.trained("run");
+    let program = example("custom_metric");
+    let eval = ["eval", "--run", s(&trained), "--scales", "0.5,1"];
+    succeeded(run(&program, &eval, &[]));
+    let report = json(&trained.join("eval.json"));
+    assert_eq!(
+        report["extra_metrics"],
+        serde_json::json!({"mae": {"higher_is_better": false}})
+    );
+    // The saved PNGs are the float images rounded to 8 bits (after clamping to
+    // [0, 1], as the metric clamps), each value within 0.5 / 255 of the one measured:
+    // a per-view value, and so the mean, recomputed from them is within 1 / 255.
+    let tolerance = 1.0 / 255.0 + 1e-6;
+    let scales = report["scales"].as_array().expect("scales");
+    assert_eq!(scales.len(), 2);
+    for (entry, label) in scales.iter().zip(["0.5x", "1x"]) {
+        let mean = entry["extra"]["mae"].as_f64().expect("extra.mae");
+        let dir = trained.join("eval").join(label);
+        let text = std::fs::read_to_string(dir.join("metrics.csv")).expect("metrics.csv");
+        let mut lines = text.lines();
+        let header: Vec<&str> = lines.next().expect("header").split(',').collect();
+        assert_eq!(header, ["view", "time", "psnr", "ssim", "lpips", "mae"]);
+        let mut csv_values = Vec::new();
+        let mut png_values = Vec::new();
+        for line in lines {
+            let cells: Vec<&str> = line.split(',').collect();
+            let view: usize = cells[0].parse().expect("view index");
+            let value: f64 = cells[5].parse().expect("mae value");
+            let png = png_mae(
+                &dir.join(format!("render_{view:03}.png")),
+                &dir.join(format!("gt_{view:03}.png")),
+            );
+            assert!(
+                (value - png).abs() <= tolerance,
+                "{label} view {view}: mae {value} in metrics.csv, {png} from the PNGs"
+            );
+            csv_values.push(value);
+            png_values.push(png);
+        }
+        assert!(!csv_values.is_empty(), "{label}: no view evaluated");
+        let average = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+        // metrics.csv prints 6 decimals.
+        assert!((average(&csv_values) - mean).abs() < 1e-6, "{label}");
+        assert!(
+            (average(&png_values) - mean).abs() <= tolerance,
+            "{label}: mean mae {mean} in eval.json, {} from the PNGs",
+            average(&png_values)
+        );
+        assert!(
+            mean > 0.0,
+            "{label}: a run of 6 iterations renders its views exactly"
+        );
+    }
+    // Plain `maaf report` reads the values from eval.json alone.
+    let out = maaf(&[
+        "report",
+        "--runs",
+        s(&trained),
+        "--out",
+        s(&fx.root.join("report")),
+    ]);
+    succeeded(out.clone());
+    let printed = String::from_utf8_lossy(&out.stdout);
+    let at_1x = format!("{:.4}", scales[1]["extra"]["mae"].as_f64().expect("mae"));
+    assert!(
+        printed.contains("| Method | mae ↓ 1/2x | mae ↓ 1x |"),
+        "{printed}"
+    );
+    assert!(printed.contains(&at_1x), "{printed}");
+    let markdown = std::fs::read_to_string(fx.root.join("report/report.md")).expect("report");
+    assert!(markdown.contains("mae ↓ 1x"), "{markdown}");
+    // A name no program registers is refused before anything is evaluated.
+    refused(
+        run(
+            &program,
+            &["eval", "--run", s(&trained), "--metrics", "maee"],
+            &[],
+        ),
+        &["--metrics", "metric `maee`", "did you mean `mae`?"],
+    );
+    refused(
+        maaf(&["eval", "--run", s(&trained), "--metrics", "mae"]),
+        &["metric `mae` is not registered", "Maaf::metric"],
+    );
 }
