@@ -1,6 +1,6 @@
 //! The `maaf` command line as a value a program of one's own runs, with loss terms,
-//! representations, filters, densification strategies and image metrics of its own
-//! registered by name (docs/architecture.md, "The CLI as a library"; docs/extending.md).
+//! representations, filters, densification strategies, image metrics and data layouts
+//! of its own registered by name (docs/architecture.md, "The CLI as a library"; docs/extending.md).
 
 use clap::Parser;
 use maaf_autodiff::Var;
@@ -8,6 +8,7 @@ use maaf_eval::{ImageMetric, MetricRegistry};
 use maaf_filter::{FilterConfig, SamplingFilter};
 use maaf_scene::TrainConfig;
 use maaf_train::Plugins;
+use maaf_train::data::DataFormat;
 use maaf_train::loss::{Term, TermCtx};
 use maaf_train::models::{ModelInit, Representation};
 use maaf_train::trainer::Strategy;
@@ -153,6 +154,20 @@ impl Maaf {
     {
         if let Err(e) = self.metrics.register(name, factory) {
             panic!("Maaf::metric: {e}");
+        }
+        self
+    }
+
+    /// Registers a data layout of one's own under `name`: every command that opens a
+    /// data folder (`train --data`, `eval`, `render`, `bench`, `cameras`, `inspect`,
+    /// a run's recorded folder) reads a folder that no built-in layout (D-NeRF,
+    /// Plenoptic Video, Dynamic 3D Gaussians) claims with the first registered format
+    /// whose [`DataFormat::detect`] accepts it (`examples/custom_data_format.rs`).
+    /// Panics if `name` is taken (another registered format, `dnerf`, `plenoptic`,
+    /// `dynamic3dgs`) or is not 1 to 64 letters, digits or `_`.
+    pub fn data_format<F: DataFormat + 'static>(mut self, name: &str, format: F) -> Self {
+        if let Err(e) = self.plugins.formats.register(name, format) {
+            panic!("Maaf::data_format: {e}");
         }
         self
     }

@@ -5,7 +5,9 @@ use std::path::{Path, PathBuf};
 
 use anyhow::bail;
 use maaf_scene::run_data::recorded_data;
-use maaf_scene::{ModelRegistry, SceneRecord, TrainedScene};
+use maaf_scene::{SceneRecord, TrainedScene};
+use maaf_train::Plugins;
+use maaf_train::data::FormatRegistry;
 use maaf_train::data::{Dataset, DatasetOptions, Split};
 
 use super::Background;
@@ -119,12 +121,14 @@ impl From<SplitArg> for Split {
 }
 
 /// Opens the data set of `run`: `data` if given, else the folder in `RUN/data.json`
-/// (an error naming it and suggesting --data when it is gone); the background from
-/// `background`, else the recorded one, else the default (black).
+/// (an error naming it and suggesting --data when it is gone), in a built-in layout or
+/// one of `formats`; the background from `background`, else the recorded one, else the
+/// default (black).
 pub fn open_run_data(
     run: &Path,
     data: Option<&Path>,
     background: Option<Background>,
+    formats: &FormatRegistry,
 ) -> anyhow::Result<Dataset> {
     let recorded = recorded_data(run)?;
     let root = match (data, &recorded) {
@@ -145,10 +149,14 @@ pub fn open_run_data(
         (None, Some(r)) => r.background,
         (None, None) => Background::default().rgb(),
     };
-    Ok(Dataset::open(&root, DatasetOptions { background })?)
+    Ok(Dataset::open_with(
+        &root,
+        DatasetOptions { background },
+        formats,
+    )?)
 }
 
-/// Loads the trained scene of `run` (a representation `models` knows) without its
+/// Loads the trained scene of `run` (a representation `plugins` knows) without its
 /// data set; a run saved before checkpoints recorded their cameras takes them from `data`,
 /// else from the data set [`open_run_data`] opens with `data_dir` and `background`.
 pub fn load_scene(
@@ -156,14 +164,14 @@ pub fn load_scene(
     data_dir: Option<&Path>,
     background: Option<Background>,
     data: Option<&Dataset>,
-    models: &ModelRegistry,
+    plugins: &Plugins,
 ) -> anyhow::Result<TrainedScene> {
-    let scene = TrainedScene::load_or(run, models, |config| {
+    let scene = TrainedScene::load_or(run, &plugins.models, |config| {
         let opened;
         let data = match data {
             Some(d) => d,
             None => {
-                opened = open_run_data(run, data_dir, background)
+                opened = open_run_data(run, data_dir, background, &plugins.formats)
                     .map_err(|e| maaf_scene::Error::Input(e.to_string()))?;
                 &opened
             }
@@ -184,16 +192,17 @@ pub fn read_lock(run: &Path) -> anyhow::Result<Option<maaf_io::RunLock>> {
 }
 
 /// Runs `maaf eval`, with the metrics of one's own in `metrics`.
-pub fn run(
-    args: &EvalArgs,
-    models: &ModelRegistry,
-    metrics: &MetricRegistry,
-) -> anyhow::Result<()> {
+pub fn run(args: &EvalArgs, plugins: &Plugins, metrics: &MetricRegistry) -> anyhow::Result<()> {
     let options = args.with_metrics(metrics)?;
     // A folder without a model is named as such before its data set is looked for.
     maaf_scene::model_dir(&args.run)?;
-    let data = open_run_data(&args.run, args.data.as_deref(), args.background)?;
-    let report = evaluate_run_with(&args.run, &data, &options, models)?;
+    let data = open_run_data(
+        &args.run,
+        args.data.as_deref(),
+        args.background,
+        &plugins.formats,
+    )?;
+    let report = evaluate_run_with(&args.run, &data, &options, &plugins.models)?;
     println!(
         "{} / {} at training scale {}: {} Gaussians, {:.1} MB (+{:.1} MB filter)",
         report.model,

@@ -5,7 +5,9 @@
 //! the run (one line naming the run, the name and what it knows), the program
 //! resumes it to the uninterrupted run's tensors, and the run is evaluated. An image
 //! metric of one's own (`examples/custom_metric.rs`) evaluates a run, and its values
-//! are recomputed from the saved PNGs.
+//! are recomputed from the saved PNGs; a data layout of one's own
+//! (`examples/custom_data_format.rs`) holds a generated scene that is trained and
+//! evaluated through `--data`.
 
 use std::path::{Path, PathBuf};
 
@@ -362,5 +364,96 @@ fn a_metric_of_ones_own_is_in_eval_json_metrics_csv_and_the_report() {
     refused(
         maaf(&["eval", "--run", s(&trained), "--metrics", "mae"]),
         &["metric `mae` is not registered", "Maaf::metric"],
+    );
+}
+
+/// Writes the `split` views of the generated scene `data` into `dir` in the layout of
+/// `examples/custom_data_format.rs`: its PNGs copied to `images/`, its cameras as
+/// `maaf cameras` writes them. Returns the `views.json` entries.
+fn views_entries(data: &Path, dir: &Path, split: &str) -> Vec<Value> {
+    let cams = dir
+        .parent()
+        .expect("scratch folder")
+        .join(format!("cams_{split}"));
+    succeeded(maaf(&[
+        "cameras",
+        "--data",
+        s(data),
+        "--split",
+        split,
+        "--out",
+        s(&cams),
+    ]));
+    let transforms = json(&data.join(format!("transforms_{split}.json")));
+    let frames = transforms["frames"].as_array().expect("frames");
+    std::fs::create_dir_all(dir.join("images")).expect("images folder");
+    frames
+        .iter()
+        .enumerate()
+        .map(|(i, frame)| {
+            let file = frame["file_path"].as_str().expect("file_path");
+            let source = data.join(format!("{}.png", file.trim_start_matches("./")));
+            let image = format!("images/{split}_{i:03}.png");
+            std::fs::copy(&source, dir.join(&image)).expect("copies the image");
+            let mut camera = json(&cams.join(format!("{i:04}.json")));
+            let time = camera["time"].take();
+            camera.as_object_mut().expect("camera").remove("time");
+            assert_eq!(time, frame["time"], "view {i} of {split}");
+            serde_json::json!({"image": image, "time": time, "camera": camera})
+        })
+        .collect()
+}
+
+#[test]
+fn a_data_format_of_ones_own_is_read_through_data_by_train_and_eval() {
+    let fx = fixture("plugin_format");
+    let scene = fx.root.join("views_scene");
+    let listing = serde_json::json!({
+        "train": views_entries(&fx.data, &scene, "train"),
+        "test": views_entries(&fx.data, &scene, "test"),
+    });
+    std::fs::write(scene.join("views.json"), listing.to_string()).expect("views.json");
+    let program = example("custom_data_format");
+    let config = fx.root.join("config.json");
+    std::fs::write(&config, format!("{{{BASE}}}")).expect("config");
+    let out = fx.root.join("run");
+    let train = [
+        "train",
+        "--data",
+        s(&scene),
+        "--out",
+        s(&out),
+        "--config",
+        s(&config),
+    ];
+    // Plain `maaf` knows no such layout.
+    refused(maaf(&train), &["views_scene", "transforms_train.json"]);
+    assert!(!out.join("log.csv").exists());
+    succeeded(run(&program, &train, &[]));
+    assert_eq!(json(&out.join("summary.json"))["iterations"], 10);
+    // The run records its data folder: eval finds it without --data.
+    succeeded(run(
+        &program,
+        &["eval", "--run", s(&out), "--scales", "1", "--no-images"],
+        &[],
+    ));
+    let scale = &json(&out.join("eval.json"))["scales"][0];
+    assert_eq!(
+        (&scale["width"], &scale["height"]),
+        (&Value::from(32), &Value::from(32))
+    );
+    assert!(
+        scale["psnr"].as_f64().is_some_and(f64::is_finite),
+        "{scale}"
+    );
+    succeeded(run(&program, &["inspect", "--data", s(&scene)], &[]));
+    // The built-in layouts come first: a D-NeRF folder with a broken views.json
+    // still reads as D-NeRF, and a broken listing alone is refused naming the file.
+    std::fs::write(fx.data.join("views.json"), "{}").expect("views.json");
+    succeeded(run(&program, &["inspect", "--data", s(&fx.data)], &[]));
+    std::fs::write(scene.join("views.json"), r#"{"train": []}"#).expect("views.json");
+    refused(
+        run(&program, &["inspect", "--data", s(&scene)], &[]),
+        &["views.json", "test"],
     );
 }
