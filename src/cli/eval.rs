@@ -7,8 +7,7 @@ use anyhow::bail;
 use maaf_scene::run_data::recorded_data;
 use maaf_scene::{SceneRecord, TrainedScene};
 use maaf_train::Plugins;
-use maaf_train::data::FormatRegistry;
-use maaf_train::data::{Dataset, DatasetOptions, Split};
+use maaf_train::data::{Dataset, DatasetOptions, FormatRegistry, Split};
 
 use super::Background;
 use maaf_eval::{EvalOptions, MetricRegistry, evaluate_run_with, scale_label};
