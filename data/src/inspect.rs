@@ -12,6 +12,7 @@ use serde::Serialize;
 use super::dataset::{Dataset, DatasetOptions, MaskSource, scale_factor};
 use super::dnerf::Split;
 use super::error::DataError;
+use super::format::FormatRegistry;
 use super::image::decode_rgba;
 
 /// Summary of one split.
@@ -72,9 +73,10 @@ pub struct Summary {
     pub test_masks: String,
 }
 
-/// Opens `root` and summarises it; decodes every image when `decode` is true.
-pub fn inspect(root: &Path, decode: bool) -> Result<Summary, DataError> {
-    let data = Dataset::open(root, DatasetOptions::default())?;
+/// Opens `root` (a built-in layout, else one of `formats`) and summarises it; decodes
+/// every image when `decode` is true.
+pub fn inspect(root: &Path, decode: bool, formats: &FormatRegistry) -> Result<Summary, DataError> {
+    let data = Dataset::open_with(root, DatasetOptions::default(), formats)?;
     let bounds = data.scene_bounds();
     let centre = bounds.center();
     let mut splits = Vec::new();

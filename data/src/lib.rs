@@ -11,6 +11,8 @@
 //! - [`downsample`]: integer box downsampling of premultiplied RGBA, then compositing.
 //! - [`dataset`]: [`Dataset`], views at any integer-ratio scale, cached per scale,
 //!   composited on a [`Background`].
+//! - [`format`]: layouts of one's own ([`DataFormat`]) that [`Dataset::open_with`]
+//!   reads after the built-in ones.
 //! - [`synthetic`]: the procedural alias-prone scene behind `maaf generate`.
 //! - [`inspect`]: the summary behind `maaf inspect`.
 //! - [`points`]: the initial point cloud a data set may ship (`points3d.ply`).
@@ -24,6 +26,7 @@ pub mod downsample;
 pub mod dynamic3dgs;
 pub mod error;
 pub mod flow;
+pub mod format;
 pub mod image;
 pub mod inspect;
 pub mod median_mask;
@@ -39,5 +42,6 @@ pub use bounds::Aabb;
 pub use dataset::{Dataset, DatasetOptions, Format, InitialCloud, MaskSource, View};
 pub use dnerf::{Frame, Split, SplitMeta};
 pub use error::DataError;
+pub use format::{DataFormat, FormatRegistry};
 pub use image::Image;
 pub use point_cloud::PointCloud;

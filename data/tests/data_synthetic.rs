@@ -98,7 +98,7 @@ fn generated_scene_round_trips_through_the_loader() {
     assert!(data.view(Split::Train, 0, 1.0 / 3.0).is_err());
 
     // inspect agrees.
-    let s = inspect(&out, true).expect("inspect");
+    let s = inspect(&out, true, &Default::default()).expect("inspect");
     assert_eq!(s.splits.len(), 4);
     assert_eq!(s.splits[3].flow_frames, 10);
     assert_eq!(s.images_decoded, 17);

@@ -2,6 +2,7 @@
 //! [`ScaleResult`] per evaluation scale, and the temporal-stability entries
 //! ([`TemporalResult`]) that `maaf eval --temporal` adds.
 
+use std::collections::BTreeMap;
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
@@ -66,6 +67,10 @@ pub struct ScaleResult {
     /// `null` without `--temporal`.
     #[serde(default)]
     pub popping: Option<PoppingResult>,
+    /// Mean over views of each per-image metric a program registered
+    /// ([`crate::ImageMetric`]), by name; left out of the file when there is none.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub extra: BTreeMap<String, f64>,
 }
 
 /// Mean over views of the per-view PSNR of each region
@@ -142,6 +147,7 @@ impl ScaleResult {
             regions: None,
             rings: None,
             popping: None,
+            extra: BTreeMap::new(),
         }
     }
 }
@@ -251,6 +257,18 @@ pub struct EvalReport {
     /// reason (left out of the file when every scale was evaluated).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub skipped_scales: Vec<SkippedScale>,
+    /// The per-image metrics of [`ScaleResult::extra`], by name, with which way is
+    /// better; left out of the file when there is none.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub extra_metrics: BTreeMap<String, ExtraMetric>,
+}
+
+/// What `eval.json` records of a per-image metric of one's own besides its values.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ExtraMetric {
+    /// Whether a larger value is better ([`crate::ImageMetric::higher_is_better`]).
+    pub higher_is_better: bool,
 }
 
 /// A scale `maaf eval` was asked for and skipped.
@@ -385,6 +403,7 @@ mod tests {
             lpips_net: "alex".into(),
             scales: vec![ScaleResult::new(4.0, (8, 8), 30.0, 0.9)],
             skipped_scales: Vec::new(),
+            extra_metrics: BTreeMap::new(),
         };
         assert_eq!(r.name(), "eval");
         let v: serde_json::Value =
@@ -448,6 +467,24 @@ mod tests {
         );
         let back: EvalReport = serde_json::from_str(&text).expect("reads back");
         assert_eq!(back, moved);
+    }
+
+    #[test]
+    fn extra_metrics_are_written_only_when_there_are_some_and_read_back() {
+        let mut scale = ScaleResult::new(1.0, (8, 8), 30.0, 0.9);
+        let plain = serde_json::to_string(&scale).expect("json");
+        assert!(!plain.contains("extra"), "{plain}");
+        scale.extra.insert("mae".into(), 0.25);
+        let text = serde_json::to_string(&scale).expect("json");
+        assert!(text.contains(r#""extra":{"mae":0.25}"#), "{text}");
+        let back: ScaleResult = serde_json::from_str(&text).expect("reads back");
+        assert_eq!(back, scale);
+        let info = ExtraMetric {
+            higher_is_better: false,
+        };
+        let text = serde_json::to_string(&info).expect("json");
+        assert_eq!(text, r#"{"higher_is_better":false}"#);
+        assert!(serde_json::from_str::<ExtraMetric>(r#"{"higher":true}"#).is_err());
     }
 
     #[test]

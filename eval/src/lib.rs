@@ -34,6 +34,7 @@ mod sequence;
 pub mod temporal;
 
 use std::path::Path;
+use std::sync::Arc;
 use std::time::Instant;
 
 use maaf_data::{Dataset, Split};
@@ -47,10 +48,11 @@ use crate::metrics::rings::RingErrors;
 use crate::scales::{checked_scales, strided_views};
 
 pub use eval_json::{
-    EvalReport, PoppingResult, RegionSummary, ScaleResult, SkippedScale, TemporalResult,
-    scale_label, trim_float,
+    EvalReport, ExtraMetric, PoppingResult, RegionSummary, ScaleResult, SkippedScale,
+    TemporalResult, scale_label, trim_float,
 };
 pub use maaf_scene::{Error, write_atomic};
+pub use metrics::image_metric::{ImageMetric, MetricRegistry};
 pub use render::{load_scene_on, run_camera};
 pub use scales::check_eval_options;
 pub use sequence::{MAX_SEQUENCE_FRAMES, check_frame_count, frame_times};
@@ -82,6 +84,10 @@ pub struct EvalOptions {
     /// Backbone of LPIPS and W-LPIPS ([`Net::Alex`], the package's default, or
     /// [`Net::Vgg`], what 3DGS-family papers and the MAAF release report).
     pub lpips_net: Net,
+    /// Per-image metrics of one's own computed on every view beside PSNR, SSIM and
+    /// LPIPS ([`MetricRegistry::build`]): a `metrics.csv` column each and their means
+    /// in `eval.json` ([`ScaleResult::extra`]). Empty by default.
+    pub metrics: Vec<Arc<dyn ImageMetric>>,
 }
 
 impl Default for EvalOptions {
@@ -94,6 +100,7 @@ impl Default for EvalOptions {
             save_images: true,
             temporal: false,
             lpips_net: Net::Alex,
+            metrics: Vec::new(),
         }
     }
 }
@@ -122,6 +129,7 @@ pub fn run_report(scene: &TrainedScene, data: &Dataset) -> EvalReport {
         lpips_net: Net::Alex.name().to_string(),
         scales: Vec::new(),
         skipped_scales: Vec::new(),
+        extra_metrics: Default::default(),
     }
 }
 
@@ -217,6 +225,16 @@ pub fn evaluate_scene(
     // LPIPS is optional: without weights every scale gets `lpips: null` and the reason.
     let lpips = Lpips::load_default(options.lpips_net).map_err(|e| e.to_string());
     report.lpips_net = options.lpips_net.name().to_string();
+    report.extra_metrics = options
+        .metrics
+        .iter()
+        .map(|m| {
+            let info = ExtraMetric {
+                higher_is_better: m.higher_is_better(),
+            };
+            (m.name().to_string(), info)
+        })
+        .collect();
 
     let name = report.name();
     let final_dir = run.join(&name);
@@ -245,8 +263,13 @@ pub fn evaluate_scene(
                     m.ssim
                 )));
             }
-            write_atomic(&dir.join("metrics.csv"), &metrics_csv(&views)?)?;
+            let names: Vec<&str> = options.metrics.iter().map(|m| m.name()).collect();
+            write_atomic(&dir.join("metrics.csv"), &metrics_csv(&views, &names)?)?;
             let mut result = ScaleResult::new(s.relative, (s.width, s.height), m.psnr, m.ssim);
+            for (k, name) in names.iter().enumerate() {
+                let value = eval_json::mean(views.iter().map(|v| v.extra[k]));
+                result.extra.insert(name.to_string(), value);
+            }
             match views
                 .iter()
                 .map(|v| v.lpips.clone())
@@ -257,6 +280,18 @@ pub fn evaluate_scene(
             }
             result.regions = RegionSummary::of(views.iter().filter_map(|v| v.regions));
             result.rings = RingErrors::total(views.iter().filter_map(|v| v.rings));
+            if !result.extra.is_empty() {
+                let values: Vec<String> = result
+                    .extra
+                    .iter()
+                    .map(|(n, v)| format!("{n} {v:.4}"))
+                    .collect();
+                log::info!(
+                    "eval {:>5} metrics: {}",
+                    scale_label(s.relative),
+                    values.join("  ")
+                );
+            }
             if let Some(r) = &result.regions {
                 log::info!("eval {:>5} by region: {}", scale_label(s.relative), r);
             }

@@ -1,5 +1,5 @@
 //! One evaluation scale's views rendered and measured (PSNR, SSIM, LPIPS, PSNR by
-//! region, error by ring) and, when asked, saved as PNGs, with the scale's
+//! region, error by ring, the registered metrics of one's own) and, when asked, saved as PNGs, with the scale's
 //! `metrics.csv`.
 
 use std::path::Path;
@@ -35,27 +35,36 @@ pub(crate) struct ViewResult {
     /// Squared error by distance from the silhouette, when the view has an alpha
     /// coverage.
     pub(crate) rings: Option<RingErrors>,
+    /// The value of each of [`EvalOptions::metrics`], in its order.
+    pub(crate) extra: Vec<f64>,
 }
 
-/// `metrics.csv` of one scale: `view,time,psnr,ssim,lpips`, one row per view (LPIPS
-/// empty where it was not computed).
-pub(crate) fn metrics_csv(views: &[ViewResult]) -> Result<Vec<u8>, Error> {
+/// `metrics.csv` of one scale: `view,time,psnr,ssim,lpips`, then a column per metric
+/// of `extra` (the names of [`EvalOptions::metrics`]), one row per view (LPIPS empty
+/// where it was not computed).
+pub(crate) fn metrics_csv(views: &[ViewResult], extra: &[&str]) -> Result<Vec<u8>, Error> {
     let bad = |e: String| Error::Input(format!("metrics.csv: {e}"));
     let mut w = csv::Writer::from_writer(Vec::new());
-    w.write_record(["view", "time", "psnr", "ssim", "lpips"])
+    let header = ["view", "time", "psnr", "ssim", "lpips"];
+    w.write_record(header.iter().chain(extra))
         .map_err(|e| bad(e.to_string()))?;
     for v in views {
         let lpips = v
             .lpips
             .as_ref()
             .map_or(String::new(), |l| format!("{l:.6}"));
-        w.write_record([
-            v.index.to_string(),
-            v.time.to_string(),
-            format!("{:.6}", v.metrics.psnr),
-            format!("{:.6}", v.metrics.ssim),
-            lpips,
-        ])
+        let values = v.extra.iter().map(|x| format!("{x:.6}"));
+        w.write_record(
+            [
+                v.index.to_string(),
+                v.time.to_string(),
+                format!("{:.6}", v.metrics.psnr),
+                format!("{:.6}", v.metrics.ssim),
+                lpips,
+            ]
+            .into_iter()
+            .chain(values),
+        )
         .map_err(|e| bad(e.to_string()))?;
     }
     w.into_inner().map_err(|e| bad(e.to_string()))
@@ -149,6 +158,22 @@ fn measure_view(
                 scale_label(scale.relative)
             ))
         })?;
+    let extra = options
+        .metrics
+        .iter()
+        .map(|m| match m.compute(image, &gt) {
+            Ok(x) if x.is_finite() => Ok(x),
+            Ok(x) => Err(format!("metric `{}` is {x}", m.name())),
+            Err(e) => Err(format!("metric `{}`: {e}", m.name())),
+        })
+        .collect::<Result<Vec<f64>, String>>()
+        .map_err(|e| {
+            Error::Input(format!(
+                "view {} at scale {}: {e}",
+                v.index,
+                scale_label(scale.relative)
+            ))
+        })?;
     let start = Instant::now();
     let lpips = match lpips {
         Ok(model) => model.distance(image, &gt).map_err(|e| e.to_string()),
@@ -178,5 +203,6 @@ fn measure_view(
         lpips_seconds,
         regions,
         rings,
+        extra,
     })
 }

@@ -37,6 +37,7 @@ fn fake_run(dir: &Path, filter: &str, psnr_at: impl Fn(f64) -> f64, seconds: f64
         lpips_net: "alex".into(),
         scales,
         skipped_scales: Vec::new(),
+        extra_metrics: Default::default(),
     };
     write_atomic(
         &dir.join("eval.json"),

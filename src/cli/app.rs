@@ -1,12 +1,14 @@
 //! The `maaf` command line as a value a program of one's own runs, with loss terms,
-//! representations, filters and densification strategies of its own registered by
-//! name (docs/architecture.md, "The CLI as a library"; docs/extending.md).
+//! representations, filters, densification strategies, image metrics and data layouts
+//! of its own registered by name (docs/architecture.md, "The CLI as a library"; docs/extending.md).
 
 use clap::Parser;
 use maaf_autodiff::Var;
+use maaf_eval::{ImageMetric, MetricRegistry};
 use maaf_filter::{FilterConfig, SamplingFilter};
 use maaf_scene::TrainConfig;
 use maaf_train::Plugins;
+use maaf_train::data::DataFormat;
 use maaf_train::loss::{Term, TermCtx};
 use maaf_train::models::{ModelInit, Representation};
 use maaf_train::trainer::Strategy;
@@ -43,6 +45,7 @@ const WORKER_STACK: usize = 8 << 20;
 /// strategies; a custom representation they need ([`Maaf::representation`]).
 pub struct Maaf {
     plugins: Plugins,
+    metrics: MetricRegistry,
 }
 
 impl Default for Maaf {
@@ -57,6 +60,7 @@ impl Maaf {
     pub fn new() -> Self {
         Maaf {
             plugins: Plugins::builtin(),
+            metrics: MetricRegistry::new(),
         }
     }
 
@@ -136,6 +140,38 @@ impl Maaf {
         self
     }
 
+    /// Registers a per-image metric of one's own under `name` (its
+    /// [`ImageMetric::name`]), made by `factory` once per evaluation: `maaf eval`
+    /// computes it on every view beside PSNR, SSIM and LPIPS (`--metrics` chooses
+    /// among the registered ones), writes a `metrics.csv` column and its mean per
+    /// scale in `eval.json`'s `extra`, and `maaf report` tabulates it
+    /// (`examples/custom_metric.rs`). Panics if `name` is taken (`psnr`, `ssim`,
+    /// `lpips`, another registered metric, the `view` and `time` columns) or is not
+    /// 1 to 64 letters, digits or `_`.
+    pub fn metric<F>(mut self, name: &str, factory: F) -> Self
+    where
+        F: Fn() -> Box<dyn ImageMetric> + Send + Sync + 'static,
+    {
+        if let Err(e) = self.metrics.register(name, factory) {
+            panic!("Maaf::metric: {e}");
+        }
+        self
+    }
+
+    /// Registers a data layout of one's own under `name`: every command that opens a
+    /// data folder (`train --data`, `eval`, `render`, `bench`, `cameras`, `inspect`,
+    /// a run's recorded folder) reads a folder that no built-in layout (D-NeRF,
+    /// Plenoptic Video, Dynamic 3D Gaussians) claims with the first registered format
+    /// whose [`DataFormat::detect`] accepts it (`examples/custom_data_format.rs`).
+    /// Panics if `name` is taken (another registered format, `dnerf`, `plenoptic`,
+    /// `dynamic3dgs`) or is not 1 to 64 letters, digits or `_`.
+    pub fn data_format<F: DataFormat + 'static>(mut self, name: &str, format: F) -> Self {
+        if let Err(e) = self.plugins.formats.register(name, format) {
+            panic!("Maaf::data_format: {e}");
+        }
+        self
+    }
+
     /// Parses the process's arguments and runs the command, as the `maaf` binary
     /// does: messages go to stderr at the level `-q` / `-v` choose, the command
     /// runs on a worker of the rayon pool (`RAYON_NUM_THREADS` threads, default one
@@ -180,7 +216,7 @@ impl Maaf {
             .stack_size(WORKER_STACK)
             .build()
         {
-            Ok(pool) => pool.install(|| command::run(cli, &self.plugins)),
+            Ok(pool) => pool.install(|| command::run(cli, &self.plugins, &self.metrics)),
             Err(e) => Err(anyhow::anyhow!("cannot start the worker threads: {e}")),
         }
     }

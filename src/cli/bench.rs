@@ -61,7 +61,7 @@ pub fn run(args: &BenchArgs, plugins: &Plugins) -> anyhow::Result<()> {
         "--batch must be in 1..={MAX_BATCH}"
     );
     let _lock = super::eval::read_lock(&args.run)?;
-    let data = super::eval::open_run_data(&args.run, args.data.as_deref(), None)?;
+    let data = super::eval::open_run_data(&args.run, args.data.as_deref(), None, &plugins.formats)?;
     let opts = StepBenchOptions {
         iterations: args.iters,
         warmup: args.warmup,

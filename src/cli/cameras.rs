@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, bail};
 use maaf_scene::write_atomic;
 use maaf_splat::Camera;
-use maaf_train::data::{Dataset, DatasetOptions, Split};
+use maaf_train::data::{Dataset, DatasetOptions, FormatRegistry, Split};
 
 /// Arguments of `maaf cameras`.
 #[derive(clap::Args, Debug)]
@@ -105,12 +105,12 @@ pub fn read_camera_file(path: &Path) -> anyhow::Result<(Camera, Option<f64>)> {
     Ok((camera, time))
 }
 
-/// Runs `maaf cameras`.
-pub fn run(args: &CamerasArgs) -> anyhow::Result<()> {
+/// Runs `maaf cameras` on a data folder in a built-in layout or one of `formats`.
+pub fn run(args: &CamerasArgs, formats: &FormatRegistry) -> anyhow::Result<()> {
     if !(args.scale.is_finite() && args.scale > 0.0 && args.scale <= 1.0) {
         bail!("--scale {}: must be in (0, 1]", args.scale);
     }
-    let data = Dataset::open(&args.data, DatasetOptions::default())?;
+    let data = Dataset::open_with(&args.data, DatasetOptions::default(), formats)?;
     let split = Split::from(args.split);
     let cameras = data.cameras(split, args.scale)?;
     if cameras.is_empty() {

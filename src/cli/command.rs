@@ -1,6 +1,7 @@
 //! The command line: every subcommand and its dispatch (docs/cli.md).
 
 use clap::{Parser, Subcommand};
+use maaf_eval::MetricRegistry;
 use maaf_train::Plugins;
 
 use crate::cli;
@@ -79,23 +80,23 @@ enum Command {
 
 /// Runs the parsed command; `plugins` are the terms, representations, filters and
 /// strategies a run may name (the other commands load runs through its
-/// representations).
-pub(super) fn run(cli: Cli, plugins: &Plugins) -> anyhow::Result<()> {
-    let models = &plugins.models;
+/// representations) and the data layouts every command that opens a data folder
+/// reads, `metrics` the per-image metrics `eval` adds.
+pub(super) fn run(cli: Cli, plugins: &Plugins, metrics: &MetricRegistry) -> anyhow::Result<()> {
     match cli.command {
         Command::Demo(args) => cli::demo::run(&args)?,
         Command::Generate(args) => cli::generate::run(&args)?,
-        Command::Inspect(args) => cli::inspect::run(&args)?,
+        Command::Inspect(args) => cli::inspect::run(&args, &plugins.formats)?,
         Command::Train(args) => cli::train::run(&args, plugins)?,
         Command::RenderPly(args) => cli::render_ply::run(&args)?,
-        Command::Eval(args) => cli::eval::run(&args, models)?,
-        Command::Render(args) => cli::render::run(&args, models)?,
-        Command::RenderVideo(args) => cli::render::run_video(&args, models)?,
-        Command::Cameras(args) => cli::cameras::run(&args)?,
+        Command::Eval(args) => cli::eval::run(&args, plugins, metrics)?,
+        Command::Render(args) => cli::render::run(&args, plugins)?,
+        Command::RenderVideo(args) => cli::render::run_video(&args, plugins)?,
+        Command::Cameras(args) => cli::cameras::run(&args, &plugins.formats)?,
         Command::Report(args) => cli::report::run(&args)?,
         Command::Compare(args) => cli::compare::run(&args)?,
         Command::Bench(args) => cli::bench::run(&args, plugins)?,
-        Command::ExportPly(args) => cli::export_ply::run(&args, models)?,
+        Command::ExportPly(args) => cli::export_ply::run(&args, plugins)?,
         Command::Sweep(args) => cli::sweep::run(&args)?,
         Command::BenchSuite(args) => cli::bench_suite::run(&args, plugins)?,
         Command::Info => {

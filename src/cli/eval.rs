@@ -5,11 +5,12 @@ use std::path::{Path, PathBuf};
 
 use anyhow::bail;
 use maaf_scene::run_data::recorded_data;
-use maaf_scene::{ModelRegistry, SceneRecord, TrainedScene};
-use maaf_train::data::{Dataset, DatasetOptions, Split};
+use maaf_scene::{SceneRecord, TrainedScene};
+use maaf_train::Plugins;
+use maaf_train::data::{Dataset, DatasetOptions, FormatRegistry, Split};
 
 use super::Background;
-use maaf_eval::{EvalOptions, evaluate_run_with, scale_label};
+use maaf_eval::{EvalOptions, MetricRegistry, evaluate_run_with, scale_label};
 use maaf_lpips::Net;
 
 /// [`maaf_eval::DEFAULT_SCALES`] as `--scales` takes them (comma-separated), so `--help` shows
@@ -58,10 +59,16 @@ pub struct EvalArgs {
     /// lpips/tools/fetch_vgg_weights.sh`; 13x AlexNet's time at 800x800).
     #[arg(long, default_value = "alex")]
     pub lpips_net: Net,
+    /// Per-image metrics of one's own to compute, comma-separated: names a program
+    /// registers (maaf::cli::Maaf::metric, docs/extending.md; plain maaf has none)
+    /// [default: every registered one].
+    #[arg(long, value_delimiter = ',')]
+    pub metrics: Option<Vec<String>>,
 }
 
 impl EvalArgs {
-    /// The evaluation these arguments ask for.
+    /// The evaluation these arguments ask for, without metrics of one's own
+    /// ([`EvalArgs::with_metrics`] adds them).
     pub fn options(&self) -> EvalOptions {
         EvalOptions {
             scales: self.scales.clone(),
@@ -71,7 +78,23 @@ impl EvalArgs {
             save_images: !self.no_images,
             temporal: self.temporal,
             lpips_net: self.lpips_net,
+            metrics: Vec::new(),
         }
+    }
+
+    /// [`EvalArgs::options`] with the metrics of `registry` that `--metrics` names
+    /// (every one without it); an unknown name is refused, naming the registered ones.
+    pub fn with_metrics(&self, registry: &MetricRegistry) -> anyhow::Result<EvalOptions> {
+        let metrics = registry
+            .build(self.metrics.as_deref())
+            .map_err(|e| match self.metrics {
+                Some(_) => anyhow::anyhow!("--metrics: {e}"),
+                None => anyhow::anyhow!("{e}"),
+            })?;
+        Ok(EvalOptions {
+            metrics,
+            ..self.options()
+        })
     }
 }
 
@@ -97,12 +120,14 @@ impl From<SplitArg> for Split {
 }
 
 /// Opens the data set of `run`: `data` if given, else the folder in `RUN/data.json`
-/// (an error naming it and suggesting --data when it is gone); the background from
-/// `background`, else the recorded one, else the default (black).
+/// (an error naming it and suggesting --data when it is gone), in a built-in layout or
+/// one of `formats`; the background from `background`, else the recorded one, else the
+/// default (black).
 pub fn open_run_data(
     run: &Path,
     data: Option<&Path>,
     background: Option<Background>,
+    formats: &FormatRegistry,
 ) -> anyhow::Result<Dataset> {
     let recorded = recorded_data(run)?;
     let root = match (data, &recorded) {
@@ -123,10 +148,14 @@ pub fn open_run_data(
         (None, Some(r)) => r.background,
         (None, None) => Background::default().rgb(),
     };
-    Ok(Dataset::open(&root, DatasetOptions { background })?)
+    Ok(Dataset::open_with(
+        &root,
+        DatasetOptions { background },
+        formats,
+    )?)
 }
 
-/// Loads the trained scene of `run` (a representation `models` knows) without its
+/// Loads the trained scene of `run` (a representation `plugins` knows) without its
 /// data set; a run saved before checkpoints recorded their cameras takes them from `data`,
 /// else from the data set [`open_run_data`] opens with `data_dir` and `background`.
 pub fn load_scene(
@@ -134,14 +163,14 @@ pub fn load_scene(
     data_dir: Option<&Path>,
     background: Option<Background>,
     data: Option<&Dataset>,
-    models: &ModelRegistry,
+    plugins: &Plugins,
 ) -> anyhow::Result<TrainedScene> {
-    let scene = TrainedScene::load_or(run, models, |config| {
+    let scene = TrainedScene::load_or(run, &plugins.models, |config| {
         let opened;
         let data = match data {
             Some(d) => d,
             None => {
-                opened = open_run_data(run, data_dir, background)
+                opened = open_run_data(run, data_dir, background, &plugins.formats)
                     .map_err(|e| maaf_scene::Error::Input(e.to_string()))?;
                 &opened
             }
@@ -161,12 +190,18 @@ pub fn read_lock(run: &Path) -> anyhow::Result<Option<maaf_io::RunLock>> {
     Ok(maaf_io::RunLock::shared(run)?)
 }
 
-/// Runs `maaf eval`.
-pub fn run(args: &EvalArgs, models: &ModelRegistry) -> anyhow::Result<()> {
+/// Runs `maaf eval`, with the metrics of one's own in `metrics`.
+pub fn run(args: &EvalArgs, plugins: &Plugins, metrics: &MetricRegistry) -> anyhow::Result<()> {
+    let options = args.with_metrics(metrics)?;
     // A folder without a model is named as such before its data set is looked for.
     maaf_scene::model_dir(&args.run)?;
-    let data = open_run_data(&args.run, args.data.as_deref(), args.background)?;
-    let report = evaluate_run_with(&args.run, &data, &args.options(), models)?;
+    let data = open_run_data(
+        &args.run,
+        args.data.as_deref(),
+        args.background,
+        &plugins.formats,
+    )?;
+    let report = evaluate_run_with(&args.run, &data, &options, &plugins.models)?;
     println!(
         "{} / {} at training scale {}: {} Gaussians, {:.1} MB (+{:.1} MB filter)",
         report.model,
@@ -177,11 +212,19 @@ pub fn run(args: &EvalArgs, models: &ModelRegistry) -> anyhow::Result<()> {
         report.filter_bytes as f64 / 1e6
     );
     let opt = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.4}"));
-    println!("| scale | size | PSNR | SSIM | LPIPS | W-Temporal Error | W-SSIM | W-LPIPS | flow |");
-    println!("|---|---|---|---|---|---|---|---|---|");
+    let extra: Vec<&String> = report.extra_metrics.keys().collect();
+    let columns = |cells: Vec<String>| cells.iter().map(|c| format!(" {c} |")).collect::<String>();
+    println!(
+        "| scale | size | PSNR | SSIM | LPIPS | W-Temporal Error | W-SSIM | W-LPIPS | flow |{}",
+        columns(extra.iter().map(|n| n.to_string()).collect())
+    );
+    println!(
+        "|---|---|---|---|---|---|---|---|---|{}",
+        "---|".repeat(extra.len())
+    );
     for s in &report.scales {
         println!(
-            "| {} | {}x{} | {:.2} | {:.4} | {} | {} | {} | {} | {} |",
+            "| {} | {}x{} | {:.2} | {:.4} | {} | {} | {} | {} | {} |{}",
             scale_label(s.scale),
             s.width,
             s.height,
@@ -191,13 +234,20 @@ pub fn run(args: &EvalArgs, models: &ModelRegistry) -> anyhow::Result<()> {
             opt(s.warp_error),
             opt(s.w_ssim),
             opt(s.w_lpips),
-            s.flow.as_deref().unwrap_or("-")
+            s.flow.as_deref().unwrap_or("-"),
+            columns(
+                extra
+                    .iter()
+                    .map(|n| opt(s.extra.get(*n).copied()))
+                    .collect()
+            )
         );
     }
     println!(
-        "| avg | | {:.2} | {:.4} | | | | | |",
+        "| avg | | {:.2} | {:.4} | | | | | |{}",
         report.mean_psnr(),
-        report.mean_ssim()
+        report.mean_ssim(),
+        " |".repeat(extra.len())
     );
     if let Some(note) = report.scales.iter().find_map(|s| s.lpips_note.as_ref()) {
         println!("LPIPS missing at some scale: {note}");

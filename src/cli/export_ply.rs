@@ -12,7 +12,7 @@ use maaf_eval::export::{
     check_sequence_target, export_frame, export_sequence, export_sequence_zip, is_zip_path,
 };
 
-use maaf_scene::ModelRegistry;
+use maaf_train::Plugins;
 
 use super::Background;
 use super::eval::{load_scene, read_lock};
@@ -45,7 +45,7 @@ pub struct ExportPlyArgs {
 }
 
 /// Runs `maaf export-ply`.
-pub fn run(args: &ExportPlyArgs, models: &ModelRegistry) -> anyhow::Result<()> {
+pub fn run(args: &ExportPlyArgs, plugins: &Plugins) -> anyhow::Result<()> {
     if let Some(n) = args.frames {
         check_frame_count(n)?;
         check_sequence_target(&args.out)?;
@@ -56,7 +56,7 @@ pub fn run(args: &ExportPlyArgs, models: &ModelRegistry) -> anyhow::Result<()> {
         args.data.as_deref(),
         args.background,
         None,
-        models,
+        plugins,
     )?;
     let range = scene.record.time_range;
     match (args.time, args.frames) {

@@ -3,6 +3,7 @@
 
 use std::path::PathBuf;
 
+use maaf_train::data::FormatRegistry;
 use maaf_train::data::inspect::inspect;
 
 /// Arguments of `maaf inspect`.
@@ -21,9 +22,9 @@ pub struct InspectArgs {
     pub no_decode: bool,
 }
 
-/// Runs `maaf inspect`.
-pub fn run(args: &InspectArgs) -> anyhow::Result<()> {
-    let summary = inspect(&args.data, !args.no_decode)?;
+/// Runs `maaf inspect` on a data folder in a built-in layout or one of `formats`.
+pub fn run(args: &InspectArgs, formats: &FormatRegistry) -> anyhow::Result<()> {
+    let summary = inspect(&args.data, !args.no_decode, formats)?;
     if args.json {
         println!("{}", summary.to_json_string());
     } else {

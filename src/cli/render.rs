@@ -15,7 +15,7 @@ use maaf_train::data::{Dataset, Split};
 use super::Background;
 use super::cameras::read_camera_file;
 use super::eval::{load_scene, open_run_data, read_lock};
-use maaf_scene::ModelRegistry;
+use maaf_train::Plugins;
 
 /// The run, its camera's size and the background (shared by `render` and
 /// `render-video`; each says where its camera comes from).
@@ -194,17 +194,22 @@ fn setup(
     view: Option<&str>,
     data_dir: Option<&Path>,
     need_data: bool,
-    models: &ModelRegistry,
+    plugins: &Plugins,
 ) -> anyhow::Result<Setup> {
     // Check the cheap arguments before loading the model.
     let view = view.map(parse_view).transpose()?;
     let file_camera = args.camera.as_deref().map(read_camera_file).transpose()?;
     let data = if view.is_some() || need_data {
-        Some(open_run_data(&args.run, data_dir, args.background)?)
+        Some(open_run_data(
+            &args.run,
+            data_dir,
+            args.background,
+            &plugins.formats,
+        )?)
     } else {
         None
     };
-    let mut scene = load_scene(&args.run, data_dir, args.background, data.as_ref(), models)?;
+    let mut scene = load_scene(&args.run, data_dir, args.background, data.as_ref(), plugins)?;
     if let Some(b) = args.background {
         scene.record.background = b.rgb();
     }
@@ -248,7 +253,7 @@ fn check_render_memory(camera: &Camera) -> anyhow::Result<()> {
 }
 
 /// Runs `maaf render`.
-pub fn run(args: &RenderArgs, models: &ModelRegistry) -> anyhow::Result<()> {
+pub fn run(args: &RenderArgs, plugins: &Plugins) -> anyhow::Result<()> {
     if let Some(t) = args.time
         && !t.is_finite()
     {
@@ -275,7 +280,7 @@ pub fn run(args: &RenderArgs, models: &ModelRegistry) -> anyhow::Result<()> {
         args.view.as_deref(),
         args.data.as_deref(),
         false,
-        models,
+        plugins,
     )?;
     let Some(camera) = camera else {
         bail!("give --view SPLIT:INDEX or --camera CAM.json");
@@ -300,7 +305,7 @@ pub fn run(args: &RenderArgs, models: &ModelRegistry) -> anyhow::Result<()> {
 }
 
 /// Runs `maaf render-video`.
-pub fn run_video(args: &RenderVideoArgs, models: &ModelRegistry) -> anyhow::Result<()> {
+pub fn run_video(args: &RenderVideoArgs, plugins: &Plugins) -> anyhow::Result<()> {
     check_frame_count(args.frames)?;
     if let Some(ext) = args
         .out
@@ -330,7 +335,7 @@ pub fn run_video(args: &RenderVideoArgs, models: &ModelRegistry) -> anyhow::Resu
         args.view.as_deref(),
         args.data.as_deref(),
         need_data,
-        models,
+        plugins,
     )?;
     let range = scene.record.time_range;
     let test_camera = |i: usize| -> anyhow::Result<Camera> {

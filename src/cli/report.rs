@@ -19,6 +19,9 @@ pub struct ReportArgs {
 pub fn run(args: &ReportArgs) -> anyhow::Result<()> {
     let out = write_report(&args.runs, &args.out)?;
     print!("{}", out.table);
+    if !out.extra.is_empty() {
+        print!("\n{}", out.extra);
+    }
     for c in &out.charts {
         println!("chart: {}", c.display());
     }

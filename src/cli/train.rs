@@ -319,7 +319,7 @@ pub fn run(args: &TrainArgs, plugins: &Plugins) -> anyhow::Result<()> {
     };
     plugins.check(&config, &what)?;
     let background = config.background.rgb();
-    let data = Dataset::open(&root, DatasetOptions { background })?;
+    let data = Dataset::open_with(&root, DatasetOptions { background }, &plugins.formats)?;
     // One trainer per run folder, for the whole command (test PSNR included).
     let doing = format!("trained (maaf train, pid {})", std::process::id());
     let _lock = maaf_io::RunLock::exclusive(&out, &doing)?;

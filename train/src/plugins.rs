@@ -1,9 +1,11 @@
 //! Everything a run may name that a program can add to: loss terms, representations,
 //! sampling filters and densification strategies, each a registry by name with the
-//! built-in ones in it (docs/extending.md). Every path that trains or resumes takes
+//! built-in ones in it, and the data layouts of one's own the run's data folder may
+//! be in (docs/extending.md). Every path that trains or resumes takes
 //! one [`Plugins`] and refuses, before anything changes, a config naming something
 //! it lacks.
 
+use maaf_data::FormatRegistry;
 use maaf_filter::FilterRegistry;
 
 use crate::Error;
@@ -23,6 +25,9 @@ pub struct Plugins {
     pub filters: FilterRegistry,
     /// Densification strategies (`densify.strategy`).
     pub strategies: StrategyRegistry,
+    /// Data layouts of one's own, read after the built-in ones when a data folder is
+    /// opened ([`maaf_data::Dataset::open_with`]; none built in).
+    pub formats: FormatRegistry,
 }
 
 impl Default for Plugins {
@@ -33,13 +38,15 @@ impl Default for Plugins {
 }
 
 impl Plugins {
-    /// The built-in terms, representations, filters and strategies.
+    /// The built-in terms, representations, filters and strategies, and no data
+    /// layout of one's own.
     pub fn builtin() -> Self {
         Plugins {
             terms: TermRegistry::builtin(),
             models: ModelRegistry::builtin(),
             filters: FilterRegistry::builtin(),
             strategies: StrategyRegistry::builtin(),
+            formats: FormatRegistry::new(),
         }
     }
 

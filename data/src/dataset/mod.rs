@@ -95,6 +95,9 @@ pub enum Format {
     /// Dynamic 3D Gaussians (CMU Panoptic): `train_meta.json`, `test_meta.json`, `ims/`,
     /// `seg/` ([`super::dynamic3dgs`]).
     Dynamic3dgs,
+    /// A layout of one's own, read by a registered [`crate::DataFormat`]
+    /// ([`Dataset::open_with`]).
+    Custom,
 }
 
 /// A data set (D-NeRF or Plenoptic Video): parsed metadata of its splits plus a

@@ -1,5 +1,6 @@
 //! Opening a data folder ([`Dataset::open`]): its format told apart by the files it
-//! holds, its splits read by that format's loader and checked once for every format
+//! holds (the built-in layouts first, then the registered ones), its splits read by
+//! that format's loader and checked once for every format
 //! (valid cameras, one image size), and the training times optionally capped.
 
 use std::collections::{BTreeMap, HashMap};
@@ -13,6 +14,7 @@ use crate::bounds::bounds_from_cameras;
 use crate::dnerf::{Split, SplitMeta, read_split};
 use crate::dynamic3dgs::{TRAIN_META, read_dynamic3dgs};
 use crate::error::DataError;
+use crate::format::{DataFormat, FormatRegistry};
 use crate::n3dv::{POSES_BOUNDS, read_plenoptic};
 
 impl Dataset {
@@ -27,6 +29,18 @@ impl Dataset {
         Self::open_capped(root, options, None)
     }
 
+    /// [`Dataset::open`], reading a folder that none of the built-in layouts claims
+    /// with the first of `formats` that detects it (registration order). The
+    /// built-in layouts come first, so a registered format never changes how a
+    /// D-NeRF, Plenoptic Video or Dynamic 3D Gaussians folder reads.
+    pub fn open_with(
+        root: &Path,
+        options: DatasetOptions,
+        formats: &FormatRegistry,
+    ) -> Result<Self, DataError> {
+        Self::open_from(root, options, None, formats)
+    }
+
     /// [`Dataset::open`], keeping at most `max_train_times` distinct time stamps of the
     /// `train` split (every view at a kept time), evenly spread over the sorted distinct
     /// times: indices `round(j (n - 1) / (m - 1))`, `j = 0..m`, of the `n` times (the
@@ -37,6 +51,16 @@ impl Dataset {
         root: &Path,
         options: DatasetOptions,
         max_train_times: Option<usize>,
+    ) -> Result<Self, DataError> {
+        Self::open_from(root, options, max_train_times, &FormatRegistry::new())
+    }
+
+    /// [`Dataset::open_capped`] with the registered `formats` ([`Dataset::open_with`]).
+    fn open_from(
+        root: &Path,
+        options: DatasetOptions,
+        max_train_times: Option<usize>,
+        formats: &FormatRegistry,
     ) -> Result<Self, DataError> {
         if !root.is_dir() {
             return Err(DataError::request(root, "data folder does not exist"));
@@ -77,10 +101,25 @@ impl Dataset {
                 splits.insert(split, read_split(root, split)?);
             }
             (Format::DNerf, splits, MaskSource::None)
+        } else if let Some((name, format)) = formats.detect(root) {
+            (
+                Format::Custom,
+                custom_splits(root, name, format)?,
+                MaskSource::None,
+            )
         } else {
+            let registered = match formats.names() {
+                names if names.is_empty() => String::new(),
+                names => format!(
+                    ", and no registered data format ({}) detects it",
+                    names.join(", ")
+                ),
+            };
             return Err(DataError::request(
                 root,
-                "neither transforms_train.json (D-NeRF), poses_bounds.npy (Plenoptic Video) nor train_meta.json (Dynamic 3D Gaussians) found",
+                format!(
+                    "neither transforms_train.json (D-NeRF), poses_bounds.npy (Plenoptic Video) nor train_meta.json (Dynamic 3D Gaussians) found{registered}"
+                ),
             ));
         };
         check_splits(&splits)?;
@@ -108,6 +147,34 @@ impl Dataset {
             medians: Mutex::new(HashMap::new()),
         })
     }
+}
+
+/// The splits a registered format `name` reads from `root`, each once, `train` and
+/// `test` among them.
+fn custom_splits(
+    root: &Path,
+    name: &str,
+    format: &dyn DataFormat,
+) -> Result<BTreeMap<Split, SplitMeta>, DataError> {
+    let mut splits = BTreeMap::new();
+    for meta in format.load(root)? {
+        let split = meta.split;
+        if splits.insert(split, meta).is_some() {
+            return Err(DataError::request(
+                root,
+                format!("data format `{name}` read the {split} split twice"),
+            ));
+        }
+    }
+    for split in [Split::Train, Split::Test] {
+        if !splits.contains_key(&split) {
+            return Err(DataError::request(
+                root,
+                format!("data format `{name}` read no {split} split (train and test are required)"),
+            ));
+        }
+    }
+    Ok(splits)
 }
 
 /// What every loader's splits must satisfy, checked once for all formats: every

@@ -13,6 +13,7 @@
 
 pub mod charts;
 pub mod curves;
+pub mod extra;
 mod gap;
 mod nu_chart;
 pub mod published;
@@ -87,6 +88,7 @@ impl ReportRun {
                 lpips_net: "alex".into(),
                 scales,
                 skipped_scales: Vec::new(),
+                extra_metrics: Default::default(),
             },
             analysis: None,
         }
@@ -101,6 +103,9 @@ pub struct ReportOutput {
     /// PSNR and SSIM at every evaluated scale (markdown), for printing: zoom-out and
     /// zoom-in in one table, so nothing the runs were evaluated at is left out.
     pub table: String,
+    /// The per-image metrics of one's own at every evaluated scale (markdown,
+    /// [`extra::extra_table`]), for printing; empty when no run has one.
+    pub extra: String,
     /// Chart PNGs written.
     pub charts: Vec<PathBuf>,
 }
@@ -274,8 +279,9 @@ pub fn all_scales(runs: &[ReportRun]) -> Vec<f64> {
 /// run has temporal metrics, and `nu_t.png` when a motion run has a nu(t) export),
 /// the pictures of one test view per scale (`views/<scale>x/`, `error_colour_bar.png`)
 /// when the runs saved images,
-/// the LPIPS table and the Tab. 3-shaped temporal tables for the evaluated runs in `runs`. Every file is written
-/// atomically; `OUT` is created if needed.
+/// the LPIPS table, the table of the per-image metrics of one's own
+/// ([`extra::extra_table`]) and the Tab. 3-shaped temporal tables for the evaluated
+/// runs in `runs`. Every file is written atomically; `OUT` is created if needed.
 pub fn write_report(runs: &[PathBuf], out: &Path) -> Result<ReportOutput, Error> {
     let runs = load_runs(runs)?;
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
@@ -404,6 +410,13 @@ pub fn write_report(runs: &[PathBuf], out: &Path) -> Result<ReportOutput, Error>
         temporal::lpips_nets(&runs)
     );
     md.push_str(&temporal::lpips_table(&runs, &scales));
+    let extra = extra::extra_table(&runs, &scales);
+    if !extra.is_empty() {
+        md.push_str(
+            "\n## Metrics of one's own (registered by the evaluating program; mean over views)\n\n",
+        );
+        md.push_str(&extra);
+    }
     let tab3 = temporal::temporal_tables(&runs);
     if !tab3.is_empty() {
         md.push_str(
@@ -439,6 +452,7 @@ pub fn write_report(runs: &[PathBuf], out: &Path) -> Result<ReportOutput, Error>
     Ok(ReportOutput {
         markdown,
         table,
+        extra,
         charts,
     })
 }
