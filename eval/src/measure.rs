@@ -1,6 +1,6 @@
 //! One evaluation scale's views rendered and measured (PSNR, SSIM, LPIPS, PSNR by
-//! region, error by ring, the registered metrics of one's own) and, when asked, saved as PNGs, with the scale's
-//! `metrics.csv`.
+//! region, error by ring, the registered metrics of one's own) and, when asked,
+//! saved as PNGs, with the scale's `metrics.csv`.
 
 use std::path::Path;
 use std::time::Instant;
