@@ -61,8 +61,7 @@ pub struct RunSummary {
 impl RunSummary {
     /// Writes the summary as `RUN/summary.json` (atomically).
     pub fn write(&self, run: &Path) -> Result<(), Error> {
-        let json = serde_json::to_vec_pretty(self).map_err(|e| Error::Input(e.to_string()))?;
-        write_atomic(&run.join("summary.json"), &json)
+        write_json(run, "summary.json", self)
     }
 }
 
@@ -379,16 +378,20 @@ fn say_resumed(trainer: &Trainer, dir: &Path) {
     );
 }
 
-/// `RUN/config.json`, atomically.
-fn write_config(out: &Path, config: &TrainConfig) -> Result<(), Error> {
-    let json = serde_json::to_vec_pretty(config).map_err(|e| Error::Input(e.to_string()))?;
-    write_atomic(&out.join("config.json"), &json)
+/// `RUN/<file>` as pretty JSON, atomically.
+fn write_json(run: &Path, file: &str, value: &impl Serialize) -> Result<(), Error> {
+    let json = serde_json::to_vec_pretty(value).map_err(|e| Error::Input(e.to_string()))?;
+    write_atomic(&run.join(file), &json)
 }
 
-/// `RUN/budget.json`, atomically.
+/// `RUN/config.json`.
+fn write_config(out: &Path, config: &TrainConfig) -> Result<(), Error> {
+    write_json(out, "config.json", config)
+}
+
+/// `RUN/budget.json`.
 fn write_plan(out: &Path, plan: &BudgetPlan) -> Result<(), Error> {
-    let json = serde_json::to_vec_pretty(plan).map_err(|e| Error::Input(e.to_string()))?;
-    write_atomic(&out.join(BUDGET_FILE), &json)
+    write_json(out, BUDGET_FILE, plan)
 }
 
 /// Trains `trainer` into `out` to its budget. `record` is the data set of a new run
