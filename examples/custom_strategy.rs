@@ -5,10 +5,11 @@
 //! `BUDGET` per refinement and `LIFETIME` over the whole run (no split, no opacity
 //! reset). How many it has cloned so far is its own state: `Strategy::state` saves
 //! it in every checkpoint and `Strategy::load_state` restores it, so a resumed run
-//! clones exactly what the uninterrupted one would. It keeps the trainer's
-//! statistics with `DensifyStats::record_views` after every backward pass and changes
-//! the Gaussians through one `DensifyPlan` applied by `Trainer::apply_plan` (the
-//! model, its Adam moments, the filter state and the statistics move together).
+//! clones exactly what the uninterrupted one would. It sees the run's `TrainState`
+//! (never the trainer): it keeps the state's statistics with
+//! `DensifyStats::record_views` after every backward pass and changes the Gaussians
+//! through one `DensifyPlan` applied by `TrainState::apply_plan` (the model, its Adam
+//! moments, the filter state and the statistics move together).
 //!
 //! ```text
 //! # "densify": {"strategy": "budgeted_growth", "every": 2} in C.json
@@ -21,7 +22,7 @@
 //! evaluates.
 
 use maaf::scene::TrainConfig;
-use maaf::train::trainer::{DensifyPlan, DensifyStats, StepInfo, Strategy, Trainer};
+use maaf::train::trainer::{DensifyPlan, DensifyStats, RefineStep, StepInfo, Strategy, TrainState};
 use serde_json::{Value, json};
 
 /// Most Gaussians cloned at one refinement.
@@ -42,16 +43,17 @@ impl Strategy for BudgetedGrowth {
         "budgeted_growth"
     }
 
-    fn after_backward(&mut self, trainer: &mut Trainer, info: &StepInfo<'_>) {
-        trainer.stats.record_views(info.views, info.loss_scale);
+    fn after_backward(&mut self, state: &mut TrainState, info: &StepInfo<'_>) {
+        state.stats.record_views(info.views, info.loss_scale);
     }
 
-    fn refine(&mut self, trainer: &mut Trainer, iteration: usize) -> bool {
-        if !iteration.is_multiple_of(self.every) || iteration >= trainer.config.iterations {
+    fn refine(&mut self, state: &mut TrainState, step: &RefineStep<'_>) -> bool {
+        let it = step.iteration;
+        if !it.is_multiple_of(self.every) || it >= step.config.iterations {
             return false;
         }
-        let opacity = trainer.canonical().opacity;
-        let grad = trainer.stats.mean_grad();
+        let opacity = state.canonical().opacity;
+        let grad = state.stats.mean_grad();
         let keep: Vec<usize> = (0..grad.len())
             .filter(|&i| opacity.data()[i] >= self.min_opacity)
             .collect();
@@ -66,8 +68,8 @@ impl Strategy for BudgetedGrowth {
             index: keep.into_iter().chain(by_grad).collect(),
             ..DensifyPlan::default()
         };
-        trainer.apply_plan(&plan);
-        trainer.stats = DensifyStats::new(plan.index.len());
+        state.apply_plan(&plan);
+        state.stats = DensifyStats::new(plan.index.len());
         self.cloned += plan.cloned;
         plan.cloned + plan.pruned > 0
     }

@@ -43,6 +43,24 @@ pub trait SamplingFilter: Send + Sync {
         false
     }
 
+    /// After a training step, for one observed training view it drew: records in
+    /// `table` what [`Self::compute`] reads at the next refresh. `centres` are the
+    /// Gaussians' deformed centres at the view's time and `present[n]` whether
+    /// Gaussian `n` exists then. Called only when [`Self::observes`]. Default: the
+    /// f/d of every present Gaussian in frame `frame`
+    /// ([`ObservationTable::record_present`]).
+    fn observe(
+        &self,
+        table: &mut ObservationTable,
+        frame: usize,
+        camera: &Camera,
+        centres: &[[f32; 3]],
+        present: &[bool],
+        cfg: &FilterConfig,
+    ) -> Result<(), FilterError> {
+        table.record_present(frame, camera, centres, present, cfg)
+    }
+
     /// Whether it adds a 3D filter at all: the renderer then uses the 2D Mip filter
     /// (0.1 px^2 with compensation) as in the paper, otherwise the classic 3DGS
     /// dilation. Default: yes.

@@ -127,7 +127,7 @@ pub enum OpacityReset {
 /// does for deformable Gaussians: from iteration 6000 every 3000, 80 % of the
 /// Gaussians while densification runs, 30 % after it). Off by default (`every` = 0):
 /// turning it on changes the model a run ends with, so it is a choice, not a default.
-/// The score is `maaf_train::trainer::Trainer::sensitivity_scores`.
+/// The score is `maaf_train::trainer::sensitivity_scores`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct PruneConfig {

@@ -67,7 +67,13 @@ fn case_3_a_diverged_run_fails_and_its_model_is_refused() {
     let run = fx.trained("run");
     let data = maaf::train::data::Dataset::open(&fx.data, Default::default()).expect("data");
     let mut t = maaf::train::trainer::load_checkpoint(&data, &run.join("model")).expect("model");
-    let p = t.model.params_mut().iter_mut().next().expect("a parameter");
+    let p = t
+        .state
+        .model
+        .params_mut()
+        .iter_mut()
+        .next()
+        .expect("a parameter");
     p.value.data_mut()[0] = f32::NAN;
     maaf::train::trainer::save_checkpoint(&t, &run.join("model")).expect("save");
     refused(

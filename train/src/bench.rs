@@ -206,7 +206,7 @@ pub fn resample_rows(trainer: &mut Trainer, gaussians: usize, seed: u64) {
     let index: Vec<usize> = (0..gaussians)
         .map(|i| if i < n { i } else { rng.random_range(0..n) })
         .collect();
-    trainer.apply_plan(&DensifyPlan {
+    trainer.state.apply_plan(&DensifyPlan {
         index,
         new_rows: Vec::new(),
         new_means: Vec::new(),
@@ -267,7 +267,13 @@ pub fn bench_step(
     let (fld_f, fld_b) = group(&is_field);
     let (loss_f, loss_b) = group(&is_loss);
     let (oth_f, oth_b) = group(&|op| !(is_mlp(op) || is_render(op) || is_field(op) || is_loss(op)));
-    let scalars: usize = trainer.model.params().iter().map(|p| p.value.len()).sum();
+    let scalars: usize = trainer
+        .state
+        .model
+        .params()
+        .iter()
+        .map(|p| p.value.len())
+        .sum();
     let views = trainer.config.batch;
     let fwd_flops = mlp_forward_flops(n, &trainer.config.model, views);
     let camera = &trainer.cameras()[0];

@@ -40,12 +40,12 @@ fn config(kind: &str, filter: FilterKind) -> TrainConfig {
 /// The trainer's own render: the training pipeline with its parameters as constants.
 fn trainer_render(t: &Trainer, camera: &maaf_splat::Camera, time: f64) -> Tensor<f32> {
     let tape = maaf_autodiff::Tape::new();
-    let params = t.model.params().bind_constants(&tape);
+    let params = t.state.model.params().bind_constants(&tape);
     let settings = t.render_settings(t.iteration);
     let out = forward(
-        t.model.as_ref(),
+        t.state.model.as_ref(),
         &params,
-        &t.filter,
+        &t.state.filter,
         camera,
         time,
         &settings,
@@ -84,7 +84,7 @@ fn a_loaded_scene_renders_bit_identically_to_its_trainer() {
             .expect("load without the data set");
         assert_eq!(scene.iteration, 25, "{kind}");
         assert_eq!(scene.num_gaussians(), trainer.num_gaussians(), "{kind}");
-        assert_eq!(scene.filter, trainer.filter, "{kind}");
+        assert_eq!(scene.filter, trainer.state.filter, "{kind}");
         assert_eq!(scene.cameras(), trainer.cameras(), "{kind}");
         assert_eq!(
             scene.render_settings().sh_degree,

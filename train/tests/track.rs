@@ -181,11 +181,12 @@ fn bits(t: &maaf_autodiff::Tensor<f32>) -> Vec<u32> {
 /// Every parameter and buffer of `t`, bit for bit.
 fn state(t: &Trainer) -> Vec<(String, Vec<u32>)> {
     let params = t
+        .state
         .model
         .params()
         .named_tensors()
         .map(|(n, v)| (n.to_string(), bits(v)));
-    let hooks = t.model.hooks().expect("track has hooks");
+    let hooks = t.state.model.hooks().expect("track has hooks");
     params
         .chain(hooks.buffers().iter().map(|(n, v)| (n.clone(), bits(v))))
         .collect()

@@ -32,14 +32,14 @@ pub fn save_checkpoint(trainer: &Trainer, dir: &Path) -> Result<(), Error> {
     let mut named: Vec<(String, Vec<usize>, Vec<u8>)> = Vec::new();
     let mut adam_steps = HashMap::new();
     let colour = trainer.camera_colour.as_ref().map(|c| c.params());
-    let stores = std::iter::once(trainer.model.params()).chain(colour);
+    let stores = std::iter::once(trainer.state.model.params()).chain(colour);
     for (name, value) in stores.flat_map(|s| s.named_tensors()) {
         named.push((
             format!("param/{name}"),
             value.shape().to_vec(),
             bytes_of(value.data()),
         ));
-        if let Some(m) = trainer.adam.moments(name) {
+        if let Some(m) = trainer.state.adam.moments(name) {
             named.push((
                 format!("adam_m/{name}"),
                 m.m.shape().to_vec(),
@@ -53,7 +53,11 @@ pub fn save_checkpoint(trainer: &Trainer, dir: &Path) -> Result<(), Error> {
             adam_steps.insert(name.to_string(), m.steps);
         }
     }
-    let buffers = trainer.model.hooks().map_or_else(Vec::new, |h| h.buffers());
+    let buffers = trainer
+        .state
+        .model
+        .hooks()
+        .map_or_else(Vec::new, |h| h.buffers());
     for (name, value) in buffers {
         named.push((
             format!("{BUFFER}{name}"),
@@ -62,21 +66,21 @@ pub fn save_checkpoint(trainer: &Trainer, dir: &Path) -> Result<(), Error> {
         ));
     }
     let n = trainer.num_gaussians();
-    let s = &trainer.stats;
+    let s = &trainer.state.stats;
     named.push(("stats/grad_accum".into(), vec![n], bytes_of(&s.grad_accum)));
     named.push(("stats/denom".into(), vec![n], bytes_of(&s.denom)));
     named.push(("stats/max_radii".into(), vec![n], bytes_of(&s.max_radii)));
-    let live = &trainer.liveness;
+    let live = &trainer.state.liveness;
     let lowered: Vec<f32> = live
         .lowered
         .iter()
         .map(|&l| f32::from(u8::from(l)))
         .collect();
     named.push((LOWERED.into(), vec![n], bytes_of(&lowered)));
-    let f = trainer.observations.num_frames();
+    let f = trainer.state.observations.num_frames();
     if f > 0 {
         let obs: Vec<u8> = (0..n)
-            .flat_map(|i| trainer.observations.row(i))
+            .flat_map(|i| trainer.state.observations.row(i))
             .flat_map(|v| v.to_le_bytes())
             .collect();
         named.push(("observations".into(), vec![n, f], obs));
@@ -110,13 +114,13 @@ pub fn save_checkpoint(trainer: &Trainer, dir: &Path) -> Result<(), Error> {
     let blob = safetensors::serialize(views, None)
         .map_err(|e| Error::Input(format!("checkpoint serialisation: {e}")))?;
     let state = State {
-        model: trainer.model.name().to_string(),
+        model: trainer.state.model.name().to_string(),
         iteration: trainer.iteration,
         skipped_steps: trainer.skipped_steps,
-        last_reset: trainer.last_reset,
+        last_reset: trainer.state.last_reset,
         num_gaussians: n,
         config: trainer.config.clone(),
-        filter: trainer.filter.clone(),
+        filter: trainer.state.filter.clone(),
         timings: trainer.timings.clone(),
         adam_steps,
         strategy: trainer.strategy_state(),
@@ -226,12 +230,12 @@ impl Trainer {
         state: State,
         branch: bool,
     ) -> Result<Vec<String>, Error> {
-        if state.model != self.model.name() {
+        if state.model != self.state.model.name() {
             return Err(Error::Input(format!(
                 "{}: holds a `{}` model but the trainer was built with `{}` (build the trainer with the same representation)",
                 dir.display(),
                 state.model,
-                self.model.name()
+                self.state.model.name()
             )));
         }
         let opened = Opened::with_state(dir, state)?;
@@ -239,6 +243,7 @@ impl Trainer {
         let blob_path = &opened.blob_path;
         // A branch's shared parameters that the checkpoint lacks keep their values.
         let kept: HashMap<String, Tensor<f32>> = self
+            .state
             .model
             .params()
             .iter()
@@ -248,7 +253,7 @@ impl Trainer {
             .collect();
         let mut fresh: Vec<String> = kept.keys().cloned().collect();
         fresh.sort_unstable();
-        opened.load_model(self.model.as_mut(), dir, kept)?;
+        opened.load_model(self.state.model.as_mut(), dir, kept)?;
         if let Some(correction) = self.camera_colour.as_mut() {
             for p in correction.params_mut().iter_mut() {
                 let key = format!("param/{}", p.name);
@@ -274,19 +279,26 @@ impl Trainer {
             .camera_colour
             .as_ref()
             .map_or_else(Vec::new, |c| c.params().names());
-        for name in self.model.params().names().into_iter().chain(colour_names) {
+        for name in self
+            .state
+            .model
+            .params()
+            .names()
+            .into_iter()
+            .chain(colour_names)
+        {
             if let Some(&steps) = opened.state.adam_steps.get(&name) {
                 let m = tensor(&st, &format!("adam_m/{name}"), blob_path)?;
                 let v = tensor(&st, &format!("adam_v/{name}"), blob_path)?;
-                self.adam.set_moments(&name, Moments { m, v, steps });
+                self.state.adam.set_moments(&name, Moments { m, v, steps });
             }
         }
-        self.stats = DensifyStats {
+        self.state.stats = DensifyStats {
             grad_accum: tensor(&st, "stats/grad_accum", blob_path)?.into_vec(),
             denom: tensor(&st, "stats/denom", blob_path)?.into_vec(),
             max_radii: tensor(&st, "stats/max_radii", blob_path)?.into_vec(),
         };
-        self.liveness = if st.names().contains(&LAST_GRAD) {
+        self.state.liveness = if st.names().contains(&LAST_GRAD) {
             let last_grad = st
                 .tensor(LAST_GRAD)
                 .ok()
@@ -316,14 +328,14 @@ impl Trainer {
         } else {
             Liveness::alive_at(n, opened.state.iteration)
         };
-        self.observations = opened.observations(&self.observed, self.observed_slot.len())?;
+        self.state.observations = opened.observations(&self.observed, self.observed_slot.len())?;
         drop(st);
         let state = opened.state;
-        self.filter = state.filter;
+        self.state.filter = state.filter;
         self.filter_ready = true;
         self.iteration = state.iteration;
         self.skipped_steps = state.skipped_steps;
-        self.last_reset = state.last_reset;
+        self.state.last_reset = state.last_reset;
         self.timings = state.timings;
         if !branch {
             self.config = state.config;

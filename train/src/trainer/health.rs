@@ -11,7 +11,7 @@ impl Trainer {
     /// The first parameter value that is not finite, as (parameter name, flat index,
     /// value).
     pub fn first_non_finite_param(&self) -> Option<(String, usize, f32)> {
-        maaf_scene::checkpoint_read::first_non_finite(self.model.as_ref())
+        maaf_scene::checkpoint_read::first_non_finite(self.state.model.as_ref())
     }
 
     /// `Err` when the run has diverged at its current iteration: a non-finite

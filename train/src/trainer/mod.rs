@@ -18,12 +18,14 @@ mod densify;
 mod health;
 mod layer;
 mod log;
+mod phase;
 mod prune;
 mod refresh;
 pub mod region;
 mod reset;
 mod resume;
 mod run;
+mod state;
 mod step;
 mod strategy;
 mod timed;
@@ -31,9 +33,8 @@ mod validation;
 
 use std::sync::Arc;
 
-use maaf_autodiff::optim::{Adam, AdamConfig};
 use maaf_autodiff::{OpProfile, PerGaussian, Tensor};
-use maaf_filter::{CameraTime, FilterState, ObservationTable, SamplingFilter};
+use maaf_filter::{CameraTime, ObservationTable, SamplingFilter};
 use maaf_splat::Camera;
 
 pub use best::{BEST_DIR, Chosen};
@@ -42,48 +43,42 @@ pub use checkpoint::{
 };
 pub use densify::{DensifyPlan, DensifyStats, ViewGrad, plan as plan_densify};
 
-pub use prune::{keep_highest, removal_sensitivity};
+pub use prune::{keep_highest, removal_sensitivity, sensitivity_scores};
 pub use reset::{Liveness, opacity_caps};
 pub use resume::{checkpoints_newest_first, load_newest, truncate_log};
 pub use run::{
     BUDGET_FILE, RunSummary, branch_run, branch_run_with_plugins, checkpoint_dir, train_run,
     train_run_with, train_run_with_plugins,
 };
+pub use state::TrainState;
 pub use strategy::{
-    DefaultStrategy, SensitivityPruning, StepInfo, Strategy, StrategyMaker, StrategyRegistry,
+    DefaultStrategy, RefineStep, SensitivityPruning, StepInfo, Strategy, StrategyMaker,
+    StrategyRegistry,
 };
 
 use crate::data::{Dataset, Image};
 use crate::loss::Objective;
-use crate::models::{Canonical, Representation};
+use crate::models::Representation;
 use crate::{Error, Plugins};
 use maaf_scene::{
     DensifyConfig, DensifyGradient, LossRegion, OpacityReset, SceneRecord, Timings, TrainConfig,
     TrainedScene, camera_extent, model_init, observed_views, repair_run_dir, training_views,
 };
 
-/// A trainer: the model, its optimiser, the filter and every per-Gaussian container,
-/// resized in lock-step by [`PerGaussian::select_rows`].
+/// A trainer: the per-Gaussian [`TrainState`], the strategy and filter that change
+/// it, the objective, the training views and the run's bookkeeping.
 pub struct Trainer {
     /// Run configuration.
     pub config: TrainConfig,
-    /// The 4D representation.
-    pub model: Box<dyn Representation<f32>>,
-    /// Adam moments per parameter.
-    pub adam: Adam<f32>,
-    /// Current 3D filter of every Gaussian.
-    pub filter: FilterState,
-    /// What computes [`Self::filter`]: the config's filter by name, or a user's
+    /// The per-Gaussian state: model, Adam moments, filter state, observations,
+    /// densification statistics and liveness.
+    pub state: TrainState,
+    /// What computes [`TrainState::filter`]: the config's filter by name, or a user's
     /// ([`Trainer::set_filter`]).
     sampling: Box<dyn SamplingFilter>,
-    /// f/d observations recorded from training forward passes: the motion filter's
-    /// input, at most `filter.max_views` frames; no frames for the other filters.
-    pub observations: ObservationTable,
-    /// Densification statistics.
-    pub stats: DensifyStats,
     /// The densification strategy (the one `densify.strategy` names, or a user's:
-    /// [`Trainer::set_strategy`]); `None` only while one of its hooks runs.
-    strategy: Option<Box<dyn Strategy>>,
+    /// [`Trainer::set_strategy`]).
+    strategy: Box<dyn Strategy>,
     /// Per-camera colour correction of the training renders (`camera_colour`), when
     /// the config turns it on.
     pub camera_colour: Option<camera_colour::CameraColour>,
@@ -96,11 +91,6 @@ pub struct Trainer {
     pub skipped_steps: usize,
     /// Why the last skipped step was skipped (the tape's message), if any was.
     pub last_skip: Option<String>,
-    /// Iteration of the last opacity reset (large-screen pruning starts after it).
-    pub last_reset: Option<usize>,
-    /// Per Gaussian, the last iteration with an opacity gradient and whether the last
-    /// reset lowered it: the dead-Gaussian counts of the run's summary.
-    pub liveness: Liveness,
     /// Bounds of the point cloud the representation was built from
     /// ([`crate::data::PointCloud::bounds`] of [`crate::models::ModelInit::cloud`]), saved with every checkpoint
     /// ([`SceneRecord::init_box`]) so that the run's model is rebuilt without its data
@@ -283,18 +273,13 @@ impl Trainer {
             .then(|| camera_colour::CameraColour::new(&cameras, config.camera_colour.lr));
         Ok(Trainer {
             camera_colour,
-            adam: Adam::new(AdamConfig::default()),
-            filter: FilterState::None { rows: n },
+            state: TrainState::new(model, ObservationTable::for_frames(&observed, n)),
             sampling,
-            observations: ObservationTable::for_frames(&observed, n),
-            stats: DensifyStats::new(n),
-            strategy: Some(strategy),
+            strategy,
             objective,
             iteration: 0,
             skipped_steps: 0,
             last_skip: None,
-            last_reset: None,
-            liveness: Liveness::new(n),
             init_box: (bounds.min.to_array(), bounds.max.to_array()),
             time_range: data.time_range(),
             timings: Timings::default(),
@@ -303,7 +288,6 @@ impl Trainer {
             filter_ready: false,
             background: data.background(),
             config,
-            model,
             view_times,
             held_out,
             gts,
@@ -320,17 +304,7 @@ impl Trainer {
 
     /// Number of Gaussians.
     pub fn num_gaussians(&self) -> usize {
-        self.model.rows()
-    }
-
-    /// The model's canonical Gaussians, activated ([`ParamStore::canonical`] of its
-    /// [`CanonicalIds`]): what densification, the opacity reset, a strategy and the
-    /// filters read.
-    ///
-    /// [`ParamStore::canonical`]: maaf_models::params::ParamStore::canonical
-    /// [`CanonicalIds`]: crate::models::CanonicalIds
-    pub fn canonical(&self) -> Canonical<f32> {
-        self.model.params().canonical(self.model.canonical_ids())
+        self.state.model.rows()
     }
 
     /// About how many bytes a training step of this model holds at `gaussians`
@@ -341,13 +315,15 @@ impl Trainer {
     /// rows. Used to refuse a size the machine cannot hold before allocating it.
     pub fn step_bytes(&self, gaussians: usize) -> u64 {
         let row: usize = self
+            .state
             .model
             .params()
             .iter()
             .filter(|p| p.rows == maaf_models::params::Rows::PerGaussian)
             .map(|p| p.value.shape().iter().skip(1).product::<usize>())
             .sum();
-        let floats = row * (4 + 4 * self.config.batch.max(1)) + self.observations.num_frames() + 3;
+        let floats =
+            row * (4 + 4 * self.config.batch.max(1)) + self.state.observations.num_frames() + 3;
         (gaussians as u64).saturating_mul(4 * floats as u64)
     }
 
@@ -369,7 +345,7 @@ impl Trainer {
     /// The deformed, filtered Gaussians at `time` as plain tensors
     /// `[means, scales, quats, opacity, sh]`: what the renderer draws.
     pub fn frame_at(&self, time: f64) -> [Tensor<f32>; 5] {
-        maaf_scene::forward::gaussians_at(self.model.as_ref(), &self.filter, time)
+        maaf_scene::forward::gaussians_at(self.state.model.as_ref(), &self.state.filter, time)
     }
 
     /// What a checkpoint of this run records besides the model
@@ -396,43 +372,13 @@ impl Trainer {
                     .backdrop
                     .as_ref()
                     .map_or(0.0, |l| l.scene.train_seconds),
-            model: self.model,
-            filter: self.filter,
-            observations: self.observations,
+            model: self.state.model,
+            filter: self.state.filter,
+            observations: self.state.observations,
             config: self.config,
             iteration: self.iteration,
             record,
             backdrop: self.backdrop.map(|l| Box::new(l.scene)),
         }
-    }
-
-    /// Applies a densification plan to the model, its Adam moments, the filter state,
-    /// the observations, the statistics and the liveness record with one index list (each row's statistics
-    /// travel with it; a densification then restarts them, a pruning keeps them).
-    pub fn apply_plan(&mut self, plan: &DensifyPlan) {
-        let n_old = self.model.rows();
-        let names = self.model.params().per_gaussian_names();
-        self.model.select_rows(&plan.index);
-        if !plan.new_rows.is_empty() {
-            let k = plan.new_rows.len();
-            let ids = self.model.canonical_ids();
-            self.model.params_mut().set_canonical_rows(
-                ids,
-                &plan.new_rows,
-                &Tensor::from_vec(plan.new_means.clone(), &[k, 3]),
-                &Tensor::from_vec(plan.new_scales.clone(), &[k, 3]),
-            );
-        }
-        for name in names {
-            if let Some(m) = self.adam.moments_mut(&name)
-                && m.rows() == n_old
-            {
-                m.select_rows(&plan.index);
-            }
-        }
-        self.filter.select_rows(&plan.index);
-        self.observations.select_rows(&plan.index);
-        self.stats.select_rows(&plan.index);
-        self.liveness.select_rows(&plan.index);
     }
 }

@@ -8,7 +8,7 @@ use maaf_autodiff::{Tape, Tensor};
 use maaf_filter::FilterState;
 use maaf_splat::{Camera, GaussianVars, RenderSettings, SplatFloat};
 
-use super::{DensifyPlan, Trainer};
+use super::{DensifyPlan, RefineStep, TrainState};
 use maaf_scene::forward::{deformed_at, fold_filter};
 
 /// How much the total intensity of one render depends on each Gaussian: with
@@ -69,60 +69,57 @@ pub fn keep_highest(scores: &[f64], ratio: f64) -> Vec<usize> {
     keep
 }
 
-impl Trainer {
-    /// The pruning score of every Gaussian (Speedy-Splat Eq. 10 with the image sum as
-    /// the objective): the sum over all training views `v`, each rendered at its own
-    /// time with the settings of `iteration`, of the squared
-    /// [`removal_sensitivity`]. Squaring per view means a Gaussian that brightens one
-    /// frame and darkens another does not cancel out.
-    pub fn sensitivity_scores(&self, iteration: usize) -> Result<Vec<f64>, String> {
-        let settings = self.render_settings(iteration);
-        let mut scores = vec![0.0; self.num_gaussians()];
-        for (&time, camera) in self.view_times.iter().zip(&self.cameras) {
-            let deformed = deformed_at(self.model.as_ref(), time);
-            let s = removal_sensitivity(deformed, &self.filter, time, camera, &settings)?;
-            for (acc, v) in scores.iter_mut().zip(s) {
-                *acc += v * v;
-            }
+/// The pruning score of every Gaussian of `state` (Speedy-Splat Eq. 10 with the
+/// image sum as the objective): the sum over all training views `v` of `step`, each
+/// rendered at its own time with the step's settings, of the squared
+/// [`removal_sensitivity`]. Squaring per view means a Gaussian that brightens one
+/// frame and darkens another does not cancel out.
+pub fn sensitivity_scores(state: &TrainState, step: &RefineStep<'_>) -> Result<Vec<f64>, String> {
+    let mut scores = vec![0.0; state.rows()];
+    for (&time, camera) in step.times.iter().zip(step.cameras) {
+        let deformed = deformed_at(state.model.as_ref(), time);
+        let s = removal_sensitivity(deformed, &state.filter, time, camera, step.settings)?;
+        for (acc, v) in scores.iter_mut().zip(s) {
+            *acc += v * v;
         }
-        Ok(scores)
     }
+    Ok(scores)
+}
 
-    /// Sensitivity pruning when `config.prune` schedules it at `it`: the soft ratio
-    /// before `densify.until`, the hard one from then on. Returns whether Gaussians
-    /// were removed. The densification statistics of the survivors are kept (3DGS
-    /// `prune_points`): `apply_plan` carries them with their rows.
-    pub(super) fn maybe_prune(&mut self, it: usize) -> bool {
-        let p = &self.config.prune;
-        if p.every == 0 || it < p.from || it > p.until || !it.is_multiple_of(p.every) {
-            return false;
-        }
-        let ratio = if it < self.config.densify.until {
-            p.ratio_densifying
-        } else {
-            p.ratio_after
-        };
-        let scores = match self.sensitivity_scores(it) {
-            Ok(s) => s,
-            Err(e) => {
-                log::warn!("iteration {it}: sensitivity pruning skipped: {e}");
-                return false;
-            }
-        };
-        let n = scores.len();
-        let index = keep_highest(&scores, ratio);
-        let pruned = n - index.len();
-        if pruned == 0 {
-            return false;
-        }
-        self.apply_plan(&DensifyPlan {
-            index,
-            pruned,
-            ..Default::default()
-        });
-        log::info!("iteration {it}: sensitivity pruning removed {pruned} of {n} Gaussians");
-        true
+/// Sensitivity pruning when `config.prune` schedules it at `step.iteration`: the soft
+/// ratio before `densify.until`, the hard one from then on. Returns whether
+/// Gaussians were removed. The densification statistics of the survivors are kept
+/// (3DGS `prune_points`): [`TrainState::apply_plan`] carries them with their rows.
+pub(super) fn maybe_prune(state: &mut TrainState, step: &RefineStep<'_>) -> bool {
+    let (p, it) = (&step.config.prune, step.iteration);
+    if p.every == 0 || it < p.from || it > p.until || !it.is_multiple_of(p.every) {
+        return false;
     }
+    let ratio = if it < step.config.densify.until {
+        p.ratio_densifying
+    } else {
+        p.ratio_after
+    };
+    let scores = match sensitivity_scores(state, step) {
+        Ok(s) => s,
+        Err(e) => {
+            log::warn!("iteration {it}: sensitivity pruning skipped: {e}");
+            return false;
+        }
+    };
+    let n = scores.len();
+    let index = keep_highest(&scores, ratio);
+    let pruned = n - index.len();
+    if pruned == 0 {
+        return false;
+    }
+    state.apply_plan(&DensifyPlan {
+        index,
+        pruned,
+        ..Default::default()
+    });
+    log::info!("iteration {it}: sensitivity pruning removed {pruned} of {n} Gaussians");
+    true
 }
 
 #[cfg(test)]

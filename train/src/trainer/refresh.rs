@@ -14,11 +14,11 @@ struct Inputs<'a>(&'a Trainer);
 
 impl FilterInputs for Inputs<'_> {
     fn gaussians(&self) -> usize {
-        self.0.model.rows()
+        self.0.state.model.rows()
     }
 
     fn canonical_centres(&self) -> Vec<[f32; 3]> {
-        let model = &self.0.model;
+        let model = &self.0.state.model;
         centres(model.params().value(model.canonical_ids().means))
     }
 
@@ -27,7 +27,7 @@ impl FilterInputs for Inputs<'_> {
     }
 
     fn observations(&self) -> &ObservationTable {
-        &self.0.observations
+        &self.0.state.observations
     }
 }
 
@@ -43,7 +43,7 @@ impl Trainer {
             filter.observes(),
             self.config.filter.max_views,
         );
-        self.observations = ObservationTable::for_frames(&observed, self.num_gaussians());
+        self.state.observations = ObservationTable::for_frames(&observed, self.num_gaussians());
         self.observed = observed;
         self.observed_slot = slot;
         self.sampling = filter;
@@ -70,8 +70,8 @@ impl Trainer {
             times.sort_by(f32::total_cmp);
             times.dedup();
             let at: Vec<f64> = times.iter().map(|&t| f64::from(t)).collect();
-            let all = self.model.centres_at_times(&at);
-            let result = self.observations.observe_all(
+            let all = self.state.model.centres_at_times(&at);
+            let result = self.state.observations.observe_all(
                 &self.observed,
                 &self.cameras,
                 &self.config.filter,
@@ -91,7 +91,7 @@ impl Trainer {
     /// (logged) the previous filter stays.
     pub fn refresh_filter(&mut self) {
         match self.sampling.compute(&Inputs(self), &self.config.filter) {
-            Ok(state) => self.filter = state,
+            Ok(state) => self.state.filter = state,
             Err(e) => log::warn!("filter refresh skipped: {e}"),
         }
     }

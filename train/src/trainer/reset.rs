@@ -6,7 +6,7 @@
 use maaf_autodiff::{PerGaussian, Tensor};
 use maaf_filter::FilterState;
 
-use super::{OpacityReset, Trainer};
+use super::{OpacityReset, TrainState};
 
 /// The cap on the base opacity `sigmoid(o)` of each Gaussian at a reset to `max`
 /// (3DGS and Mip-Splatting use 0.01):
@@ -134,11 +134,12 @@ impl PerGaussian for Liveness {
     }
 }
 
-impl Trainer {
-    /// The opacity reset to 0.01 ([`opacity_caps`] of `mode` with the current filter
-    /// and canonical scales); zeroes the Adam moments of the parameters it overwrote
-    /// and records in [`Trainer::liveness`] which Gaussians it lowered.
-    pub fn reset_opacity(&mut self, mode: OpacityReset) {
+impl TrainState {
+    /// The opacity reset of iteration `iteration` to 0.01 ([`opacity_caps`] of `mode`
+    /// with the current filter and canonical scales); zeroes the Adam moments of the
+    /// parameters it overwrote, records in [`TrainState::liveness`] which Gaussians
+    /// it lowered and sets [`TrainState::last_reset`].
+    pub fn reset_opacity(&mut self, mode: OpacityReset, iteration: usize) {
         let ids = self.model.canonical_ids();
         let opacity = ids.opacity_logits;
         let before = self.model.params().value(opacity).clone();
@@ -150,6 +151,7 @@ impl Trainer {
         let after = self.model.params().value(opacity);
         let lowered = before.data().iter().zip(after.data()).map(|(a, b)| a != b);
         self.liveness.reset(lowered.collect());
+        self.last_reset = Some(iteration);
     }
 }
 

@@ -2,20 +2,18 @@
 //! statistics (each timed as its own phase, [`maaf_scene::Timings`]), then
 //! densification and filter refresh when due.
 
-use std::time::Instant;
-
-use maaf_autodiff::{Tape, Tensor};
+use maaf_autodiff::{Grads, Tape, Tensor, Var};
+use maaf_models::params::BoundParams;
 use maaf_splat::RenderSettings;
 use maaf_splat::compositing::drawable;
 use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_pcg::Pcg64;
 
-use super::Trainer;
-use super::cpu_clock::CpuStamp;
+use super::phase::PhaseClock;
 use super::region::{background_target, crop, share};
-use super::strategy::StepInfo;
-use super::{DensifyGradient, ViewGrad};
+use super::strategy::{RefineStep, StepInfo};
+use super::{DensifyGradient, Trainer, ViewGrad};
 use crate::loss::{Evaluated, ForwardTerms, batch_mean};
 use maaf_scene::LossRegion;
 use maaf_scene::backdrop::over_backdrop;
@@ -61,7 +59,12 @@ impl Trainer {
     /// batches from a shuffled loader the same way), or of the views at the one time
     /// the model trains on then (`trainer/timed.rs`).
     pub fn views_at(&self, iteration: usize) -> Vec<usize> {
-        if let Some(at) = self.model.hooks().and_then(|h| h.training_time(iteration)) {
+        if let Some(at) = self
+            .state
+            .model
+            .hooks()
+            .and_then(|h| h.training_time(iteration))
+        {
             return self.views_at_time(iteration, at);
         }
         (0..self.config.batch)
@@ -76,35 +79,283 @@ impl Trainer {
     }
 
     /// The gradient step of the next iteration: bind, then per view deform, filter,
-    /// render and objective; backward of the views' mean objective, Adam, statistics;
+    /// render and objective ([`Self::forward_batch`]); backward of the views' mean
+    /// objective, Adam ([`Self::optimise`]), statistics ([`Self::after_step`]);
     /// advances `iteration`. What it trained is the model to validate at this
     /// iteration, before [`Self::schedule`] densifies or resets opacities.
     pub fn update(&mut self) {
-        let cpu0 = CpuStamp::now();
+        let mut clock = PhaseClock::start();
         self.ensure_filter();
         let it = self.iteration + 1;
-        self.model.set_iteration(it);
+        self.state.model.set_iteration(it);
         self.restart_moments(it);
         let views = self.views_at(it);
         let tape = Tape::new();
         tape.set_validate(self.config.validate);
         tape.set_profile(self.op_profile.is_some());
-
         let settings = self.render_settings(it);
-        let params = self.model.params().bind(&tape);
-        let t_bind = Instant::now();
-        let bound = self.model.bind(&params);
-        let bind_seconds = t_bind.elapsed().as_secs_f64();
+        clock.lap();
+
+        let params = self.state.model.params().bind(&tape);
+        let bound = self.state.model.bind(&params);
+        let bind_seconds = clock.lap();
+        let batch = self.forward_batch(&tape, bound.as_ref(), &settings, it, views);
+        let deform: f64 = batch.fwds.iter().map(|f| f.deform_seconds).sum();
+        self.timings.field_mlp += bind_seconds + deform;
+        let forward_seconds = clock.lap() - deform;
+        let evals: Vec<_> = (batch.fwds.iter().zip(&batch.gts))
+            .map(|(fwd, gt)| fwd.objective(&self.objective, gt, it - 1))
+            .collect();
+        let total = batch.mean_total(&evals);
+        self.timings.render_forward += forward_seconds + clock.lap();
+
+        let abs_stat =
+            self.config.densify.gradient == DensifyGradient::Abs && it <= self.config.densify.until;
+        let (grads, abs_grads) = checked_backward(&tape, total, &batch, abs_stat);
+        self.timings.backward += clock.lap();
+        match grads {
+            Ok(grads) => {
+                self.optimise(&grads, it);
+                self.timings.optimiser += clock.lap();
+                self.after_step(&grads, &batch, &abs_grads, it);
+                self.last_terms = mean_terms(&evals);
+                self.timings.statistics += clock.lap();
+            }
+            Err(e) => {
+                // A NaN/Inf in the loss or a gradient: the update is skipped so nothing
+                // non-finite reaches the parameters (or a checkpoint); counted and logged.
+                self.skipped_steps += 1;
+                log::warn!("iteration {it}: step skipped: {e}");
+                self.last_skip = Some(e);
+                self.timings.optimiser += clock.lap();
+            }
+        }
+        if let (Some(total), Some(step)) = (self.op_profile.as_mut(), tape.op_profile()) {
+            total.merge(&step);
+        }
+        drop(batch);
+        drop(bound);
+        drop(params);
+        self.iteration = it;
+        clock.finish(&mut self.timings);
+    }
+
+    /// Adam on every parameter with a gradient, each at its learning rate of
+    /// `iteration` and with the model's per-row scale of it
+    /// ([`crate::models::TrainingHooks::lr_row_scale`]), then on the camera colour
+    /// correction's parameters.
+    fn optimise(&mut self, grads: &Grads<f32>, iteration: usize) {
+        let densifying = iteration <= self.config.densify.until;
+        let state = &mut self.state;
+        let hooks = state.model.hooks();
+        let scales: Vec<_> = (state.model.params().iter())
+            .map(|p| hooks.and_then(|h| h.lr_row_scale(&p.name, densifying)))
+            .collect();
+        for (p, scale) in state.model.params_mut().iter_mut().zip(scales) {
+            if let Some(gr) = grads.param(&p.name) {
+                let lr = p.lr.at(iteration - 1);
+                let decay = p.weight_decay;
+                (state.adam).step_rows(&p.name, &mut p.value, gr, lr, decay, scale.as_deref());
+            }
+        }
+        for p in self
+            .camera_colour
+            .iter_mut()
+            .flat_map(|c| c.params_mut().iter_mut())
+        {
+            if let Some(gr) = grads.param(&p.name) {
+                let lr = p.lr.at(iteration - 1);
+                state
+                    .adam
+                    .step_rows(&p.name, &mut p.value, gr, lr, 0.0, None);
+            }
+        }
+    }
+
+    /// What a step that was not skipped leaves besides the parameters: the
+    /// strategy's statistics ([`super::Strategy::after_backward`]), the liveness
+    /// record and, through the filter's own hook
+    /// ([`maaf_filter::SamplingFilter::observe`]), the observations of the observed
+    /// views.
+    fn after_step(
+        &mut self,
+        grads: &Grads<f32>,
+        batch: &Batch<'_>,
+        abs_grads: &[Option<Tensor<f32>>],
+        iteration: usize,
+    ) {
+        // Each view's screen-space gradient is that of its own objective (SaRO-GS
+        // backpropagates every view's loss before averaging), i.e. `batch` times its
+        // share of the mean.
+        let seen: Vec<ViewGrad> = (batch.fwds.iter().zip(abs_grads))
+            .map(|(fwd, abs)| ViewGrad {
+                grad: grads.wrt(fwd.render.means2d),
+                abs_grad: abs.as_ref(),
+                radii: &fwd.render.radii,
+                width: fwd.camera.width,
+                height: fwd.camera.height,
+            })
+            .collect();
+        let info = StepInfo {
+            iteration,
+            views: &seen,
+            loss_scale: batch.fwds.len() as f32,
+        };
+        self.strategy.after_backward(&mut self.state, &info);
+        let state = &mut self.state;
+        let opacity = state.model.canonical_ids().opacity_logits;
+        if let Some(g) = grads.param(&state.model.params().param(opacity).name) {
+            state.liveness.record(g.data(), iteration);
+        }
+        for (fwd, &vi) in batch.fwds.iter().zip(&batch.views) {
+            let Some(frame) = self.observed_slot[vi] else {
+                continue;
+            };
+            let centres = centres(&fwd.deformed.means.value());
+            // A Gaussian absent at this time is not observed in this frame.
+            let present = drawable(fwd.deformed.opacity.value().data());
+            let recorded = self.sampling.observe(
+                &mut state.observations,
+                frame,
+                &fwd.camera,
+                &centres,
+                &present,
+                &self.config.filter,
+            );
+            if let Err(e) = recorded {
+                log::warn!("iteration {iteration}: observation not recorded: {e}");
+            }
+        }
+    }
+
+    /// What the schedule does after the gradient step of iteration `iteration`: the
+    /// densification strategy's refinement ([`super::Strategy::refine`]:
+    /// densification, pruning and opacity reset), then the filter refresh, when due.
+    pub fn schedule(&mut self) {
+        let it = self.iteration;
+        let mut clock = PhaseClock::start();
+        let settings = self.render_settings(it);
+        let step = RefineStep {
+            iteration: it,
+            config: &self.config,
+            extent: self.extent,
+            cameras: &self.cameras,
+            times: &self.view_times,
+            settings: &settings,
+        };
+        let densified = self.strategy.refine(&mut self.state, &step);
+        self.timings.densification += clock.lap();
+        let refresh = &self.config.filter.refresh;
+        if refresh.due(it as u64, self.config.iterations as u64, densified) {
+            self.refresh_filter();
+        }
+        self.timings.filter_refresh += clock.lap();
+        clock.finish(&mut self.timings);
+    }
+
+    /// The pruning score of every Gaussian with the settings of `iteration`
+    /// ([`super::sensitivity_scores`] over the training views).
+    pub fn sensitivity_scores(&self, iteration: usize) -> Result<Vec<f64>, String> {
+        let settings = self.render_settings(iteration);
+        let step = RefineStep {
+            iteration,
+            config: &self.config,
+            extent: self.extent,
+            cameras: &self.cameras,
+            times: &self.view_times,
+            settings: &settings,
+        };
+        super::sensitivity_scores(&self.state, &step)
+    }
+}
+
+/// One iteration's views, drawn: per view its forward pass, the target its objective
+/// compares it with and the share of the view's pixels they cover.
+struct Batch<'t> {
+    views: Vec<usize>,
+    fwds: Vec<Forward<'t, f32>>,
+    gts: Vec<Tensor<f32>>,
+    shares: Vec<f64>,
+    /// The camera colour correction's parameters on the tape, when it is on.
+    _colour: Option<BoundParams<'t, f32>>,
+}
+
+impl<'t> Batch<'t> {
+    /// The views' mean objective; a rectangle's objective counts as the whole view's
+    /// with no error outside it (scaled by its share of the pixels).
+    fn mean_total(&self, evals: &[Evaluated<'t, f32>]) -> Var<'t, f32> {
+        let totals: Vec<_> = (evals.iter().zip(&self.shares))
+            .map(|(e, &share)| {
+                if share < 1.0 {
+                    e.total.scale(share)
+                } else {
+                    e.total
+                }
+            })
+            .collect();
+        batch_mean(&totals)
+    }
+}
+
+/// Per view of a batch, the gradient of the absolute screen means, when requested.
+type AbsGrads = Vec<Option<Tensor<f32>>>;
+
+/// Backward of `total` with the screen means' absolute gradients requested when
+/// `abs_stat`; the gradients, or why they cannot be used (the tape's error, a
+/// non-finite loss, or the first parameter whose gradient is not finite), and each
+/// view's absolute gradient.
+fn checked_backward(
+    tape: &Tape<f32>,
+    total: Var<'_, f32>,
+    batch: &Batch<'_>,
+    abs_stat: bool,
+) -> (Result<Grads<f32>, String>, AbsGrads) {
+    if abs_stat {
+        for fwd in &batch.fwds {
+            fwd.render.abs_means2d.request();
+        }
+    }
+    let grads = tape.backward(total);
+    let abs_grads = (batch.fwds.iter())
+        .map(|fwd| fwd.render.abs_means2d.take())
+        .collect();
+    let finite = |t: &Tensor<f32>| t.first_non_finite().is_none();
+    let grads = grads.map_err(|e| e.to_string()).and_then(|gr| {
+        let loss = total.value().item();
+        if !loss.is_finite() {
+            return Err(format!("non-finite loss ({loss})"));
+        }
+        match (gr.param_names().into_iter()).find(|p| !gr.param(p).is_none_or(finite)) {
+            Some(name) => Err(format!("non-finite gradient of `{name}`")),
+            None => Ok(gr),
+        }
+    });
+    (grads, abs_grads)
+}
+
+impl Trainer {
+    /// The forward passes of `views` as iteration `iteration` draws them
+    /// ([`Self::view_pass`]), with the camera colour correction applied to each
+    /// render and, for `loss_region = background`, each target replaced by its
+    /// background part ([`background_target`]).
+    fn forward_batch<'t>(
+        &self,
+        tape: &'t Tape<f32>,
+        bound: &dyn maaf_models::Bound<'t, f32>,
+        settings: &RenderSettings,
+        iteration: usize,
+        views: Vec<usize>,
+    ) -> Batch<'t> {
         let mut fwds = Vec::with_capacity(views.len());
         let mut gts = Vec::with_capacity(views.len());
         let mut shares = Vec::with_capacity(views.len());
         for (slot, &vi) in views.iter().enumerate() {
-            let (fwd, gt, share) = self.view_pass(bound.as_ref(), &settings, it, slot, vi);
+            let (fwd, gt, share) = self.view_pass(bound, settings, iteration, slot, vi);
             fwds.push(fwd);
             gts.push(gt);
             shares.push(share);
         }
-        let colour = self.camera_colour.as_ref().map(|c| c.bind(&tape));
+        let colour = self.camera_colour.as_ref().map(|c| c.bind(tape));
         if let (Some(correction), Some(bound)) = (&self.camera_colour, &colour) {
             for (fwd, &vi) in fwds.iter_mut().zip(&views) {
                 fwd.render.image = correction.apply(bound, vi, fwd.render.image);
@@ -115,184 +366,15 @@ impl Trainer {
                 *gt = background_target(gt, &fwd.render.image.value(), &self.masks[vi]);
             }
         }
-        let t_obj = Instant::now();
-        let evals: Vec<_> = fwds
-            .iter()
-            .zip(&gts)
-            .map(|(fwd, gt)| fwd.objective(&self.objective, gt, it - 1))
-            .collect();
-        let batch = views.len();
-        // A rectangle's objective counts as the whole view's with no error outside it.
-        let totals: Vec<_> = evals
-            .iter()
-            .zip(&shares)
-            .map(|(e, &share)| {
-                if share < 1.0 {
-                    e.total.scale(share)
-                } else {
-                    e.total
-                }
-            })
-            .collect();
-        let total = batch_mean(&totals);
-        let t2 = Instant::now();
-
-        let abs_stat =
-            self.config.densify.gradient == DensifyGradient::Abs && it <= self.config.densify.until;
-        if abs_stat {
-            for fwd in &fwds {
-                fwd.render.abs_means2d.request();
-            }
+        Batch {
+            views,
+            fwds,
+            gts,
+            shares,
+            _colour: colour,
         }
-        let grads = tape.backward(total);
-        let abs_grads: Vec<Option<Tensor<f32>>> = fwds
-            .iter()
-            .map(|fwd| fwd.render.abs_means2d.take())
-            .collect();
-        let t3 = Instant::now();
-        let finite = |t: &Tensor<f32>| t.first_non_finite().is_none();
-        let grads = grads.map_err(|e| e.to_string()).and_then(|gr| {
-            let loss = total.value().item();
-            if !loss.is_finite() {
-                return Err(format!("non-finite loss ({loss})"));
-            }
-            // Name the first parameter whose gradient is not finite.
-            match gr
-                .param_names()
-                .into_iter()
-                .find(|p| !gr.param(p).is_none_or(finite))
-            {
-                Some(name) => Err(format!("non-finite gradient of `{name}`")),
-                None => Ok(gr),
-            }
-        });
-        // Set after the Adam updates: what follows is bookkeeping (`Timings::statistics`).
-        let mut t_updated = None;
-        match grads {
-            Ok(grads) => {
-                let densifying = it <= self.config.densify.until;
-                let hooks = self.model.hooks();
-                let scales: Vec<_> = self
-                    .model
-                    .params()
-                    .iter()
-                    .map(|p| hooks.and_then(|h| h.lr_row_scale(&p.name, densifying)))
-                    .collect();
-                for (p, scale) in self.model.params_mut().iter_mut().zip(scales) {
-                    if let Some(gr) = grads.param(&p.name) {
-                        self.adam.step_rows(
-                            &p.name,
-                            &mut p.value,
-                            gr,
-                            p.lr.at(it - 1),
-                            p.weight_decay,
-                            scale.as_deref(),
-                        );
-                    }
-                }
-                if let Some(correction) = self.camera_colour.as_mut() {
-                    for p in correction.params_mut().iter_mut() {
-                        if let Some(gr) = grads.param(&p.name) {
-                            let lr = p.lr.at(it - 1);
-                            self.adam
-                                .step_rows(&p.name, &mut p.value, gr, lr, 0.0, None);
-                        }
-                    }
-                }
-                t_updated = Some(Instant::now());
-                // Each view's screen-space gradient is that of its own objective
-                // (SaRO-GS backpropagates every view's loss before averaging), i.e.
-                // `batch` times its share of the mean.
-                let seen: Vec<ViewGrad> = fwds
-                    .iter()
-                    .zip(&abs_grads)
-                    .map(|(fwd, abs)| ViewGrad {
-                        grad: grads.wrt(fwd.render.means2d),
-                        abs_grad: abs.as_ref(),
-                        radii: &fwd.render.radii,
-                        width: fwd.camera.width,
-                        height: fwd.camera.height,
-                    })
-                    .collect();
-                self.strategy_after_backward(&StepInfo {
-                    iteration: it,
-                    views: &seen,
-                    loss_scale: batch as f32,
-                });
-                let opacity = self.model.canonical_ids().opacity_logits;
-                if let Some(g) = grads.param(&self.model.params().param(opacity).name) {
-                    self.liveness.record(g.data(), it);
-                }
-                for (fwd, &vi) in fwds.iter().zip(&views) {
-                    let Some(frame) = self.observed_slot[vi] else {
-                        continue;
-                    };
-                    let centres = centres(&fwd.deformed.means.value());
-                    // A Gaussian absent at this time is not observed in this frame.
-                    let present = drawable(fwd.deformed.opacity.value().data());
-                    // The frame index is valid and the row count matches by construction.
-                    let _ = self.observations.record_present(
-                        frame,
-                        &fwd.camera,
-                        &centres,
-                        &present,
-                        &self.config.filter,
-                    );
-                }
-                self.last_terms = mean_terms(&evals);
-            }
-            Err(e) => {
-                // A NaN/Inf in the loss or a gradient: the update is skipped so nothing
-                // non-finite reaches the parameters (or a checkpoint); counted and logged.
-                self.skipped_steps += 1;
-                log::warn!("iteration {it}: step skipped: {e}");
-                self.last_skip = Some(e);
-            }
-        }
-        let t4 = Instant::now();
-        if let (Some(total), Some(step)) = (self.op_profile.as_mut(), tape.op_profile()) {
-            total.merge(&step);
-        }
-        let deform: f64 = fwds.iter().map(|f| f.deform_seconds).sum();
-        let render: f64 = fwds.iter().map(|f| f.render_seconds).sum();
-        self.timings.field_mlp += bind_seconds + deform;
-        self.timings.render_forward += render + (t2 - t_obj).as_secs_f64();
-        self.timings.backward += (t3 - t2).as_secs_f64();
-        let t_updated = t_updated.unwrap_or(t4);
-        self.timings.optimiser += (t_updated - t3).as_secs_f64();
-        self.timings.statistics += (t4 - t_updated).as_secs_f64();
-        drop(fwds);
-        drop(colour);
-        drop(bound);
-        drop(params);
-        self.iteration = it;
-        cpu0.charge(&mut self.timings);
     }
 
-    /// What the schedule does after the gradient step of iteration `iteration`: the
-    /// densification strategy's refinement ([`super::Strategy::refine`]:
-    /// densification, pruning and opacity reset), then the filter refresh, when due.
-    pub fn schedule(&mut self) {
-        let it = self.iteration;
-        let cpu0 = CpuStamp::now();
-        let t4 = Instant::now();
-        let densified = self.strategy_refine(it);
-        let t5 = Instant::now();
-        self.timings.densification += (t5 - t4).as_secs_f64();
-        if self
-            .config
-            .filter
-            .refresh
-            .due(it as u64, self.config.iterations as u64, densified)
-        {
-            self.refresh_filter();
-        }
-        self.timings.filter_refresh += t5.elapsed().as_secs_f64();
-        cpu0.charge(&mut self.timings);
-    }
-}
-
-impl Trainer {
     /// The forward pass of training view `view` as the `slot`-th view of `iteration`
     /// and what its objective compares it with: the view's camera, with
     /// `loss_region = foreground` on the window around its mask only
@@ -321,7 +403,7 @@ impl Trainer {
             ..settings.clone()
         };
         let time = self.view_times[view];
-        let mut fwd = forward_bound(bound, &self.filter, camera, time, &settings);
+        let mut fwd = forward_bound(bound, &self.state.filter, camera, time, &settings);
         if let Some(layer) = &self.backdrop {
             let image = layer.image(view);
             let behind = window.map_or_else(|| image.clone(), |w| crop(image, &w));

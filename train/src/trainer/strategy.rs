@@ -11,10 +11,11 @@
 //! `step_post_backward`) and [`Strategy::refine`] (its refinement, which runs here
 //! after validation, so validation sees the model the step trained).
 //!
-//! A strategy changes the Gaussians only through [`Trainer::apply_plan`] (one row
+//! A strategy receives the run's [`TrainState`] and a record of the step, never the
+//! trainer. It changes the Gaussians only through [`TrainState::apply_plan`] (one row
 //! index list for the model, its Adam moments, the filter state, observations,
-//! statistics and liveness) and [`Trainer::reset_opacity`]. Its statistics are the
-//! trainer's [`DensifyStats`] (gsplat's `state`, held by the caller and checkpointed
+//! statistics and liveness) and [`TrainState::reset_opacity`]. Its statistics are the
+//! state's [`DensifyStats`] (gsplat's `state`, held by the caller and checkpointed
 //! with the run); state of its own is checkpointed through [`Strategy::state`] and
 //! [`Strategy::load_state`].
 
@@ -23,7 +24,10 @@ use std::sync::Arc;
 
 use serde_json::Value;
 
-use super::{DensifyStats, TrainConfig, Trainer, ViewGrad, plan_densify};
+use maaf_splat::{Camera, RenderSettings};
+
+use super::prune::maybe_prune;
+use super::{DensifyStats, TrainConfig, TrainState, Trainer, ViewGrad, plan_densify};
 
 /// What a strategy sees of one gradient step (gsplat's `info`).
 pub struct StepInfo<'a> {
@@ -37,6 +41,24 @@ pub struct StepInfo<'a> {
     pub loss_scale: f32,
 }
 
+/// What a strategy's refinement sees of the run after iteration `iteration`'s update
+/// (and validation): the configuration, the scene's extent and the training views,
+/// with the render settings of that iteration (what sensitivity pruning renders).
+pub struct RefineStep<'a> {
+    /// The iteration (1-based) just completed.
+    pub iteration: usize,
+    /// The run's configuration (`densify`, `prune`, `seed`, `iterations`, ...).
+    pub config: &'a TrainConfig,
+    /// Radius of the training cameras' bounding sphere (3DGS `cameras_extent`).
+    pub extent: f64,
+    /// The training cameras, at the training scale.
+    pub cameras: &'a [Camera],
+    /// The time of each training camera's view.
+    pub times: &'a [f64],
+    /// The render settings of `iteration`.
+    pub settings: &'a RenderSettings,
+}
+
 /// A densification strategy: the two points of a training iteration where the set
 /// of Gaussians and its statistics may change.
 pub trait Strategy: Send {
@@ -45,15 +67,15 @@ pub trait Strategy: Send {
 
     /// After the backward pass and the optimiser step of a step that was not
     /// skipped: gather the statistics the strategy needs.
-    fn after_backward(&mut self, trainer: &mut Trainer, info: &StepInfo<'_>);
+    fn after_backward(&mut self, state: &mut TrainState, info: &StepInfo<'_>);
 
-    /// After iteration `iteration`'s update (and validation): clone, split, prune,
-    /// reset opacities as due. Returns whether the set of Gaussians changed (the
-    /// filter is then refreshed if `filter.refresh.after_densify`).
-    fn refine(&mut self, trainer: &mut Trainer, iteration: usize) -> bool;
+    /// After `step.iteration`'s update (and validation): clone, split, prune, reset
+    /// opacities as due. Returns whether the set of Gaussians changed (the filter is
+    /// then refreshed if `filter.refresh.after_densify`).
+    fn refine(&mut self, state: &mut TrainState, step: &RefineStep<'_>) -> bool;
 
     /// The strategy's own state (counters, budgets, random state: whatever
-    /// [`Strategy::refine`] reads besides the trainer), saved in every checkpoint's
+    /// [`Strategy::refine`] reads besides the training state), saved in every checkpoint's
     /// `state.json` so a resumed run continues bit for bit. Floats survive exactly
     /// (JSON numbers are written in their shortest round-trip form). Default: none
     /// (`null`).
@@ -79,36 +101,34 @@ pub trait Strategy: Send {
 pub struct DefaultStrategy;
 
 impl DefaultStrategy {
-    /// Clone / split / prune when the schedule says so at `it`; whether the set of
-    /// Gaussians changed.
-    pub fn densify(&self, trainer: &mut Trainer, it: usize) -> bool {
-        let d = &trainer.config.densify;
+    /// Clone / split / prune when the schedule says so at `step.iteration`; whether
+    /// the set of Gaussians changed.
+    pub fn densify(&self, state: &mut TrainState, step: &RefineStep<'_>) -> bool {
+        let (d, it) = (&step.config.densify, step.iteration);
         if !(it >= d.from && it <= d.until && d.every > 0 && it.is_multiple_of(d.every)) {
             return false;
         }
-        let big_screen = trainer.last_reset.is_some();
-        let seed = trainer.config.seed ^ (it as u64).wrapping_mul(0xD1B5_4A32_D192_ED03);
+        let big_screen = state.last_reset.is_some();
+        let seed = step.config.seed ^ (it as u64).wrapping_mul(0xD1B5_4A32_D192_ED03);
         let plan = plan_densify(
-            trainer.model.as_ref(),
-            &trainer.stats,
+            state.model.as_ref(),
+            &state.stats,
             d,
-            trainer.extent,
+            step.extent,
             big_screen,
             seed,
         );
-        trainer.apply_plan(&plan);
+        state.apply_plan(&plan);
         // 3DGS restarts the gradient statistics after every densify_and_prune.
-        trainer.stats = DensifyStats::new(plan.index.len());
+        state.stats = DensifyStats::new(plan.index.len());
         plan.cloned + plan.split + plan.pruned > 0
     }
 
-    /// The opacity reset when the schedule says so at `it`.
-    pub fn reset(&self, trainer: &mut Trainer, it: usize) {
-        let d = &trainer.config.densify;
+    /// The opacity reset when the schedule says so at `step.iteration`.
+    pub fn reset(&self, state: &mut TrainState, step: &RefineStep<'_>) {
+        let (d, it) = (&step.config.densify, step.iteration);
         if d.opacity_reset_every > 0 && it <= d.until && it.is_multiple_of(d.opacity_reset_every) {
-            let to = d.reset_opacity;
-            trainer.reset_opacity(to);
-            trainer.last_reset = Some(it);
+            state.reset_opacity(d.reset_opacity, it);
         }
     }
 }
@@ -118,18 +138,18 @@ impl Strategy for DefaultStrategy {
         "default"
     }
 
-    fn after_backward(&mut self, trainer: &mut Trainer, info: &StepInfo<'_>) {
-        trainer.stats.record_views(info.views, info.loss_scale);
+    fn after_backward(&mut self, state: &mut TrainState, info: &StepInfo<'_>) {
+        state.stats.record_views(info.views, info.loss_scale);
     }
 
-    fn refine(&mut self, trainer: &mut Trainer, it: usize) -> bool {
+    fn refine(&mut self, state: &mut TrainState, step: &RefineStep<'_>) -> bool {
         // Nothing at the last iteration: a run shorter than the schedule must not end
         // on an opacity reset or an unrefined densification.
-        if it >= trainer.config.iterations {
+        if step.iteration >= step.config.iterations {
             return false;
         }
-        let changed = self.densify(trainer, it);
-        self.reset(trainer, it);
+        let changed = self.densify(state, step);
+        self.reset(state, step);
         changed
     }
 }
@@ -149,17 +169,17 @@ impl Strategy for SensitivityPruning {
         "sensitivity"
     }
 
-    fn after_backward(&mut self, trainer: &mut Trainer, info: &StepInfo<'_>) {
-        self.base.after_backward(trainer, info);
+    fn after_backward(&mut self, state: &mut TrainState, info: &StepInfo<'_>) {
+        self.base.after_backward(state, info);
     }
 
-    fn refine(&mut self, trainer: &mut Trainer, it: usize) -> bool {
-        if it >= trainer.config.iterations {
+    fn refine(&mut self, state: &mut TrainState, step: &RefineStep<'_>) -> bool {
+        if step.iteration >= step.config.iterations {
             return false;
         }
-        let mut changed = self.base.densify(trainer, it);
-        changed |= trainer.maybe_prune(it);
-        self.base.reset(trainer, it);
+        let mut changed = self.base.densify(state, step);
+        changed |= maybe_prune(state, step);
+        self.base.reset(state, step);
         changed
     }
 }
@@ -255,42 +275,23 @@ impl Trainer {
     /// config names). The statistics the trainer holds are kept; call it before
     /// loading a checkpoint so the strategy's own state is restored into it.
     pub fn set_strategy(&mut self, strategy: Box<dyn Strategy>) {
-        self.strategy = Some(strategy);
+        self.strategy = strategy;
     }
 
     /// The strategy's own state ([`Strategy::state`]), for a checkpoint.
     pub(super) fn strategy_state(&self) -> Value {
-        self.strategy.as_ref().map_or(Value::Null, |s| s.state())
+        self.strategy.state()
     }
 
     /// Restores the strategy's own state from a checkpoint ([`Strategy::load_state`]).
     pub(super) fn load_strategy_state(&mut self, state: &Value) -> Result<(), String> {
-        match self.strategy.as_mut() {
-            Some(s) if !state.is_null() => s
-                .load_state(state)
-                .map_err(|e| format!("strategy `{}`: {e}", s.name())),
-            _ => Ok(()),
+        if state.is_null() {
+            return Ok(());
         }
-    }
-
-    /// The strategy's [`Strategy::after_backward`] for one step.
-    pub(super) fn strategy_after_backward(&mut self, info: &StepInfo<'_>) {
-        if let Some(mut s) = self.strategy.take() {
-            s.after_backward(self, info);
-            self.strategy = Some(s);
-        }
-    }
-
-    /// The strategy's [`Strategy::refine`] after iteration `it`.
-    pub(super) fn strategy_refine(&mut self, it: usize) -> bool {
-        match self.strategy.take() {
-            Some(mut s) => {
-                let changed = s.refine(self, it);
-                self.strategy = Some(s);
-                changed
-            }
-            None => false,
-        }
+        let name = self.strategy.name().to_string();
+        self.strategy
+            .load_state(state)
+            .map_err(|e| format!("strategy `{name}`: {e}"))
     }
 }
 

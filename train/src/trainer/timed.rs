@@ -49,11 +49,12 @@ impl Trainer {
     /// (their step counts kept).
     pub(super) fn restart_moments(&mut self, iteration: usize) {
         let names = self
+            .state
             .model
             .hooks()
             .map_or_else(Vec::new, |h| h.reset_moments(iteration));
         for name in names {
-            self.adam.zero_moments(&name);
+            self.state.adam.zero_moments(&name);
         }
     }
 }

@@ -70,8 +70,8 @@ impl Trainer {
             .iter()
             .map(|v| {
                 let image = render_over(
-                    self.model.as_ref(),
-                    &self.filter,
+                    self.state.model.as_ref(),
+                    &self.state.filter,
                     self.backdrop(),
                     &v.camera,
                     v.time,

@@ -38,6 +38,7 @@ fn resume_is_bit_identical_for(data: &Dataset, kind: &str, cfg: TrainConfig) {
         straight.step();
     }
     let grouped = straight
+        .state
         .model
         .hooks()
         .expect("deform has hooks")
@@ -71,8 +72,11 @@ fn resume_is_bit_identical_for(data: &Dataset, kind: &str, cfg: TrainConfig) {
     std::fs::remove_dir_all(&dir).ok();
     assert_eq!(resumed.num_gaussians(), straight.num_gaussians());
     assert_same_params(&mut straight, &mut resumed, kind);
-    assert_eq!(straight.filter, resumed.filter);
-    assert_eq!(straight.liveness, resumed.liveness, "{kind}: liveness");
+    assert_eq!(straight.state.filter, resumed.state.filter);
+    assert_eq!(
+        straight.state.liveness, resumed.state.liveness,
+        "{kind}: liveness"
+    );
 }
 
 /// A checkpoint written before the liveness record existed (no `liveness/*` tensors)
@@ -87,13 +91,13 @@ fn a_checkpoint_without_the_liveness_record_loads() {
     }
     let n = t.num_gaussians();
     assert!(
-        t.liveness.last_grad.iter().any(|&g| g < 30),
+        t.state.liveness.last_grad.iter().any(|&g| g < 30),
         "some rows had no gradient at the last step"
     );
     let dir = std::env::temp_dir().join(format!("maaf_liveness_{}", std::process::id()));
     save_checkpoint(&t, &dir).expect("checkpoint");
     let loaded = load_checkpoint(&data, &dir).expect("load");
-    assert_eq!(loaded.liveness, t.liveness);
+    assert_eq!(loaded.state.liveness, t.state.liveness);
 
     // The same checkpoint as an older build wrote it: the tensors without the record
     // and the state's CRC-32 of that file.
@@ -115,8 +119,8 @@ fn a_checkpoint_without_the_liveness_record_loads() {
     std::fs::write(&state_path, serde_json::to_vec(&state).expect("json")).expect("write");
     let loaded = load_checkpoint(&data, &dir).expect("an old checkpoint loads");
     std::fs::remove_dir_all(&dir).ok();
-    assert_eq!(loaded.liveness, Liveness::alive_at(n, 30));
-    assert_eq!(loaded.liveness.dead(loaded.last_reset), 0);
+    assert_eq!(loaded.state.liveness, Liveness::alive_at(n, 30));
+    assert_eq!(loaded.state.liveness.dead(loaded.state.last_reset), 0);
 }
 
 #[test]
@@ -161,7 +165,8 @@ fn a_branch_continues_a_checkpoint_with_its_own_settings() {
     assert_eq!(fresh, ["group_nodes"]);
     assert_eq!(grouped.config, grouped_cfg);
     let fitted = |t: &Trainer| {
-        t.model
+        t.state
+            .model
             .hooks()
             .is_some_and(|h| h.buffers().iter().any(|(n, _)| n == "group_flow/labels"))
     };

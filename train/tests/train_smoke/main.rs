@@ -66,7 +66,8 @@ fn tiny_config_of(kind: &str, filter: FilterKind) -> TrainConfig {
 }
 
 fn params(t: &mut Trainer) -> Vec<(String, Tensor<f32>)> {
-    t.model
+    t.state
+        .model
         .params()
         .named_tensors()
         .map(|(n, v)| (n.to_string(), v.clone()))
@@ -161,6 +162,7 @@ fn a_nan_is_caught_and_never_checkpointed() {
     let mut t = Trainer::new(&data, tiny_config(FilterKind::Mip3d)).expect("trainer");
     t.step();
     let slot = t
+        .state
         .model
         .params_mut()
         .iter_mut()
@@ -187,7 +189,7 @@ fn a_run_without_gaussians_stops_with_one_line() {
     let mut t = Trainer::new(&data, tiny_config(FilterKind::Mip3d)).expect("trainer");
     t.step();
     assert!(t.check_health().is_ok());
-    t.apply_plan(&DensifyPlan::default());
+    t.state.apply_plan(&DensifyPlan::default());
     assert_eq!(t.num_gaussians(), 0);
     let e = t
         .check_health()
@@ -212,9 +214,9 @@ fn the_abs_statistic_bounds_the_mean_one_and_changes_no_parameter() {
         runs.push(t);
     }
     let (mut mean, mut abs) = (runs.remove(0), runs.remove(0));
-    assert_eq!(mean.stats.denom, abs.stats.denom);
-    let (m, a) = (&mean.stats.grad_accum, &abs.stats.grad_accum);
-    let seen = mean.stats.denom.iter().filter(|&&d| d > 0.0).count();
+    assert_eq!(mean.state.stats.denom, abs.state.stats.denom);
+    let (m, a) = (&mean.state.stats.grad_accum, &abs.state.stats.grad_accum);
+    let seen = mean.state.stats.denom.iter().filter(|&&d| d > 0.0).count();
     assert!(seen > 100, "only {seen} Gaussians drawn");
     for i in 0..m.len() {
         assert!(

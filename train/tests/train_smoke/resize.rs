@@ -19,16 +19,24 @@ fn one_plan_resizes_every_container_in_lock_step() {
     let n = t.num_gaussians();
     assert!(n > 20, "{n} Gaussians");
     let before = params(&mut t);
-    let per_gaussian: Vec<String> = t.model.params().per_gaussian_names();
+    let per_gaussian: Vec<String> = t.state.model.params().per_gaussian_names();
     let moments: Vec<_> = per_gaussian
         .iter()
-        .map(|p| t.adam.moments(p).expect("moments after 45 steps").clone())
+        .map(|p| {
+            t.state
+                .adam
+                .moments(p)
+                .expect("moments after 45 steps")
+                .clone()
+        })
         .collect();
-    let nu_before = t.filter.variance_at(0.4);
+    let nu_before = t.state.filter.variance_at(0.4);
     assert!(nu_before.iter().any(|&v| v > 0.0), "the filter has state");
-    let obs_before: Vec<Vec<f32>> = (0..n).map(|i| t.observations.row(i).to_vec()).collect();
-    t.liveness.lowered[3] = true;
-    let live_before = t.liveness.clone();
+    let obs_before: Vec<Vec<f32>> = (0..n)
+        .map(|i| t.state.observations.row(i).to_vec())
+        .collect();
+    t.state.liveness.lowered[3] = true;
+    let live_before = t.state.liveness.clone();
 
     // Prune rows 0 and 5, keep the rest, clone row 3, split row 7 (two halves, the
     // original dropped).
@@ -47,16 +55,16 @@ fn one_plan_resizes_every_container_in_lock_step() {
         split: 1,
         pruned: 2,
     };
-    t.apply_plan(&plan);
+    t.state.apply_plan(&plan);
 
     let m = index.len();
     assert_eq!(t.num_gaussians(), m);
-    assert_eq!(t.filter.rows(), m);
-    assert_eq!(t.observations.rows(), m);
-    assert_eq!(t.stats.grad_accum.len(), m);
-    assert_eq!(t.stats.denom.len(), m);
-    assert_eq!(t.stats.max_radii.len(), m);
-    assert_eq!(t.liveness.rows(), m);
+    assert_eq!(t.state.filter.rows(), m);
+    assert_eq!(t.state.observations.rows(), m);
+    assert_eq!(t.state.stats.grad_accum.len(), m);
+    assert_eq!(t.state.stats.denom.len(), m);
+    assert_eq!(t.state.stats.max_radii.len(), m);
+    assert_eq!(t.state.liveness.rows(), m);
     let after = params(&mut t);
     for ((name, old), (_, new)) in before.iter().zip(&after) {
         if !per_gaussian.contains(name) {
@@ -77,7 +85,7 @@ fn one_plan_resizes_every_container_in_lock_step() {
         }
     }
     for (p, old) in per_gaussian.iter().zip(&moments) {
-        let new = t.adam.moments(p).expect("moments kept");
+        let new = t.state.adam.moments(p).expect("moments kept");
         assert_eq!(new.rows(), m, "{p} moments");
         let w = old.m.len() / n;
         for (r, &i) in index.iter().enumerate() {
@@ -91,7 +99,7 @@ fn one_plan_resizes_every_container_in_lock_step() {
             );
         }
     }
-    let nu_after = t.filter.variance_at(0.4);
+    let nu_after = t.state.filter.variance_at(0.4);
     for (r, &i) in index.iter().enumerate() {
         assert_eq!(
             nu_after[r].to_bits(),
@@ -99,18 +107,18 @@ fn one_plan_resizes_every_container_in_lock_step() {
             "filter row {r}"
         );
         assert_eq!(
-            t.observations.row(r),
+            t.state.observations.row(r),
             obs_before[i].as_slice(),
             "observations row {r}"
         );
         assert_eq!(
-            (t.liveness.last_grad[r], t.liveness.lowered[r]),
+            (t.state.liveness.last_grad[r], t.state.liveness.lowered[r]),
             (live_before.last_grad[i], live_before.lowered[i]),
             "liveness row {r}"
         );
     }
     // The planned centres and scales landed in the new rows.
-    let canon = t.canonical();
+    let canon = t.state.canonical();
     for (j, &r) in new_rows.iter().enumerate() {
         assert_eq!(
             &canon.means.data()[3 * r..3 * r + 3],
@@ -151,21 +159,21 @@ fn sensitivity_pruning_removes_the_lowest_scores_at_its_iteration() {
         assert!(scores.iter().all(|s| s.is_finite() && *s >= 0.0));
         assert!(scores.iter().any(|&s| s > 0.0), "{kind}: every score is 0");
         let keep = keep_highest(&scores, 0.5);
-        let xyz = t.canonical().means;
-        let grad_accum = t.stats.grad_accum.clone();
+        let xyz = t.state.canonical().means;
+        let grad_accum = t.state.stats.grad_accum.clone();
         t.schedule();
         assert_eq!(t.num_gaussians(), keep.len(), "{kind}");
         assert_eq!(keep.len(), n - n / 2);
-        assert_eq!(t.filter.rows(), keep.len());
-        assert_eq!(t.observations.rows(), keep.len());
-        let after = t.canonical().means;
+        assert_eq!(t.state.filter.rows(), keep.len());
+        assert_eq!(t.state.observations.rows(), keep.len());
+        let after = t.state.canonical().means;
         for (r, &i) in keep.iter().enumerate() {
             assert_eq!(
                 &after.data()[3 * r..3 * r + 3],
                 &xyz.data()[3 * i..3 * i + 3]
             );
             assert_eq!(
-                t.stats.grad_accum[r], grad_accum[i],
+                t.state.stats.grad_accum[r], grad_accum[i],
                 "{kind}: stats row {r}"
             );
         }
@@ -184,7 +192,7 @@ fn the_motion_filter_observes_at_most_max_views_and_the_others_none() {
     for _ in 0..25 {
         full.step();
     }
-    let views = full.observations.num_frames();
+    let views = full.state.observations.num_frames();
     assert!(
         views > 50,
         "the scene has more than 50 training views ({views})"
@@ -197,9 +205,10 @@ fn the_motion_filter_observes_at_most_max_views_and_the_others_none() {
     let mut capped_cfg = cfg.clone();
     capped_cfg.filter.max_views = 50;
     let mut capped = Trainer::new(&data, capped_cfg).expect("trainer");
-    assert_eq!(capped.observations.num_frames(), 50);
+    assert_eq!(capped.state.observations.num_frames(), 50);
     capped.branch_from(&dir).expect("branch");
     let frames: Vec<CameraTime> = full
+        .state
         .observations
         .times()
         .iter()
@@ -208,11 +217,18 @@ fn the_motion_filter_observes_at_most_max_views_and_the_others_none() {
         .collect();
     let kept = observed_frames(&frames, 50);
     for (k, &f) in kept.iter().enumerate() {
-        assert_eq!(capped.observations.times()[k], frames[f].time, "frame {k}");
+        assert_eq!(
+            capped.state.observations.times()[k],
+            frames[f].time,
+            "frame {k}"
+        );
     }
     assert_eq!(capped.num_gaussians(), full.num_gaussians());
     for n in 0..full.num_gaussians() {
-        let (a, b) = (full.observations.row(n), capped.observations.row(n));
+        let (a, b) = (
+            full.state.observations.row(n),
+            capped.state.observations.row(n),
+        );
         assert!(
             kept.iter().zip(b).all(|(&f, &x)| a[f] == x),
             "Gaussian {n}: columns not the kept views'"
@@ -222,14 +238,19 @@ fn the_motion_filter_observes_at_most_max_views_and_the_others_none() {
         capped.step();
     }
     assert!(
-        (0..capped.num_gaussians()).any(|n| capped.observations.row(n).iter().any(|&x| x > 0.0)),
+        (0..capped.num_gaussians()).any(|n| capped
+            .state
+            .observations
+            .row(n)
+            .iter()
+            .any(|&x| x > 0.0)),
         "the capped table is recorded"
     );
 
     // The static filter reads no observation: none are kept or saved.
     let mut stat = Trainer::new(&data, tiny_config(FilterKind::Mip3d)).expect("trainer");
     stat.step();
-    assert_eq!(stat.observations.num_frames(), 0);
+    assert_eq!(stat.state.observations.num_frames(), 0);
     save_checkpoint(&stat, &dir).expect("checkpoint");
     let blob = std::fs::read(dir.join("tensors.safetensors")).expect("blob");
     let names = safetensors::SafeTensors::deserialize(&blob)
