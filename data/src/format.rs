@@ -7,6 +7,8 @@
 use std::path::Path;
 use std::sync::Arc;
 
+use maaf_io::Registry;
+
 use crate::dnerf::{Frame, Split, SplitMeta};
 use crate::error::DataError;
 use crate::image::image_size;
@@ -78,16 +80,16 @@ impl SplitMeta {
 /// Registered data layouts, consulted in registration order after the built-in
 /// ones. Empty by default; a program adds its own (`maaf::cli::Maaf::data_format`).
 /// Cloning shares the formats.
-#[derive(Clone, Default)]
+#[derive(Clone, Debug)]
 pub struct FormatRegistry {
-    formats: Vec<(String, Arc<dyn DataFormat>)>,
+    formats: Registry<dyn DataFormat>,
 }
 
-impl std::fmt::Debug for FormatRegistry {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("FormatRegistry")
-            .field("names", &self.names())
-            .finish()
+impl Default for FormatRegistry {
+    fn default() -> Self {
+        FormatRegistry {
+            formats: Registry::new("data format", "maaf::cli::Maaf::data_format"),
+        }
     }
 }
 
@@ -104,24 +106,15 @@ impl FormatRegistry {
         name: &str,
         format: F,
     ) -> Result<(), String> {
-        if !maaf_io::is_plugin_name(name) {
-            return Err(format!(
-                "`{name}` is not a data format name (1 to 64 letters, digits or _)"
-            ));
-        }
         if BUILTIN_FORMATS.contains(&name) {
             return Err(format!("data format `{name}` is built in"));
         }
-        if self.formats.iter().any(|(n, _)| n == name) {
-            return Err(format!("data format `{name}` is already registered"));
-        }
-        self.formats.push((name.to_string(), Arc::new(format)));
-        Ok(())
+        self.formats.register(name, Arc::new(format))
     }
 
     /// The registered names, in registration (and detection) order.
     pub fn names(&self) -> Vec<&str> {
-        self.formats.iter().map(|(n, _)| n.as_str()).collect()
+        self.formats.names()
     }
 
     /// The first registered format that detects `root`, with its name.
@@ -129,7 +122,7 @@ impl FormatRegistry {
         self.formats
             .iter()
             .find(|(_, f)| f.detect(root))
-            .map(|(n, f)| (n.as_str(), f.as_ref()))
+            .map(|(n, f)| (n, f.as_ref()))
     }
 }
 
@@ -154,7 +147,10 @@ mod tests {
         let mut r = FormatRegistry::new();
         r.register("mine", Marker("a")).expect("new name");
         let err = r.register("mine", Marker("b")).expect_err("duplicate");
-        assert_eq!(err, "data format `mine` is already registered");
+        assert_eq!(
+            err,
+            "data format `mine` is already registered (registered: mine)"
+        );
         for name in BUILTIN_FORMATS {
             assert!(r.register(name, Marker("c")).is_err(), "{name}");
         }

@@ -4,6 +4,8 @@
 
 use std::sync::Arc;
 
+use maaf_io::Registry;
+
 use crate::config::{FilterConfig, FilterError, MotionEstimator};
 use crate::motion::MotionFilter;
 use crate::sampling::{NoFilter, SamplingFilter, StaticFilter};
@@ -11,86 +13,69 @@ use crate::sampling::{NoFilter, SamplingFilter, StaticFilter};
 /// Builds a filter from the run's filter config.
 pub type FilterConstructor = dyn Fn(&FilterConfig) -> Box<dyn SamplingFilter> + Send + Sync;
 
-/// Filter constructors by name. [`FilterRegistry::builtin`] holds `none`, `mip3d`,
-/// `motion` (the paper's KDE) and `window_max` (maaf's). Cloning shares the
-/// constructors.
-#[derive(Clone)]
+/// Filter constructors by name ([`maaf_io::Registry`]). [`FilterRegistry::builtin`]
+/// holds `none`, `mip3d`, `motion` (the paper's KDE) and `window_max` (maaf's).
+/// Cloning shares the constructors.
+#[derive(Clone, Debug)]
 pub struct FilterRegistry {
-    entries: Vec<(String, Arc<FilterConstructor>)>,
-}
-
-impl std::fmt::Debug for FilterRegistry {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("FilterRegistry")
-            .field("names", &self.names())
-            .finish()
-    }
+    entries: Registry<FilterConstructor>,
 }
 
 impl FilterRegistry {
     /// The built-in filters under their config names.
     pub fn builtin() -> Self {
-        let mut r = FilterRegistry {
-            entries: Vec::new(),
-        };
-        r.entries
-            .push(("none".into(), Arc::new(|_| Box::new(NoFilter))));
-        r.entries
-            .push(("mip3d".into(), Arc::new(|_| Box::new(StaticFilter))));
-        r.entries.push((
-            "motion".into(),
-            Arc::new(|_| Box::new(MotionFilter(MotionEstimator::Kde))),
-        ));
-        r.entries.push((
-            "window_max".into(),
-            Arc::new(|_| Box::new(MotionFilter(MotionEstimator::WindowMax))),
-        ));
-        r
+        let mut entries: Registry<FilterConstructor> =
+            Registry::new("filter", "maaf::cli::Maaf::filter");
+        let builtin: [(&str, Arc<FilterConstructor>); 4] = [
+            ("none", Arc::new(|_| Box::new(NoFilter))),
+            ("mip3d", Arc::new(|_| Box::new(StaticFilter))),
+            (
+                "motion",
+                Arc::new(|_| Box::new(MotionFilter(MotionEstimator::Kde))),
+            ),
+            (
+                "window_max",
+                Arc::new(|_| Box::new(MotionFilter(MotionEstimator::WindowMax))),
+            ),
+        ];
+        for (name, make) in builtin {
+            // Four distinct well-formed names.
+            let _ = entries.register(name, make);
+        }
+        FilterRegistry { entries }
     }
 
-    /// Adds a filter under `name` (1 to 64 letters, digits or `_`); refuses a name
-    /// already registered or not a filter name.
-    pub fn register<F>(&mut self, name: &str, make: F) -> Result<(), FilterError>
+    /// Adds a filter under `name` ([`Registry::register`]: refuses a name already
+    /// registered or not 1 to 64 letters, digits or `_`).
+    pub fn register<F>(&mut self, name: &str, make: F) -> Result<(), String>
     where
         F: Fn(&FilterConfig) -> Box<dyn SamplingFilter> + Send + Sync + 'static,
     {
-        if self.contains(name) {
-            return Err(FilterError::Shape(format!(
-                "filter `{name}` is already registered"
-            )));
-        }
-        if let Some(problem) = crate::config::name_problem(name) {
-            return Err(FilterError::Shape(problem));
-        }
-        self.entries.push((name.to_string(), Arc::new(make)));
-        Ok(())
+        self.entries.register(name, Arc::new(make))
     }
 
     /// Whether a filter is registered as `name`.
     pub fn contains(&self, name: &str) -> bool {
-        self.entries.iter().any(|(n, _)| n == name)
+        self.entries.contains(name)
     }
 
     /// The registered names, in registration order.
     pub fn names(&self) -> Vec<&str> {
-        self.entries.iter().map(|(n, _)| n.as_str()).collect()
+        self.entries.names()
     }
 
     /// The filter registered as `name`, built from `cfg`, or an error naming the
-    /// unknown name and the known ones.
+    /// unknown name, the closest and the known ones.
     pub fn build(
         &self,
         name: &str,
         cfg: &FilterConfig,
     ) -> Result<Box<dyn SamplingFilter>, FilterError> {
-        match self.entries.iter().find(|(n, _)| n == name) {
-            Some((_, make)) => Ok(make(cfg)),
-            None => Err(FilterError::Config {
+        match self.entries.get(name) {
+            Ok(make) => Ok(make(cfg)),
+            Err(message) => Err(FilterError::Config {
                 field: "kind",
-                message: format!(
-                    "filter `{name}` is not registered (registered: {})",
-                    self.names().join(", ")
-                ),
+                message,
             }),
         }
     }

@@ -33,12 +33,14 @@ pub mod lock;
 pub mod memory;
 mod name;
 pub mod process;
+mod registry;
 mod scratch;
 
 pub use dir::{copy_tree, readable_dir, recover_dir, recover_parked_in, replace_dir, write_dir};
 use fault::Step;
 pub use lock::{LockError, RunLock};
 pub use name::{is_plugin_name, unknown_name};
+pub use registry::Registry;
 pub use scratch::TempDir;
 
 /// Marker every temporary name contains (`.NAME.maaf-tmp-PID`).

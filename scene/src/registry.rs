@@ -6,8 +6,9 @@
 //! what it returns. The built-in `saro`, `deform` and `track` are registered by
 //! [`ModelRegistry::builtin`]; a custom representation registers its own loader.
 
-use std::collections::BTreeMap;
+use std::sync::Arc;
 
+use maaf_io::Registry;
 use maaf_models::{ModelInit, Representation, build_model};
 
 use crate::TrainConfig;
@@ -15,20 +16,23 @@ use crate::TrainConfig;
 /// Builds an untrained representation of a run from its configuration and initial
 /// cloud, the same way it was built for training (its parameters are then replaced by
 /// the checkpoint's, of any Gaussian count).
-pub type ModelLoader = Box<
-    dyn Fn(&TrainConfig, &ModelInit) -> Result<Box<dyn Representation<f32>>, String> + Send + Sync,
->;
+pub type ModelLoader =
+    dyn Fn(&TrainConfig, &ModelInit) -> Result<Box<dyn Representation<f32>>, String> + Send + Sync;
 
-/// Representation name -> loader.
+/// Representation name -> loader ([`maaf_io::Registry`]). Cloning shares the loaders.
+#[derive(Clone, Debug)]
 pub struct ModelRegistry {
-    loaders: BTreeMap<String, ModelLoader>,
+    loaders: Registry<ModelLoader>,
 }
 
 impl ModelRegistry {
     /// A registry with no representation.
     pub fn empty() -> Self {
         ModelRegistry {
-            loaders: BTreeMap::new(),
+            loaders: Registry::new(
+                "representation (model.kind)",
+                "maaf::cli::Maaf::representation",
+            ),
         }
     }
 
@@ -38,7 +42,8 @@ impl ModelRegistry {
     pub fn builtin() -> Self {
         let mut r = Self::empty();
         for name in maaf_models::ModelConfig::KINDS {
-            r.register(name, |config, init| {
+            // Distinct well-formed names.
+            let _ = r.register(name, |config, init| {
                 let mut model = config.model.clone();
                 model.resolve(init);
                 build_model(&model, init)
@@ -47,38 +52,33 @@ impl ModelRegistry {
         r
     }
 
-    /// Registers (or replaces) the loader of the representation called `name` (its
-    /// [`Representation::name`]).
-    pub fn register<F>(&mut self, name: &str, loader: F) -> &mut Self
+    /// Registers the loader of the representation called `name` (its
+    /// [`Representation::name`]); refuses a name already registered or not 1 to 64
+    /// letters, digits or `_` ([`Registry::register`]).
+    pub fn register<F>(&mut self, name: &str, loader: F) -> Result<(), String>
     where
         F: Fn(&TrainConfig, &ModelInit) -> Result<Box<dyn Representation<f32>>, String>
             + Send
             + Sync
             + 'static,
     {
-        self.loaders.insert(name.to_string(), Box::new(loader));
-        self
+        self.loaders.register(name, Arc::new(loader))
     }
 
-    /// The registered names, sorted.
+    /// The registered names, in registration order.
     pub fn names(&self) -> Vec<&str> {
-        self.loaders.keys().map(String::as_str).collect()
+        self.loaders.names()
     }
 
     /// Builds the representation `name` with its loader; an unknown name is an error
-    /// naming it and what is registered.
+    /// naming it, the closest and what is registered.
     pub fn build(
         &self,
         name: &str,
         config: &TrainConfig,
         init: &ModelInit,
     ) -> Result<Box<dyn Representation<f32>>, String> {
-        let loader = self.loaders.get(name).ok_or_else(|| {
-            format!(
-                "representation `{name}` is not registered (registered: {}); register its loader in a ModelRegistry",
-                self.names().join(", ")
-            )
-        })?;
+        let loader = self.loaders.get(name)?;
         let model = loader(config, init)?;
         if model.name() != name {
             return Err(format!(

@@ -72,7 +72,9 @@ impl Maaf {
     where
         F: for<'a, 't> Fn(&'a TermCtx<'t, f32>) -> Var<'t, f32> + Send + Sync + 'static,
     {
-        self.plugins.terms.register_fn(name, f);
+        if let Err(e) = self.plugins.terms.register_fn(name, f) {
+            panic!("Maaf::term: {e}");
+        }
         self
     }
 
@@ -83,7 +85,9 @@ impl Maaf {
     where
         F: Fn(f64) -> Box<dyn Term<f32>> + Send + Sync + 'static,
     {
-        self.plugins.terms.register(name, maker);
+        if let Err(e) = self.plugins.terms.register(name, maker) {
+            panic!("Maaf::term_with: {e}");
+        }
         self
     }
 
@@ -95,7 +99,9 @@ impl Maaf {
     /// initial cloud. `eval`, `render`, `render-video`, `export-ply` and the test
     /// PSNR after `train` rebuild it the same way from a checkpoint (whose tensors
     /// then replace the parameters) to load its runs as a
-    /// [`maaf_scene::TrainedScene`]; `examples/custom_representation.rs`.
+    /// [`maaf_scene::TrainedScene`]; `examples/custom_representation.rs`. Panics if
+    /// `name` is taken (`saro`, `deform`, `track`) or is not 1 to 64 letters, digits
+    /// or `_`.
     pub fn representation<F>(mut self, name: &str, factory: F) -> Self
     where
         F: Fn(&TrainConfig, &ModelInit) -> Result<Box<dyn Representation<f32>>, String>
@@ -103,7 +109,9 @@ impl Maaf {
             + Sync
             + 'static,
     {
-        self.plugins.models.register(name, factory);
+        if let Err(e) = self.plugins.models.register(name, factory) {
+            panic!("Maaf::representation: {e}");
+        }
         self
     }
 

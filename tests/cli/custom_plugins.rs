@@ -174,7 +174,7 @@ fn a_strategy_of_ones_own_is_named_by_config_and_its_state_resumes_with_it() {
     let settings = r#""filter": {"kind": "mip3d"},
         "densify": {"strategy": "budgeted_growth", "every": 2}"#;
     let needles = [
-        "densify.strategy `budgeted_growth`",
+        "strategy (densify.strategy) `budgeted_growth`",
         "not registered",
         "default, sensitivity",
     ];
@@ -208,7 +208,7 @@ fn a_representation_of_ones_own_trains_from_a_config_with_its_options_and_resume
     let needles = [
         "representation (model.kind) `tiny_deform`",
         "not registered",
-        "deform, saro",
+        "saro, deform, track",
     ];
     let (reference, killed) = killed_and_resumed("custom_representation", &fx, settings, &needles);
     let model = &json(&reference.join("config.json"))["model"];

@@ -194,7 +194,9 @@ fn a_run_objective_adds_the_config_terms_in_name_order_and_lists_unknown_ones() 
     };
     let model = SaroModel::<f64>::from_point_cloud(&cloud, SaroConfig::default(), 1.0, 0);
     let mut registry = TermRegistry::<f64>::builtin();
-    registry.register_fn("render_mean", |ctx| ctx.render.mean());
+    registry
+        .register_fn("render_mean", |ctx| ctx.render.mean())
+        .expect("a new name");
     let terms: std::collections::BTreeMap<String, f64> = [
         ("scale_anisotropy", 0.5),
         ("render_mean", 2.0),
@@ -220,7 +222,9 @@ fn a_run_objective_adds_the_config_terms_in_name_order_and_lists_unknown_ones() 
     assert!(msg.contains("`l_sr` is already a term"), "{msg}");
 
     // A maker that renames its term is refused rather than logged under another name.
-    registry.register("renamed", |w| Box::new(Provided::new("other", w)));
+    registry
+        .register("renamed", |w| Box::new(Provided::new("other", w)))
+        .expect("a new name");
     let renamed = [("renamed".to_string(), 1.0)].into_iter().collect();
     let msg = Objective::for_run(0.2, &model, &renamed, &registry)
         .err()

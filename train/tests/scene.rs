@@ -126,9 +126,11 @@ fn a_loaded_scene_renders_bit_identically_to_its_trainer() {
         "{err}"
     );
     let mut deform_only = ModelRegistry::empty();
-    deform_only.register("deform", |c, init| {
-        maaf_train::models::build_model(&c.model, init)
-    });
+    deform_only
+        .register("deform", |c, init| {
+            maaf_train::models::build_model(&c.model, init)
+        })
+        .expect("a new name");
     let err =
         TrainedScene::from_checkpoint(&tmp.path().join("saro").join("model"), &deform_only, None)
             .err()

@@ -4,8 +4,9 @@
 //! scale in `eval.json`'s `extra`, and `maaf report` tabulates them
 //! (docs/extending.md, "An image metric").
 
-use std::collections::BTreeMap;
 use std::sync::Arc;
+
+use maaf_io::Registry;
 
 use maaf_autodiff::Tensor;
 
@@ -46,16 +47,16 @@ pub type MetricMaker = dyn Fn() -> Box<dyn ImageMetric> + Send + Sync;
 /// Image metrics by name, beyond the built-in PSNR, SSIM and LPIPS (which are not in
 /// it and whose names it refuses). Empty by default; a program adds its own
 /// (`maaf::cli::Maaf::metric`). Cloning shares the makers.
-#[derive(Clone, Default)]
+#[derive(Clone, Debug)]
 pub struct MetricRegistry {
-    makers: BTreeMap<String, Arc<MetricMaker>>,
+    makers: Registry<MetricMaker>,
 }
 
-impl std::fmt::Debug for MetricRegistry {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("MetricRegistry")
-            .field("names", &self.names())
-            .finish()
+impl Default for MetricRegistry {
+    fn default() -> Self {
+        MetricRegistry {
+            makers: Registry::new("metric", "maaf::cli::Maaf::metric"),
+        }
     }
 }
 
@@ -72,11 +73,6 @@ impl MetricRegistry {
     where
         F: Fn() -> Box<dyn ImageMetric> + Send + Sync + 'static,
     {
-        if !maaf_io::is_plugin_name(name) {
-            return Err(format!(
-                "`{name}` is not a metric name (1 to 64 letters, digits or _)"
-            ));
-        }
         if BUILTIN_METRICS.contains(&name) {
             return Err(format!(
                 "metric `{name}` is built in (every evaluation computes {})",
@@ -88,16 +84,12 @@ impl MetricRegistry {
                 "`{name}` cannot name a metric: metrics.csv has a `{name}` column"
             ));
         }
-        if self.makers.contains_key(name) {
-            return Err(format!("metric `{name}` is already registered"));
-        }
-        self.makers.insert(name.to_string(), Arc::new(maker));
-        Ok(())
+        self.makers.register(name, Arc::new(maker))
     }
 
-    /// The registered names, sorted.
+    /// The registered names, in registration order.
     pub fn names(&self) -> Vec<&str> {
-        self.makers.keys().map(String::as_str).collect()
+        self.makers.names()
     }
 
     /// Makes the metrics `names` asks for, in its order (`None`: every registered
@@ -107,14 +99,18 @@ impl MetricRegistry {
     pub fn build(&self, names: Option<&[String]>) -> Result<Vec<Arc<dyn ImageMetric>>, String> {
         let wanted: Vec<&str> = match names {
             Some(names) => names.iter().map(String::as_str).collect(),
-            None => self.names(),
+            None => {
+                let mut all = self.names();
+                all.sort_unstable();
+                all
+            }
         };
         let mut out: Vec<Arc<dyn ImageMetric>> = Vec::with_capacity(wanted.len());
         for (i, &name) in wanted.iter().enumerate() {
             if wanted[..i].contains(&name) {
                 return Err(format!("metric `{name}` is given twice"));
             }
-            let maker = self.makers.get(name).ok_or_else(|| self.unknown(name))?;
+            let maker = self.makers.get(name).map_err(|e| self.unknown(name, e))?;
             let metric: Arc<dyn ImageMetric> = Arc::from(maker());
             if metric.name() != name {
                 return Err(format!(
@@ -127,16 +123,17 @@ impl MetricRegistry {
         Ok(out)
     }
 
-    /// The line for a metric `name` not registered here.
-    fn unknown(&self, name: &str) -> String {
-        const API: &str = "maaf::cli::Maaf::metric";
-        if self.makers.is_empty() {
-            return format!(
-                "metric `{name}` is not registered: this program has no metric beyond {} (a program of one's own registers others: {API}, docs/extending.md)",
-                BUILTIN_METRICS.join(", ")
-            );
+    /// The line for a metric `name` not registered here: the registry's
+    /// (`registered`), or, when nothing is registered, which metrics every
+    /// evaluation computes anyway.
+    fn unknown(&self, name: &str, registered: String) -> String {
+        if !self.makers.is_empty() {
+            return registered;
         }
-        maaf_io::unknown_name("metric", name, &self.names(), API)
+        format!(
+            "metric `{name}` is not registered: this program has no metric beyond {} (a program of one's own registers others: maaf::cli::Maaf::metric, docs/extending.md)",
+            BUILTIN_METRICS.join(", ")
+        )
     }
 }
 
@@ -174,7 +171,7 @@ mod tests {
         let err = r
             .register("mae", || Box::new(Constant("mae")))
             .expect_err("duplicate");
-        assert_eq!(err, "metric `mae` is already registered");
+        assert_eq!(err, "metric `mae` is already registered (registered: mae)");
         for name in BUILTIN_METRICS {
             let err = r
                 .register(name, || Box::new(Constant("x")))
@@ -197,7 +194,7 @@ mod tests {
             .expect_err("unknown");
         assert!(err.contains("did you mean `gradient_similarity`?"), "{err}");
         assert!(
-            err.contains("registered: gradient_similarity, mae"),
+            err.contains("registered: mae, gradient_similarity"),
             "{err}"
         );
         let err = r.build(Some(&["lpips".to_string()])).expect_err("built-in");

@@ -7,6 +7,8 @@
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
+use maaf_io::Registry;
+
 use maaf_autodiff::{Float, Var};
 
 use super::builtin::{self, DepthTv, OpacityEntropy, ScaleAnisotropy};
@@ -15,9 +17,10 @@ use super::{FnTerm, Term, TermCtx, name_problem};
 /// Makes the term registered under a name, given the weight the config gives it.
 pub type TermMaker<T> = dyn Fn(f64) -> Box<dyn Term<T>> + Send + Sync;
 
-/// Term makers by name (module docs). Cloning shares the makers.
+/// Term makers by name (module docs, [`maaf_io::Registry`]). Cloning shares the
+/// makers.
 pub struct TermRegistry<T: Float> {
-    makers: BTreeMap<String, Arc<TermMaker<T>>>,
+    makers: Registry<TermMaker<T>>,
 }
 
 impl<T: Float> Clone for TermRegistry<T> {
@@ -33,42 +36,47 @@ impl<T: Float> TermRegistry<T> {
     /// `opacity_entropy`, `scale_anisotropy`.
     pub fn builtin() -> Self {
         let mut r = TermRegistry {
-            makers: BTreeMap::new(),
+            makers: Registry::new("term", "maaf::cli::Maaf::term"),
         };
-        r.register(builtin::depth_tv::NAME, |weight| {
-            Box::new(DepthTv { weight })
-        });
-        r.register(builtin::opacity_entropy::NAME, |weight| {
-            Box::new(OpacityEntropy { weight })
-        });
-        r.register(builtin::scale_anisotropy::NAME, |weight| {
-            Box::new(ScaleAnisotropy { weight })
-        });
+        let builtin: [(&str, Arc<TermMaker<T>>); 3] = [
+            (
+                builtin::depth_tv::NAME,
+                Arc::new(|weight| Box::new(DepthTv { weight })),
+            ),
+            (
+                builtin::opacity_entropy::NAME,
+                Arc::new(|weight| Box::new(OpacityEntropy { weight })),
+            ),
+            (
+                builtin::scale_anisotropy::NAME,
+                Arc::new(|weight| Box::new(ScaleAnisotropy { weight })),
+            ),
+        ];
+        for (name, maker) in builtin {
+            // Three distinct term names.
+            let _ = r.makers.register(name, maker);
+        }
         r
     }
 
     /// Registers `maker` under `name`: a config entry `"name": w` adds `maker(w)`,
     /// which must be named `name` and weigh `w` (the objective refuses it otherwise).
-    /// Panics if `name` is taken or not a term name ([`name_problem`]): both are
-    /// mistakes in the program, not in its input.
-    pub fn register<F>(&mut self, name: &str, maker: F)
+    /// Refuses a name that is taken, malformed or reserved for the photometric loss
+    /// and the log's columns ([`name_problem`]).
+    pub fn register<F>(&mut self, name: &str, maker: F) -> Result<(), String>
     where
         F: Fn(f64) -> Box<dyn Term<T>> + Send + Sync + 'static,
     {
         if let Some(problem) = name_problem(name) {
-            panic!("TermRegistry::register: {problem}");
+            return Err(problem);
         }
-        assert!(
-            !self.makers.contains_key(name),
-            "TermRegistry::register: a term named `{name}` is already registered"
-        );
-        self.makers.insert(name.to_string(), Arc::new(maker));
+        self.makers.register(name, Arc::new(maker))
     }
 
     /// Registers a term written as a function of the context (the shortest form):
     /// `registry.register_fn("alpha_l1", |ctx| ctx.alpha().mean())`; a config gives
-    /// its weight. Panics as [`TermRegistry::register`].
-    pub fn register_fn<F>(&mut self, name: &str, f: F)
+    /// its weight. Refuses a name as [`TermRegistry::register`].
+    pub fn register_fn<F>(&mut self, name: &str, f: F) -> Result<(), String>
     where
         F: for<'a, 't> Fn(&'a TermCtx<'t, T>) -> Var<'t, T> + Send + Sync + 'static,
     {
@@ -79,24 +87,24 @@ impl<T: Float> TermRegistry<T> {
             Box::new(FnTerm::new(&owned, weight, move |ctx: &TermCtx<'_, T>| {
                 f(ctx)
             }))
-        });
+        })
     }
 
-    /// The registered names, sorted.
+    /// The registered names, in registration order.
     pub fn names(&self) -> impl Iterator<Item = &str> {
-        self.makers.keys().map(String::as_str)
+        self.makers.names().into_iter()
     }
 
     /// The term `name` with `weight`, if `name` is registered.
     pub fn make(&self, name: &str, weight: f64) -> Option<Box<dyn Term<T>>> {
-        self.makers.get(name).map(|maker| maker(weight))
+        self.makers.get(name).ok().map(|maker| maker(weight))
     }
 
     /// The names in `terms` (a config's `terms`) that are not registered, sorted.
     pub fn missing<'a>(&self, terms: &'a BTreeMap<String, f64>) -> Vec<&'a str> {
         terms
             .keys()
-            .filter(|n| !self.makers.contains_key(*n))
+            .filter(|n| !self.makers.contains(n))
             .map(String::as_str)
             .collect()
     }
@@ -140,14 +148,15 @@ mod tests {
     #[test]
     fn a_registered_function_is_made_with_the_config_weight_and_evaluates() {
         let mut r = TermRegistry::<f64>::builtin();
-        r.register_fn("render_mean", |ctx| ctx.render.mean());
+        r.register_fn("render_mean", |ctx| ctx.render.mean())
+            .expect("a new name");
         assert_eq!(
             r.names().collect::<Vec<_>>(),
             [
                 "depth_tv",
                 "opacity_entropy",
-                "render_mean",
-                "scale_anisotropy"
+                "scale_anisotropy",
+                "render_mean"
             ]
         );
         let term = r.make("render_mean", 0.25).expect("registered");
@@ -182,14 +191,11 @@ mod tests {
     }
 
     #[test]
-    #[should_panic(expected = "already registered")]
-    fn a_name_cannot_be_registered_twice() {
-        TermRegistry::<f32>::builtin().register_fn("depth_tv", |ctx| ctx.render.mean());
-    }
-
-    #[test]
-    #[should_panic(expected = "reserved")]
-    fn a_photometric_name_cannot_be_registered() {
-        TermRegistry::<f32>::builtin().register_fn("l1", |ctx| ctx.render.mean());
+    fn a_taken_or_reserved_name_is_refused() {
+        let mut r = TermRegistry::<f32>::builtin();
+        let taken = r.register_fn("depth_tv", |ctx| ctx.render.mean());
+        assert!(taken.expect_err("taken").contains("already registered"));
+        let reserved = r.register_fn("l1", |ctx| ctx.render.mean());
+        assert!(reserved.expect_err("reserved").contains("reserved"));
     }
 }

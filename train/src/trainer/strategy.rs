@@ -19,8 +19,9 @@
 //! with the run); state of its own is checkpointed through [`Strategy::state`] and
 //! [`Strategy::load_state`].
 
-use std::collections::BTreeMap;
 use std::sync::Arc;
+
+use maaf_io::Registry;
 
 use serde_json::Value;
 
@@ -193,14 +194,14 @@ pub type StrategyMaker = dyn Fn(&TrainConfig) -> Result<Box<dyn Strategy>, Strin
 /// (`maaf::cli::Maaf::strategy`). Cloning shares the makers.
 #[derive(Clone)]
 pub struct StrategyRegistry {
-    makers: BTreeMap<String, Arc<StrategyMaker>>,
+    makers: Registry<StrategyMaker>,
 }
 
 impl StrategyRegistry {
     /// The built-in strategies.
     pub fn builtin() -> Self {
         let mut r = StrategyRegistry {
-            makers: BTreeMap::new(),
+            makers: Registry::new("strategy (densify.strategy)", "maaf::cli::Maaf::strategy"),
         };
         let _ = r.register("default", |_| Ok(Box::new(DefaultStrategy)));
         let _ = r.register("sensitivity", |_| {
@@ -209,27 +210,18 @@ impl StrategyRegistry {
         r
     }
 
-    /// Adds the strategy `maker` makes under `name` (1 to 64 letters, digits or
-    /// `_`); refuses a name already registered or not a strategy name.
+    /// Adds the strategy `maker` makes under `name`; refuses a name already
+    /// registered or not 1 to 64 letters, digits or `_` ([`Registry::register`]).
     pub fn register<F>(&mut self, name: &str, maker: F) -> Result<(), String>
     where
         F: Fn(&TrainConfig) -> Result<Box<dyn Strategy>, String> + Send + Sync + 'static,
     {
-        if !maaf_io::is_plugin_name(name) {
-            return Err(format!(
-                "`{name}` is not a strategy name (1 to 64 letters, digits or _)"
-            ));
-        }
-        if self.makers.contains_key(name) {
-            return Err(format!("strategy `{name}` is already registered"));
-        }
-        self.makers.insert(name.to_string(), Arc::new(maker));
-        Ok(())
+        self.makers.register(name, Arc::new(maker))
     }
 
-    /// The registered names, sorted.
+    /// The registered names, in registration order.
     pub fn names(&self) -> Vec<&str> {
-        self.makers.keys().map(String::as_str).collect()
+        self.makers.names()
     }
 
     /// The name of the strategy `config` runs: `densify.strategy`, else the built-in
@@ -245,26 +237,17 @@ impl StrategyRegistry {
     /// Refuses (`what`: the config's file or section) a config whose strategy is not
     /// registered, naming it and the registered ones.
     pub fn check(&self, config: &TrainConfig, what: &str) -> Result<(), crate::Error> {
-        let name = Self::name_for(config);
-        if self.makers.contains_key(name) {
-            return Ok(());
-        }
-        Err(crate::Error::Input(format!(
-            "{what}: {}",
-            maaf_io::unknown_name(
-                "densify.strategy",
-                name,
-                &self.names(),
-                "maaf::cli::Maaf::strategy"
-            )
-        )))
+        (self.makers.get(Self::name_for(config)))
+            .map(|_| ())
+            .map_err(|e| crate::Error::Input(format!("{what}: {e}")))
     }
 
     /// The strategy `config` names, made by its maker (whose error names the field).
     pub fn build(&self, config: &TrainConfig) -> Result<Box<dyn Strategy>, crate::Error> {
         self.check(config, "config")?;
         let name = Self::name_for(config);
-        let strategy = self.makers[name](config)
+        let maker = self.makers.get(name).map_err(crate::Error::Input)?;
+        let strategy = maker(config)
             .map_err(|e| crate::Error::Input(format!("config: densify.strategy `{name}`: {e}")))?;
         Ok(strategy)
     }

@@ -224,7 +224,9 @@ fn a_run_with_its_own_term_loads_for_rendering_and_trains_only_with_the_term() {
     config.val_every = 0;
     config.terms.insert("alpha_mean".into(), 0.01);
     let mut registry = TermRegistry::builtin();
-    registry.register_fn("alpha_mean", |ctx| ctx.alpha().mean());
+    registry
+        .register_fn("alpha_mean", |ctx| ctx.alpha().mean())
+        .expect("a new name");
     let plugins = Plugins::with_terms(&registry);
     train_run_with_plugins(&data, config, &dir, false, &plugins).expect("trains with the term");
     let log = std::fs::read_to_string(dir.join("log.csv")).expect("log");
