@@ -1,9 +1,11 @@
 //! A sampling-rate filter of your own in the whole `maaf` command line, written only
 //! against maaf's public API: a "median" static filter, Mip-Splatting's Eq. 2 with
 //! the median of `f / d` over the training cameras that see a Gaussian instead of
-//! the maximum (a wider filter wherever the cameras disagree). It implements
-//! `SamplingFilter` and is registered under the name `median`, which a training
-//! config then names like a built-in filter:
+//! the maximum (a wider filter wherever the cameras disagree); its own option
+//! `quantile` (default 0.5, `"filter": {"kind": "median", "options": {"quantile":
+//! 0.25}}`) picks another order statistic. It implements `SamplingFilter` and is
+//! registered under the name `median`, which a training config then names like a
+//! built-in filter:
 //!
 //! ```text
 //! cargo run --release --example custom_filter -- train --data DATA --out RUN \
@@ -21,8 +23,11 @@ use maaf::filter::{FilterConfig, FilterError, FilterInputs, FilterState, Samplin
 
 // ---- the user's filter ----
 
-/// Static nu = the median over the cameras that see the centre of `f / d`.
-struct MedianFilter;
+/// Static nu = the `quantile` (0.5: the median) over the cameras that see the
+/// centre of `f / d`.
+struct MedianFilter {
+    quantile: f64,
+}
 
 impl SamplingFilter for MedianFilter {
     fn name(&self) -> &str {
@@ -46,7 +51,11 @@ impl SamplingFilter for MedianFilter {
                 let mut rates: Vec<f32> =
                     viewers.iter().filter_map(|v| v.sampling_rate(p)).collect();
                 rates.sort_by(f32::total_cmp);
-                rates.get(rates.len() / 2).copied().unwrap_or(0.0)
+                let at = (self.quantile * rates.len() as f64) as usize;
+                rates
+                    .get(at.min(rates.len().saturating_sub(1)))
+                    .copied()
+                    .unwrap_or(0.0)
             })
             .collect();
         // Unseen Gaussians take the smallest rate seen (Mip-Splatting's rule).
@@ -65,8 +74,24 @@ impl SamplingFilter for MedianFilter {
     }
 }
 
+/// The filter for a run: `quantile` from `filter.options` (0.5 when absent), in
+/// [0, 1].
+fn median(cfg: &FilterConfig) -> Result<Box<dyn SamplingFilter>, String> {
+    if let Some(unknown) = cfg.options.keys().find(|k| *k != "quantile") {
+        return Err(format!(
+            "`{unknown}` is not an option of the median filter (quantile)"
+        ));
+    }
+    let quantile = match cfg.options.get("quantile") {
+        None => 0.5,
+        Some(v) => v
+            .as_f64()
+            .filter(|q| (0.0..=1.0).contains(q))
+            .ok_or_else(|| format!("`quantile`: expected a number in [0, 1], got {v}"))?,
+    };
+    Ok(Box::new(MedianFilter { quantile }))
+}
+
 fn main() {
-    maaf::cli::Maaf::new()
-        .filter("median", |_| Box::new(MedianFilter))
-        .run()
+    maaf::cli::Maaf::new().filter("median", median).run()
 }

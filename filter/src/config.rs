@@ -234,6 +234,11 @@ pub struct FilterConfig {
     pub max_views: usize,
     /// When to recompute.
     pub refresh: RefreshSchedule,
+    /// A filter of one's own's options (`"filter": {"kind": "NAME", "options":
+    /// {...}}`), for its factory to read and check, naming the field; the built-in
+    /// filters take none. Left out of the JSON when empty.
+    #[serde(skip_serializing_if = "serde_json::Map::is_empty")]
+    pub options: serde_json::Map<String, serde_json::Value>,
 }
 
 impl Default for FilterConfig {
@@ -256,6 +261,7 @@ impl Default for FilterConfig {
             density_floor: 1e-30,
             max_views: 2048,
             refresh: RefreshSchedule::default(),
+            options: serde_json::Map::new(),
         }
     }
 }
@@ -306,6 +312,15 @@ impl FilterConfig {
             && let Some(problem) = name_problem(name)
         {
             return Err(bad("kind", problem));
+        }
+        if !matches!(self.kind, FilterKind::Custom(_)) && !self.options.is_empty() {
+            return Err(bad(
+                "options",
+                format!(
+                    "the built-in filter `{}` takes no options (options are for a filter of one's own)",
+                    self.filter_name()
+                ),
+            ));
         }
         let positive = [
             ("s3d", self.s3d),

@@ -56,6 +56,11 @@ pub struct DensifyConfig {
     /// `"sensitivity"`, or a program's own: `maaf::cli::Maaf::strategy`); `null`
     /// chooses `"sensitivity"` when `prune.every` > 0, else `"default"`.
     pub strategy: Option<String>,
+    /// A strategy of one's own's options (`"densify": {"strategy": "NAME",
+    /// "options": {...}}`), for its maker to read and check, naming the field; the
+    /// built-in strategies take none. Left out of the JSON when empty.
+    #[serde(skip_serializing_if = "serde_json::Map::is_empty")]
+    pub options: serde_json::Map<String, serde_json::Value>,
 }
 
 impl Default for DensifyConfig {
@@ -74,6 +79,7 @@ impl Default for DensifyConfig {
             max_screen_size: 0.0,
             max_gaussians: 60_000,
             strategy: None,
+            options: serde_json::Map::new(),
         }
     }
 }

@@ -116,7 +116,8 @@ impl Maaf {
     }
 
     /// Registers a sampling-rate filter of one's own under `name`, made by `factory`
-    /// from the run's filter settings: `maaf train --filter NAME` or a config's
+    /// from the run's filter settings (its own under `filter.options`, which it
+    /// checks, an error naming the option): `maaf train --filter NAME` or a config's
     /// `"filter": {"kind": "NAME"}` trains with it, `config.json` and every
     /// checkpoint record the name, `train --resume` of such a run needs a program
     /// that registers it, and `eval` and `report` label the run by it
@@ -124,7 +125,7 @@ impl Maaf {
     /// or is not 1 to 64 letters, digits or `_`.
     pub fn filter<F>(mut self, name: &str, factory: F) -> Self
     where
-        F: Fn(&FilterConfig) -> Box<dyn SamplingFilter> + Send + Sync + 'static,
+        F: Fn(&FilterConfig) -> Result<Box<dyn SamplingFilter>, String> + Send + Sync + 'static,
     {
         if let Err(e) = self.plugins.filters.register(name, factory) {
             panic!("Maaf::filter: {e}");
@@ -133,7 +134,8 @@ impl Maaf {
     }
 
     /// Registers a densification strategy of one's own under `name`, made by
-    /// `factory` from the run's config (an error names the field): a config's
+    /// `factory` from the run's config (its own options under `densify.options`; an
+    /// error names the field): a config's
     /// `"densify": {"strategy": "NAME"}` trains with it, and its
     /// [`Strategy::state`] is saved in every checkpoint so that `train --resume`
     /// continues it bit for bit (`examples/custom_strategy.rs`). Panics if `name` is

@@ -61,6 +61,10 @@ fn from_code() -> BTreeMap<(Kind, String), Value> {
     for (key, value) in json_leaves(&config_json(&TrainConfig::default())) {
         keys.insert((Kind::Saro, key), value);
     }
+    // Plug-in options are left out of the JSON while empty, as they are by default.
+    for key in ["densify.options", "filter.options"] {
+        keys.insert((Kind::Saro, key.to_string()), Value::Object(Default::default()));
+    }
     for (kind, name) in [(Kind::Deform, "deform"), (Kind::Track, "track")] {
         let other = TrainConfig {
             model: ModelConfig::default_of(name).expect("a built-in kind"),

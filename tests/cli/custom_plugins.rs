@@ -125,13 +125,26 @@ fn killed_and_resumed(
 #[test]
 fn a_filter_of_ones_own_is_named_by_config_resumes_bit_identical_and_is_labelled_by_name() {
     let fx = fixture("plugin_filter");
-    let settings = r#""filter": {"kind": "median", "refresh": {"start": 2, "every": 2}},
+    let settings = r#""filter": {"kind": "median", "refresh": {"start": 2, "every": 2},
+            "options": {"quantile": 0.25}},
         "densify": {"from": 2, "until": 9, "every": 2, "grad_threshold": 1e-6}"#;
     let needles = ["filter `median`", "not registered", "mip3d", "Maaf::filter"];
     let (reference, killed) = killed_and_resumed("custom_filter", &fx, settings, &needles);
-    assert_eq!(
-        json(&reference.join("config.json"))["filter"]["kind"],
-        "median"
+    let filter = &json(&reference.join("config.json"))["filter"];
+    assert_eq!(filter["kind"], "median");
+    assert_eq!(filter["options"]["quantile"], 0.25, "{filter}");
+    // The filter checks its own options, naming the one at fault.
+    refused_config(
+        &example("custom_filter"),
+        &fx,
+        "bad_quantile",
+        r#""filter": {"kind": "median", "options": {"quantile": 2}}"#,
+        &[
+            "`options`",
+            "filter `median`",
+            "`quantile`",
+            "[0, 1], got 2",
+        ],
     );
     assert_eq!(
         json(&killed.join("model/state.json"))["config"]["filter"]["kind"],
@@ -172,21 +185,31 @@ fn a_filter_of_ones_own_is_named_by_config_resumes_bit_identical_and_is_labelled
 fn a_strategy_of_ones_own_is_named_by_config_and_its_state_resumes_with_it() {
     let fx = fixture("plugin_strategy");
     let settings = r#""filter": {"kind": "mip3d"},
-        "densify": {"strategy": "budgeted_growth", "every": 2}"#;
+        "densify": {"strategy": "budgeted_growth", "every": 2,
+            "options": {"budget": 15, "lifetime": 40}}"#;
     let needles = [
         "strategy (densify.strategy) `budgeted_growth`",
         "not registered",
         "default, sensitivity",
     ];
     let (reference, killed) = killed_and_resumed("custom_strategy", &fx, settings, &needles);
-    // Refinements at 2, 4, 6 and 8 clone 20, 20, 10 and 0 (a lifetime of 50): the
-    // count is the strategy's own state, saved with every checkpoint.
+    // Refinements at 2, 4, 6 and 8 clone 15, 15, 10 and 0 (its options: a budget of
+    // 15, a lifetime of 40): the count is the strategy's own state, saved with every
+    // checkpoint.
     for run in [&reference, &killed] {
         let state = json(&run.join("model/state.json"));
-        assert_eq!(state["strategy"]["cloned"], 50, "{}", state["strategy"]);
+        assert_eq!(state["strategy"]["cloned"], 40, "{}", state["strategy"]);
     }
     let at4 = json(&reference.join("checkpoints/iter_000004/state.json"));
-    assert_eq!(at4["strategy"]["cloned"], 40, "{}", at4["strategy"]);
+    assert_eq!(at4["strategy"]["cloned"], 30, "{}", at4["strategy"]);
+    // Its options are its own to check, naming the one at fault.
+    refused_config(
+        &example("custom_strategy"),
+        &fx,
+        "bad_budget",
+        r#""densify": {"strategy": "budgeted_growth", "every": 2, "options": {"budget": -1}}"#,
+        &["densify.options.budget", "expected a count, got -1"],
+    );
     // Its maker refuses a config it cannot run, naming the field.
     refused_config(
         &example("custom_strategy"),

@@ -203,8 +203,12 @@ impl StrategyRegistry {
         let mut r = StrategyRegistry {
             makers: Registry::new("strategy (densify.strategy)", "maaf::cli::Maaf::strategy"),
         };
-        let _ = r.register("default", |_| Ok(Box::new(DefaultStrategy)));
-        let _ = r.register("sensitivity", |_| {
+        let _ = r.register("default", |c| {
+            no_options(c, "default")?;
+            Ok(Box::new(DefaultStrategy))
+        });
+        let _ = r.register("sensitivity", |c| {
+            no_options(c, "sensitivity")?;
             Ok(Box::new(SensitivityPruning::default()))
         });
         r
@@ -251,6 +255,16 @@ impl StrategyRegistry {
             .map_err(|e| crate::Error::Input(format!("config: densify.strategy `{name}`: {e}")))?;
         Ok(strategy)
     }
+}
+
+/// Refuses `densify.options` for a built-in strategy, which has none.
+fn no_options(config: &TrainConfig, name: &str) -> Result<(), String> {
+    if config.densify.options.is_empty() {
+        return Ok(());
+    }
+    Err(format!(
+        "densify.options: the built-in strategy `{name}` takes no options (options are for a strategy of one's own)"
+    ))
 }
 
 impl Trainer {
@@ -311,6 +325,10 @@ mod tests {
             reg.register("no name", |_| Ok(Box::new(DefaultStrategy)))
                 .is_err()
         );
+        config.densify.strategy = Some("default".into());
+        config.densify.options.insert("budget".into(), 20.into());
+        let err = reg.build(&config).err().expect("options").to_string();
+        assert!(err.contains("`default` takes no options"), "{err}");
         // Old configs (no key) read as before; the key is written as null.
         let json = serde_json::to_value(TrainConfig::default()).expect("json");
         assert!(json["densify"]["strategy"].is_null());
