@@ -63,7 +63,10 @@ fn from_code() -> BTreeMap<(Kind, String), Value> {
     }
     // Plug-in options are left out of the JSON while empty, as they are by default.
     for key in ["densify.options", "filter.options"] {
-        keys.insert((Kind::Saro, key.to_string()), Value::Object(Default::default()));
+        keys.insert(
+            (Kind::Saro, key.to_string()),
+            Value::Object(Default::default()),
+        );
     }
     for (kind, name) in [(Kind::Deform, "deform"), (Kind::Track, "track")] {
         let other = TrainConfig {

@@ -11,6 +11,7 @@
 
 mod background;
 mod best;
+mod branch;
 pub mod camera_colour;
 mod checkpoint;
 mod cpu_clock;
@@ -43,12 +44,12 @@ pub use checkpoint::{
 };
 pub use densify::{DensifyPlan, DensifyStats, ViewGrad, plan as plan_densify};
 
+pub use branch::{branch_run, branch_run_with_plugins};
 pub use prune::{keep_highest, removal_sensitivity, sensitivity_scores};
 pub use reset::{Liveness, opacity_caps};
 pub use resume::{checkpoints_newest_first, load_newest, truncate_log};
 pub use run::{
-    BUDGET_FILE, RunSummary, branch_run, branch_run_with_plugins, checkpoint_dir, train_run,
-    train_run_with, train_run_with_plugins,
+    BUDGET_FILE, RunSummary, checkpoint_dir, train_run, train_run_with, train_run_with_plugins,
 };
 pub use state::TrainState;
 pub use strategy::{

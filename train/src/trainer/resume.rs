@@ -5,6 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
+use super::TrainConfig;
 use crate::{Error, write_atomic};
 
 /// The complete checkpoint folders `checkpoints/iter_N` (temporaries excluded).
@@ -116,6 +117,60 @@ pub fn truncate_log(
         .map_err(|e| Error::Input(format!("{}: {e}", path.display())))?;
     write_atomic(path, &kept)?;
     Ok(found)
+}
+
+/// Refuses a resume whose settings (`wanted`, from `RUN/config.json`) differ from the
+/// checkpoint's (`saved`) anywhere but the iteration budget: a resumed run continues
+/// with the checkpoint's settings, so an edited `config.json` would otherwise be
+/// silently put back. Names the first differing field and both values.
+pub(super) fn same_settings(
+    saved: &TrainConfig,
+    wanted: &TrainConfig,
+    dir: &Path,
+    out: &Path,
+) -> Result<(), Error> {
+    let value = |c: &TrainConfig| {
+        let mut c = c.clone();
+        c.iterations = 0;
+        serde_json::to_value(&c).map_err(|e| Error::Input(format!("config: {e}")))
+    };
+    if let Some((field, ours, theirs)) = first_difference(&value(wanted)?, &value(saved)?, "") {
+        return Err(Error::Input(format!(
+            "{}: `{field}` is {ours} but the checkpoint {} was trained with {theirs}; a resumed run keeps its settings (put it back, or start a new run from the checkpoint with --from)",
+            out.join("config.json").display(),
+            dir.display()
+        )));
+    }
+    Ok(())
+}
+
+/// The first path (`a.b.c`) where two JSON values differ, with both values.
+fn first_difference(
+    a: &serde_json::Value,
+    b: &serde_json::Value,
+    path: &str,
+) -> Option<(String, String, String)> {
+    use serde_json::Value;
+    if let (Value::Object(x), Value::Object(y)) = (a, b) {
+        let mut keys: Vec<&String> = x.keys().chain(y.keys()).collect();
+        keys.sort_unstable();
+        keys.dedup();
+        return keys.into_iter().find_map(|k| {
+            let sub = if path.is_empty() {
+                k.clone()
+            } else {
+                format!("{path}.{k}")
+            };
+            match (x.get(k), y.get(k)) {
+                (Some(u), Some(v)) => first_difference(u, v, &sub),
+                (u, v) => {
+                    let show = |w: Option<&Value>| w.map_or("absent".into(), Value::to_string);
+                    Some((sub, show(u), show(v)))
+                }
+            }
+        });
+    }
+    (a != b).then(|| (path.to_string(), a.to_string(), b.to_string()))
 }
 
 #[cfg(test)]

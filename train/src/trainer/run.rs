@@ -9,6 +9,7 @@ use serde::{Deserialize, Serialize};
 
 use super::best::{BestSoFar, Chosen};
 use super::log::{LogLayout, RowStats, csv_line};
+use super::resume::same_settings;
 use super::{
     Timings, TrainConfig, Trainer, checkpoints_newest_first, load_checkpoint_with_plugins,
     load_newest, repair_run_dir, save_checkpoint, truncate_log,
@@ -176,7 +177,7 @@ fn check_unrecorded_data(out: &Path, data: &Dataset) -> Result<(), Error> {
 /// it into `RUN/backdrop` first (a run of its own with
 /// [`TrainConfig::backdrop_layer`]'s settings; resumed when cut short, left as it
 /// is when finished), then puts it behind `trainer` ([`Trainer::set_backdrop`]).
-fn attach_backdrop(
+pub(super) fn attach_backdrop(
     trainer: &mut Trainer,
     data: &Dataset,
     out: &Path,
@@ -206,7 +207,7 @@ fn attach_backdrop(
 }
 
 /// The exclusive lock of the run folder `out` for a training ([`maaf_io::RunLock`]).
-fn lock_run(out: &Path) -> Result<maaf_io::RunLock, Error> {
+pub(super) fn lock_run(out: &Path) -> Result<maaf_io::RunLock, Error> {
     let doing = format!("trained (pid {})", std::process::id());
     maaf_io::RunLock::exclusive(out, &doing).map_err(|e| Error::Input(e.to_string()))
 }
@@ -221,123 +222,6 @@ fn check_budget(iteration: usize, budget: usize, dir: &Path) -> Result<(), Error
         )));
     }
     Ok(())
-}
-
-/// Refuses a resume whose settings (`wanted`, from `RUN/config.json`) differ from the
-/// checkpoint's (`saved`) anywhere but the iteration budget: a resumed run continues
-/// with the checkpoint's settings, so an edited `config.json` would otherwise be
-/// silently put back. Names the first differing field and both values.
-fn same_settings(
-    saved: &TrainConfig,
-    wanted: &TrainConfig,
-    dir: &Path,
-    out: &Path,
-) -> Result<(), Error> {
-    let value = |c: &TrainConfig| {
-        let mut c = c.clone();
-        c.iterations = 0;
-        serde_json::to_value(&c).map_err(|e| Error::Input(format!("config: {e}")))
-    };
-    if let Some((field, ours, theirs)) = first_difference(&value(wanted)?, &value(saved)?, "") {
-        return Err(Error::Input(format!(
-            "{}: `{field}` is {ours} but the checkpoint {} was trained with {theirs}; a resumed run keeps its settings (put it back, or start a new run from the checkpoint with --from)",
-            out.join("config.json").display(),
-            dir.display()
-        )));
-    }
-    Ok(())
-}
-
-/// The first path (`a.b.c`) where two JSON values differ, with both values.
-fn first_difference(
-    a: &serde_json::Value,
-    b: &serde_json::Value,
-    path: &str,
-) -> Option<(String, String, String)> {
-    use serde_json::Value;
-    if let (Value::Object(x), Value::Object(y)) = (a, b) {
-        let mut keys: Vec<&String> = x.keys().chain(y.keys()).collect();
-        keys.sort_unstable();
-        keys.dedup();
-        return keys.into_iter().find_map(|k| {
-            let sub = if path.is_empty() {
-                k.clone()
-            } else {
-                format!("{path}.{k}")
-            };
-            match (x.get(k), y.get(k)) {
-                (Some(u), Some(v)) => first_difference(u, v, &sub),
-                (u, v) => {
-                    let show = |w: Option<&Value>| w.map_or("absent".into(), Value::to_string);
-                    Some((sub, show(u), show(v)))
-                }
-            }
-        });
-    }
-    (a != b).then(|| (path.to_string(), a.to_string(), b.to_string()))
-}
-
-/// A new run in `out` that starts from another run's checkpoint folder `from`
-/// (`RUN/checkpoints/iter_N` or `RUN/model`) with `config`, its own settings
-/// ([`Trainer::branch_from`]): iteration, parameters, Adam moments, statistics,
-/// observations, filter state and the training time so far come from the
-/// checkpoint; `log.csv` starts at the branch iteration. Two branches of one
-/// checkpoint share their first iterations bit for bit, so a late-stage option is
-/// compared without training the prefix twice.
-pub fn branch_run(
-    data: &Dataset,
-    config: TrainConfig,
-    out: &Path,
-    from: &Path,
-) -> Result<RunSummary, Error> {
-    branch_run_with_plugins(data, config, out, from, &Plugins::builtin(), false)
-}
-
-/// [`branch_run`] with the registries of `plugins` ([`train_run_with_plugins`]).
-/// Unless `other_data`, `data` must be the data set the checkpoint was trained on
-/// ([`maaf_scene::run_data::check_checkpoint_data`]: its run's `data.json`, else its
-/// scene record); `other_data` branches onto another data set on purpose.
-pub fn branch_run_with_plugins(
-    data: &Dataset,
-    config: TrainConfig,
-    out: &Path,
-    from: &Path,
-    plugins: &Plugins,
-    other_data: bool,
-) -> Result<RunSummary, Error> {
-    let _lock = lock_run(out)?;
-    if !other_data {
-        maaf_scene::run_data::check_checkpoint_data(from, data).map_err(|e| match e {
-            Error::Input(m) => {
-                Error::Input(format!("{m} (to branch onto it on purpose: --other-data)"))
-            }
-            other => other,
-        })?;
-    }
-    let mut trainer = Trainer::with_plugins(data, config, plugins)?;
-    let fresh = trainer.branch_from(from)?;
-    attach_backdrop(&mut trainer, data, out, plugins)?;
-    if trainer.iteration >= trainer.config.iterations {
-        return Err(Error::Input(format!(
-            "{}: the checkpoint is at iteration {}, so a branch from it needs a budget above {} iterations (this one is {})",
-            from.display(),
-            trainer.iteration,
-            trainer.iteration,
-            trainer.config.iterations
-        )));
-    }
-    log::info!(
-        "branching from {} at iteration {} of {}{}",
-        from.display(),
-        trainer.iteration,
-        trainer.config.iterations,
-        if fresh.is_empty() {
-            String::new()
-        } else {
-            format!(" (starting fresh: {})", fresh.join(", "))
-        }
-    );
-    run_trainer(trainer, out, false, Some(data), None)
 }
 
 /// [`train_run`] for a trainer the caller built ([`Trainer::with_model`] for a
@@ -399,7 +283,7 @@ fn write_plan(out: &Path, plan: &BudgetPlan) -> Result<(), Error> {
 /// refused start writes nothing into the run folder. With `tail` (a new run with a
 /// wall-clock budget) the iteration count is set again when densification ends, and
 /// `config.json` and `budget.json` rewritten.
-fn run_trainer(
+pub(super) fn run_trainer(
     mut trainer: Trainer,
     out: &Path,
     resume: bool,
