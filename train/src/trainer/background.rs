@@ -43,8 +43,8 @@ impl Trainer {
             return (self.background, None);
         }
         let b = random_background(self.config.seed, self.entry(iteration, slot));
-        let target = self.coverage[view].as_ref().map(|a| {
-            let gt = &self.gts[view];
+        let target = self.views.coverage[view].as_ref().map(|a| {
+            let gt = &self.views.gts[view];
             Tensor::from_vec(
                 recomposite(gt.data(), &a.data, self.background, b),
                 gt.shape(),
@@ -104,7 +104,7 @@ mod tests {
             target
                 .data()
                 .iter()
-                .zip(trainer.gts[view].data())
+                .zip(trainer.views.gts[view].data())
                 .any(|(x, y)| x != y)
         );
 

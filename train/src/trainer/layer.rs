@@ -32,7 +32,7 @@ impl Trainer {
     /// every training render of the model is composited over it from then on, as
     /// validation and evaluation do.
     pub fn set_backdrop(&mut self, scene: TrainedScene) {
-        let (camera_of_view, n) = camera_index(&self.cameras);
+        let (camera_of_view, n) = camera_index(&self.views.cameras);
         let mut first = vec![None; n];
         for (view, &c) in camera_of_view.iter().enumerate() {
             first[c].get_or_insert(view);
@@ -44,7 +44,9 @@ impl Trainer {
         let images = first
             .into_iter()
             .flatten()
-            .map(|view| scene.render_with(&self.cameras[view], self.view_times[view], &settings))
+            .map(|view| {
+                scene.render_with(&self.views.cameras[view], self.views.times[view], &settings)
+            })
             .collect();
         self.backdrop = Some(Layer {
             scene,

@@ -31,12 +31,12 @@ mod step;
 mod strategy;
 mod timed;
 mod validation;
-
-use std::sync::Arc;
+mod views;
 
 use maaf_autodiff::{OpProfile, PerGaussian, Tensor};
 use maaf_filter::{CameraTime, ObservationTable, SamplingFilter};
 use maaf_splat::Camera;
+use views::TrainViews;
 
 pub use best::{BEST_DIR, Chosen};
 pub use checkpoint::{
@@ -57,13 +57,13 @@ pub use strategy::{
     StrategyRegistry,
 };
 
-use crate::data::{Dataset, Image};
+use crate::data::Dataset;
 use crate::loss::Objective;
 use crate::models::Representation;
 use crate::{Error, Plugins};
 use maaf_scene::{
-    DensifyConfig, DensifyGradient, LossRegion, OpacityReset, SceneRecord, Timings, TrainConfig,
-    TrainedScene, camera_extent, model_init, observed_views, repair_run_dir, training_views,
+    DensifyConfig, DensifyGradient, OpacityReset, SceneRecord, Timings, TrainConfig, TrainedScene,
+    camera_extent, model_init, observed_views, repair_run_dir,
 };
 
 /// A trainer: the per-Gaussian [`TrainState`], the strategy and filter that change
@@ -109,15 +109,10 @@ pub struct Trainer {
     /// Whether the filter has been computed (at the first step, unless a checkpoint
     /// restored it).
     filter_ready: bool,
-    /// Time of each training view (the images live only in `gts`: a multi-view
-    /// video's thousands of views are not held twice).
-    view_times: Vec<f64>,
+    /// The training views: cameras, times, ground truth and what the config's
+    /// options need of them.
+    views: TrainViews,
     held_out: Vec<validation::HeldOut>,
-    gts: Vec<Tensor<f32>>,
-    /// Coverage (alpha) of each training view with transparency, kept only for
-    /// `random_background` ([`background`]).
-    coverage: Vec<Option<Arc<Image>>>,
-    cameras: Vec<Camera>,
     /// The training views the motion filter observes (`camera` is the view's index),
     /// the observation table's frames; none for the other filters.
     observed: Vec<CameraTime>,
@@ -127,11 +122,6 @@ pub struct Trainer {
     background: [f32; 3],
     /// The run's background layer and its renders behind the training views.
     backdrop: Option<layer::Layer>,
-    /// Each training view's foreground coverage, kept for `loss_region = background`.
-    masks: Vec<crate::data::Image>,
-    /// Each training view's rectangle around its foreground, for `loss_region =
-    /// foreground` (`None`: the whole view).
-    crops: Vec<Option<maaf_splat::Window>>,
     /// `(min, max)` of the data set's time stamps (the scene record's).
     time_range: (f64, f64),
 }
@@ -212,17 +202,15 @@ impl Trainer {
                 config.background
             )));
         }
-        let views = training_views(data, &config)?;
-        let cameras: Vec<Camera> = views.iter().map(|v| v.camera.clone()).collect();
-        let extent = camera_extent(&cameras);
+        let views = TrainViews::load(data, &config)?;
+        let extent = camera_extent(&views.cameras);
         let n = model.rows();
         let sampling = plugins
             .filters
             .for_config(&config.filter)
             .map_err(|e| Error::Input(e.to_string()))?;
-        let view_times: Vec<f64> = views.iter().map(|v| v.time).collect();
         let (observed, observed_slot) =
-            observed_views(&view_times, sampling.observes(), config.filter.max_views);
+            observed_views(&views.times, sampling.observes(), config.filter.max_views);
         if observed.len() < views.len() && sampling.observes() {
             ::log::info!(
                 "motion filter: observing {} of {} training views (filter.max_views), {} B per Gaussian",
@@ -232,14 +220,6 @@ impl Trainer {
             );
         }
         let bounds = data.scene_bounds();
-        let gts = views.iter().map(|v| v.image.to_tensor()).collect();
-        let coverage = views
-            .iter()
-            .map(|v| v.coverage.clone().filter(|_| config.random_background))
-            .collect();
-        // The tensors are the trainer's copy: the data set's cached one would double
-        // the images' memory for the whole run.
-        data.evict(crate::data::Split::Train);
         let objective = Objective::for_run(
             config.lambda_dssim,
             model.as_ref(),
@@ -253,25 +233,10 @@ impl Trainer {
             config.train_scale,
             config.keep_best,
         )?;
-        let masks = match config.loss_region {
-            LossRegion::All => Vec::new(),
-            _ => region::training_masks(data, config.train_scale)?,
-        };
-        let crops = match config.loss_region {
-            LossRegion::Foreground => masks
-                .iter()
-                .map(|m| region::window_around(m, config.focus_margin))
-                .collect(),
-            _ => Vec::new(),
-        };
-        let masks = match config.loss_region {
-            LossRegion::Background => masks,
-            _ => Vec::new(),
-        };
         let camera_colour = config
             .camera_colour
             .enabled
-            .then(|| camera_colour::CameraColour::new(&cameras, config.camera_colour.lr));
+            .then(|| camera_colour::CameraColour::new(&views.cameras, config.camera_colour.lr));
         Ok(Trainer {
             camera_colour,
             state: TrainState::new(model, ObservationTable::for_frames(&observed, n)),
@@ -289,17 +254,12 @@ impl Trainer {
             filter_ready: false,
             background: data.background(),
             config,
-            view_times,
+            views,
             held_out,
-            gts,
-            coverage,
-            cameras,
             observed,
             observed_slot,
             extent,
             backdrop: None,
-            masks,
-            crops,
         })
     }
 
@@ -340,7 +300,7 @@ impl Trainer {
 
     /// Training cameras (at the training scale).
     pub fn cameras(&self) -> &[Camera] {
-        &self.cameras
+        &self.views.cameras
     }
 
     /// The deformed, filtered Gaussians at `time` as plain tensors
@@ -354,8 +314,8 @@ impl Trainer {
     /// the data set's time range and background.
     pub fn scene_record(&self) -> SceneRecord {
         SceneRecord {
-            cameras: self.cameras.clone(),
-            times: self.view_times.clone(),
+            cameras: self.views.cameras.clone(),
+            times: self.views.times.clone(),
             init_box: self.init_box,
             time_range: self.time_range,
             background: self.background,

@@ -23,7 +23,7 @@ impl FilterInputs for Inputs<'_> {
     }
 
     fn cameras(&self) -> &[Camera] {
-        &self.0.cameras
+        &self.0.views.cameras
     }
 
     fn observations(&self) -> &ObservationTable {
@@ -39,7 +39,7 @@ impl Trainer {
     /// observations must then match).
     pub fn set_filter(&mut self, filter: Box<dyn SamplingFilter>) {
         let (observed, slot) = observed_views(
-            &self.view_times,
+            &self.views.times,
             filter.observes(),
             self.config.filter.max_views,
         );
@@ -73,7 +73,7 @@ impl Trainer {
             let all = self.state.model.centres_at_times(&at);
             let result = self.state.observations.observe_all(
                 &self.observed,
-                &self.cameras,
+                &self.views.cameras,
                 &self.config.filter,
                 |t| {
                     let k = times.partition_point(|&x| x < t).min(all.len() - 1);

@@ -37,7 +37,7 @@ impl Trainer {
     /// seeded random order that is reshuffled every epoch; the order depends only on
     /// the seed and `k`, so a resumed run sees the same sequence.
     fn view_at(&self, k: usize) -> usize {
-        let n = self.view_times.len();
+        let n = self.views.times.len();
         let epoch = (k - 1) / n;
         let mut order: Vec<usize> = (0..n).collect();
         let mut rng = Pcg64::seed_from_u64(
@@ -239,8 +239,8 @@ impl Trainer {
             iteration: it,
             config: &self.config,
             extent: self.extent,
-            cameras: &self.cameras,
-            times: &self.view_times,
+            cameras: &self.views.cameras,
+            times: &self.views.times,
             settings: &settings,
         };
         let densified = self.strategy.refine(&mut self.state, &step);
@@ -261,8 +261,8 @@ impl Trainer {
             iteration,
             config: &self.config,
             extent: self.extent,
-            cameras: &self.cameras,
-            times: &self.view_times,
+            cameras: &self.views.cameras,
+            times: &self.views.times,
             settings: &settings,
         };
         super::sensitivity_scores(&self.state, &step)
@@ -363,7 +363,7 @@ impl Trainer {
         }
         if self.config.loss_region == LossRegion::Background {
             for ((fwd, gt), &vi) in fwds.iter().zip(&mut gts).zip(&views) {
-                *gt = background_target(gt, &fwd.render.image.value(), &self.masks[vi]);
+                *gt = background_target(gt, &fwd.render.image.value(), &self.views.masks[vi]);
             }
         }
         Batch {
@@ -391,8 +391,8 @@ impl Trainer {
         view: usize,
     ) -> (Forward<'t, f32>, Tensor<f32>, f64) {
         let (background, target) = self.view_target(iteration, slot, view);
-        let window = self.crops.get(view).copied().flatten();
-        let camera = &self.cameras[view];
+        let window = self.views.crops.get(view).copied().flatten();
+        let camera = &self.views.cameras[view];
         let background = match self.backdrop {
             Some(_) => [0.0; 3],
             None => background.map(f64::from),
@@ -402,14 +402,14 @@ impl Trainer {
             window,
             ..settings.clone()
         };
-        let time = self.view_times[view];
+        let time = self.views.times[view];
         let mut fwd = forward_bound(bound, &self.state.filter, camera, time, &settings);
         if let Some(layer) = &self.backdrop {
             let image = layer.image(view);
             let behind = window.map_or_else(|| image.clone(), |w| crop(image, &w));
             fwd.render.image = over_backdrop(fwd.render.image, fwd.render.alpha, behind);
         }
-        let gt = target.unwrap_or_else(|| self.gts[view].clone());
+        let gt = target.unwrap_or_else(|| self.views.gts[view].clone());
         match window {
             Some(w) => (fwd, crop(&gt, &w), share(&w, camera.width, camera.height)),
             None => (fwd, gt, 1.0),

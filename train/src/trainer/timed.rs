@@ -22,13 +22,14 @@ impl Trainer {
     pub(super) fn views_at_time(&self, iteration: usize, at: TrainingTime) -> Vec<usize> {
         let gap = |t: f64| (t - at.time).abs();
         let nearest = self
-            .view_times
+            .views
+            .times
             .iter()
             .copied()
             .map(gap)
             .fold(f64::INFINITY, f64::min);
-        let pool: Vec<usize> = (0..self.view_times.len())
-            .filter(|&v| gap(self.view_times[v]) == nearest)
+        let pool: Vec<usize> = (0..self.views.times.len())
+            .filter(|&v| gap(self.views.times[v]) == nearest)
             .collect();
         let batch = self.config.batch;
         (0..batch)
