@@ -44,6 +44,12 @@ pub struct State {
     /// before it existed (loaded unchecked).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tensors_crc32: Option<String>,
+    /// Whether the run's filter smoothed ([`maaf_filter::SamplingFilter::smooths`]:
+    /// the 2D Mip filter instead of the 3DGS dilation), so a run is rendered as it
+    /// trained without the filter's code; absent in checkpoints written before it
+    /// existed ([`crate::TrainedScene::smooths`] then infers it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub smooths: Option<bool>,
 }
 
 /// Prefix of the representation's buffers ([`maaf_models::TrainingHooks::buffers`]).

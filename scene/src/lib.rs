@@ -86,6 +86,11 @@ pub struct TrainedScene {
     /// The run's static background layer (`RUN/backdrop`), drawn behind the model
     /// ([`backdrop`]), when its config has one.
     pub backdrop: Option<Box<TrainedScene>>,
+    /// Whether the run's filter smoothed (the 2D Mip filter, [`render_settings`]):
+    /// as its checkpoint records it, or for a checkpoint from before that record,
+    /// what the built-in filter its config names does (a filter of one's own: that
+    /// its state is not "no filter").
+    pub smooths: bool,
 }
 
 /// Render settings of a run of `config` on `background` at `iteration`: the 2D Mip
@@ -143,10 +148,11 @@ pub fn model_dir(run: &Path) -> Result<PathBuf, Error> {
     Ok(model)
 }
 
-/// The built-in filter the run's config names, whose `observes` and `smooths` the
-/// trainer used; `None` for a program's own filter, whose code a trained scene does
-/// not have: what it did is read from its checkpoint instead (it observed if the
-/// checkpoint holds observations, it smooths unless its state is no filter).
+/// The built-in filter the run's config names, whose `observes` (and, for a
+/// checkpoint that does not record it, `smooths`) the trainer used; `None` for a
+/// program's own filter, whose code a trained scene does not have: what it did is
+/// read from its checkpoint instead (it observed if the checkpoint holds
+/// observations; it smoothed as recorded, or unless its state is no filter).
 fn builtin_filter(config: &TrainConfig) -> Option<Box<dyn SamplingFilter>> {
     FilterRegistry::builtin().for_config(&config.filter).ok()
 }
@@ -232,7 +238,14 @@ impl TrainedScene {
         };
         let state = opened.state;
         let layer_seconds = backdrop.as_ref().map_or(0.0, |b| b.train_seconds);
+        let smooths = state.smooths.unwrap_or_else(|| {
+            builtin_filter(&state.config).map_or_else(
+                || !matches!(state.filter, FilterState::None { .. }),
+                |filter| filter.smooths(),
+            )
+        });
         Ok(TrainedScene {
+            smooths,
             model,
             filter: state.filter,
             observations,
@@ -259,15 +272,11 @@ impl TrainedScene {
     /// The settings the run renders with ([`render_settings`] at its iteration, on
     /// its background).
     pub fn render_settings(&self) -> RenderSettings {
-        let smooths = builtin_filter(&self.config).map_or_else(
-            || !matches!(self.filter, FilterState::None { .. }),
-            |filter| filter.smooths(),
-        );
         render_settings(
             &self.config,
             self.record.background,
             self.iteration,
-            smooths,
+            self.smooths,
         )
     }
 

@@ -168,3 +168,67 @@ fn a_loaded_scene_renders_bit_identically_to_its_trainer() {
     let older = maaf_scene::checkpoint_read::Opened::read_state(&dir).expect("reads");
     assert_eq!(older.config.background, Background(WHITE));
 }
+
+/// A filter of one's own that keeps a static state but asks for the 3DGS dilation
+/// instead of the 2D Mip filter.
+struct StaticWithoutMip;
+
+impl maaf_filter::SamplingFilter for StaticWithoutMip {
+    fn name(&self) -> &str {
+        "static_no_mip"
+    }
+
+    fn smooths(&self) -> bool {
+        false
+    }
+
+    fn compute(
+        &self,
+        inputs: &dyn maaf_filter::FilterInputs,
+        cfg: &maaf_filter::FilterConfig,
+    ) -> Result<maaf_filter::FilterState, maaf_filter::FilterError> {
+        maaf_filter::StaticFilter.compute(inputs, cfg)
+    }
+}
+
+#[test]
+fn a_loaded_scene_renders_with_the_2d_filter_its_checkpoint_records() {
+    let tmp = TempDir::new("scene_smooths").expect("temp dir");
+    let data_dir = tmp.path().join("data");
+    synthetic::generate(&data_dir, &GenerateOptions::small(48, 4), &mut |_, _| {})
+        .expect("generate");
+    let data = Dataset::open(&data_dir, DatasetOptions::default()).expect("open");
+    let mut trainer = Trainer::new(&data, config("deform", FilterKind::Mip3d)).expect("trainer");
+    trainer.set_filter(Box::new(StaticWithoutMip));
+    for _ in 0..12 {
+        trainer.step();
+    }
+    assert!(matches!(
+        trainer.state.filter,
+        maaf_filter::FilterState::Mip3d { .. }
+    ));
+    let dir = tmp.path().join("model");
+    save_checkpoint(&trainer, &dir).expect("checkpoint");
+    // The state alone says "a 3D filter", which used to mean the 2D Mip filter too;
+    // the checkpoint records that this filter did not smooth.
+    let scene = TrainedScene::from_checkpoint(&dir, &ModelRegistry::builtin(), None).expect("load");
+    assert!(!scene.smooths);
+    assert_eq!(
+        scene.render_settings().filter2d,
+        trainer.render_settings(trainer.iteration).filter2d
+    );
+    let camera = data.camera(Split::Test, 0, 0.5).expect("test camera");
+    assert_eq!(
+        bits(&scene.render(&camera, 0.5)),
+        bits(&trainer_render(&trainer, &camera, 0.5))
+    );
+    // A checkpoint from before the record: the built-in filter its config names says.
+    let state_path = dir.join("state.json");
+    let mut state: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&state_path).expect("state")).expect("json");
+    assert_eq!(state["smooths"], false);
+    state.as_object_mut().expect("object").remove("smooths");
+    std::fs::write(&state_path, serde_json::to_vec(&state).expect("json")).expect("write");
+    let old = TrainedScene::from_checkpoint(&dir, &ModelRegistry::builtin(), None).expect("load");
+    assert!(old.smooths, "config names mip3d, which smooths");
+}

@@ -125,6 +125,7 @@ pub fn save_checkpoint(trainer: &Trainer, dir: &Path) -> Result<(), Error> {
         adam_steps,
         strategy: trainer.strategy_state(),
         tensors_crc32: Some(format!("{:08x}", crc32fast::hash(&blob))),
+        smooths: Some(trainer.sampling_filter().smooths()),
     };
     let json =
         serde_json::to_vec(&state).map_err(|e| Error::Input(format!("checkpoint state: {e}")))?;

@@ -328,6 +328,7 @@ impl Trainer {
     pub fn into_scene(self) -> TrainedScene {
         let record = self.scene_record();
         TrainedScene {
+            smooths: self.sampling.smooths(),
             train_seconds: self.timings.total()
                 + self
                     .backdrop
