@@ -26,25 +26,19 @@ pub struct FilterRegistry {
 impl FilterRegistry {
     /// The built-in filters under their config names.
     pub fn builtin() -> Self {
-        let mut entries: Registry<FilterConstructor> =
-            Registry::new("filter", "maaf::cli::Maaf::filter");
-        let builtin: [(&str, Arc<FilterConstructor>); 4] = [
-            ("none", Arc::new(|_| Ok(Box::new(NoFilter)))),
-            ("mip3d", Arc::new(|_| Ok(Box::new(StaticFilter)))),
-            (
-                "motion",
-                Arc::new(|_| Ok(Box::new(MotionFilter(MotionEstimator::Kde)))),
-            ),
-            (
-                "window_max",
-                Arc::new(|_| Ok(Box::new(MotionFilter(MotionEstimator::WindowMax)))),
-            ),
-        ];
-        for (name, make) in builtin {
-            // Four distinct well-formed names.
-            let _ = entries.register(name, make);
-        }
-        FilterRegistry { entries }
+        let mut r = FilterRegistry {
+            entries: Registry::new("filter", "maaf::cli::Maaf::filter"),
+        };
+        // Four distinct well-formed names: registering cannot fail.
+        let _ = r.register("none", |_| Ok(Box::new(NoFilter)));
+        let _ = r.register("mip3d", |_| Ok(Box::new(StaticFilter)));
+        let _ = r.register("motion", |_| {
+            Ok(Box::new(MotionFilter(MotionEstimator::Kde)))
+        });
+        let _ = r.register("window_max", |_| {
+            Ok(Box::new(MotionFilter(MotionEstimator::WindowMax)))
+        });
+        r
     }
 
     /// Adds a filter under `name` ([`Registry::register`]: refuses a name already

@@ -98,11 +98,6 @@ impl<P: ?Sized> Registry<P> {
     pub fn iter(&self) -> impl Iterator<Item = (&str, &Arc<P>)> {
         self.entries.iter().map(|(n, p)| (n.as_str(), p))
     }
-
-    /// What messages call a plug-in of this kind.
-    pub fn kind(&self) -> &'static str {
-        self.kind
-    }
 }
 
 #[cfg(test)]

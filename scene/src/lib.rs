@@ -224,7 +224,8 @@ impl TrainedScene {
             .build(&opened.state.model, config, &init)
             .map_err(|e| Error::Input(format!("{}: {e}", dir.display())))?;
         opened.load_model(model.as_mut(), dir, HashMap::new())?;
-        let observes = match builtin_filter(config) {
+        let builtin = builtin_filter(config);
+        let observes = match &builtin {
             Some(filter) => filter.observes(),
             None => opened.tensors()?.names().contains(&"observations"),
         };
@@ -239,7 +240,7 @@ impl TrainedScene {
         let state = opened.state;
         let layer_seconds = backdrop.as_ref().map_or(0.0, |b| b.train_seconds);
         let smooths = state.smooths.unwrap_or_else(|| {
-            builtin_filter(&state.config).map_or_else(
+            builtin.map_or_else(
                 || !matches!(state.filter, FilterState::None { .. }),
                 |filter| filter.smooths(),
             )

@@ -38,24 +38,16 @@ impl<T: Float> TermRegistry<T> {
         let mut r = TermRegistry {
             makers: Registry::new("term", "maaf::cli::Maaf::term"),
         };
-        let builtin: [(&str, Arc<TermMaker<T>>); 3] = [
-            (
-                builtin::depth_tv::NAME,
-                Arc::new(|weight| Box::new(DepthTv { weight })),
-            ),
-            (
-                builtin::opacity_entropy::NAME,
-                Arc::new(|weight| Box::new(OpacityEntropy { weight })),
-            ),
-            (
-                builtin::scale_anisotropy::NAME,
-                Arc::new(|weight| Box::new(ScaleAnisotropy { weight })),
-            ),
-        ];
-        for (name, maker) in builtin {
-            // Three distinct term names.
-            let _ = r.makers.register(name, maker);
-        }
+        // Three distinct term names: registering cannot fail.
+        let _ = r.register(builtin::depth_tv::NAME, |weight| {
+            Box::new(DepthTv { weight })
+        });
+        let _ = r.register(builtin::opacity_entropy::NAME, |weight| {
+            Box::new(OpacityEntropy { weight })
+        });
+        let _ = r.register(builtin::scale_anisotropy::NAME, |weight| {
+            Box::new(ScaleAnisotropy { weight })
+        });
         r
     }
 

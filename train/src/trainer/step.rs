@@ -13,7 +13,8 @@ use rand_pcg::Pcg64;
 use super::phase::PhaseClock;
 use super::region::{background_target, crop, share};
 use super::strategy::{RefineStep, StepInfo};
-use super::{DensifyGradient, Trainer, ViewGrad};
+use super::views::TrainViews;
+use super::{DensifyGradient, TrainConfig, Trainer, ViewGrad};
 use crate::loss::{Evaluated, ForwardTerms, batch_mean};
 use maaf_scene::LossRegion;
 use maaf_scene::backdrop::over_backdrop;
@@ -235,14 +236,7 @@ impl Trainer {
         let it = self.iteration;
         let mut clock = PhaseClock::start();
         let settings = self.render_settings(it);
-        let step = RefineStep {
-            iteration: it,
-            config: &self.config,
-            extent: self.extent,
-            cameras: &self.views.cameras,
-            times: &self.views.times,
-            settings: &settings,
-        };
+        let step = refine_step(it, &self.config, self.extent, &self.views, &settings);
         let densified = self.strategy.refine(&mut self.state, &step);
         self.timings.densification += clock.lap();
         let refresh = &self.config.filter.refresh;
@@ -257,15 +251,27 @@ impl Trainer {
     /// ([`super::sensitivity_scores`] over the training views).
     pub fn sensitivity_scores(&self, iteration: usize) -> Result<Vec<f64>, String> {
         let settings = self.render_settings(iteration);
-        let step = RefineStep {
-            iteration,
-            config: &self.config,
-            extent: self.extent,
-            cameras: &self.views.cameras,
-            times: &self.views.times,
-            settings: &settings,
-        };
+        let step = refine_step(iteration, &self.config, self.extent, &self.views, &settings);
         super::sensitivity_scores(&self.state, &step)
+    }
+}
+
+/// The record a strategy's refinement gets after `iteration` (from the trainer's
+/// fields, so the state and the strategy stay free to borrow mutably).
+fn refine_step<'a>(
+    iteration: usize,
+    config: &'a TrainConfig,
+    extent: f64,
+    views: &'a TrainViews,
+    settings: &'a RenderSettings,
+) -> RefineStep<'a> {
+    RefineStep {
+        iteration,
+        config,
+        extent,
+        cameras: &views.cameras,
+        times: &views.times,
+        settings,
     }
 }
 

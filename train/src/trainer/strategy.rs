@@ -285,10 +285,8 @@ impl Trainer {
         if state.is_null() {
             return Ok(());
         }
-        let name = self.strategy.name().to_string();
-        self.strategy
-            .load_state(state)
-            .map_err(|e| format!("strategy `{name}`: {e}"))
+        let loaded = self.strategy.load_state(state);
+        loaded.map_err(|e| format!("strategy `{}`: {e}", self.strategy.name()))
     }
 }
 
